@@ -1,0 +1,22 @@
+# One place that applies the project's standard to our own targets only:
+# C++20, warnings as errors. Nothing here leaks to dependencies or consumers.
+function(nurbsreg_apply_standard target)
+  target_compile_features(${target} PUBLIC cxx_std_20)
+  set_target_properties(${target} PROPERTIES CXX_EXTENSIONS OFF)
+  if(CMAKE_CXX_COMPILER_ID MATCHES "GNU|Clang")
+    target_compile_options(${target} PRIVATE -Wall -Wextra -Werror)
+  endif()
+endfunction()
+
+# nurbsreg_add_module(NAME <name> [DEPS <targets...>])
+# A static library from <name>/src/*.cpp with public headers in <name>/include,
+# exported as nurbsreg::<name>.
+function(nurbsreg_add_module name)
+  cmake_parse_arguments(ARG "" "" "PUBLIC_DEPS;PRIVATE_DEPS" ${ARGN})
+  file(GLOB sources CONFIGURE_DEPENDS "${CMAKE_CURRENT_SOURCE_DIR}/src/*.cpp")
+  add_library(nurbsreg_${name} STATIC ${sources})
+  add_library(nurbsreg::${name} ALIAS nurbsreg_${name})
+  target_include_directories(nurbsreg_${name} PUBLIC "${CMAKE_CURRENT_SOURCE_DIR}/include")
+  target_link_libraries(nurbsreg_${name} PUBLIC ${ARG_PUBLIC_DEPS} PRIVATE ${ARG_PRIVATE_DEPS})
+  nurbsreg_apply_standard(nurbsreg_${name})
+endfunction()
