@@ -6,6 +6,12 @@ function(nurbsreg_apply_standard target)
   if(CMAKE_CXX_COMPILER_ID MATCHES "GNU|Clang")
     target_compile_options(${target} PRIVATE -Wall -Wextra -Werror)
   endif()
+  if(CMAKE_CXX_COMPILER_ID STREQUAL "GNU")
+    # GCC 12 at -O3 reports these falsely on Eigen fixed-size arrays and std::string
+    # concatenation (GCC bugs 105329, 105651): still shown, not fatal.
+    target_compile_options(${target} PRIVATE -Wno-error=maybe-uninitialized -Wno-error=restrict
+                                             -Wno-error=array-bounds -Wno-error=stringop-overflow)
+  endif()
 endfunction()
 
 # nurbsreg_add_module(NAME <name> [DEPS <targets...>])
