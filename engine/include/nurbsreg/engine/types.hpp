@@ -2,6 +2,7 @@
 // Basic value types shared by every engine header.
 
 #include <Eigen/Core>
+#include <Eigen/Geometry>  // cross products, rotations: used throughout
 
 namespace nurbsreg::engine {
 

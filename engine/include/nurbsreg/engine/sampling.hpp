@@ -1,0 +1,34 @@
+#pragma once
+// Points on a model's surfaces: area-uniform sampling and robust unit normals. Used by
+// `nurbsreg synth`, the benchmarks and the tests. Sampling allocates (it is not a hot path).
+
+#include <cstdint>
+#include <vector>
+
+#include "nurbsreg/engine/model.hpp"
+
+namespace nurbsreg::engine {
+
+struct SurfaceSample {
+  int surface = 0;
+  double u = 0.0;
+  double v = 0.0;
+  Vec3 point = Vec3::Zero();
+  Vec3 normal = Vec3::UnitZ();
+};
+
+// Unit normal Su x Sv at (u, v). Where it vanishes (a pole of a collapsed edge, a cusp) the
+// normal is the limit taken from a point moved slightly into the domain interior.
+Vec3 surface_normal(const NurbsSurface& surface, double u, double v);
+
+// `count` samples distributed uniformly by area over all surfaces of the model, deterministic
+// for a given seed. The density is the area element |Su x Sv| integrated on a 16 x 16 grid of
+// cells per Bézier patch and taken as constant inside a cell: uniform to within the area
+// element's variation across a 1/16 cell.
+std::vector<SurfaceSample> sample_surfaces(const Model& model, std::size_t count,
+                                           std::uint64_t seed);
+
+// Total surface area of the model (same quadrature as sample_surfaces, 4-point Gauss per cell).
+double surface_area(const Model& model);
+
+}  // namespace nurbsreg::engine
