@@ -1,0 +1,595 @@
+// Spherical clipping for rational Bézier patches (seed paper 001, extended to NURBS), the cached
+// squared-distance coefficients (DESIGN.md "Projection: surfaces") and the box-constrained Newton
+// on the surface geometry shared by both strategies.
+
+#include <algorithm>
+#include <cassert>
+#include <cmath>
+#include <cstring>
+
+#include "nurbsreg/engine/surface_projection.hpp"
+
+namespace nurbsreg::engine {
+namespace {
+
+constexpr int kMaxGridSide = 2 * kMaxDegree + 1;
+
+double binomial(int n, int k) {
+  double r = 1.0;
+  for (int i = 1; i <= k; ++i)
+    r = r * (n - k + i) / i;
+  return r;
+}
+
+// Closed interval arithmetic (outward rounding is not needed: the tests built on it carry a
+// relative margin, see convex_on_box).
+struct Iv {
+  double lo, hi;
+};
+Iv operator-(Iv a, Iv b) {
+  return {a.lo - b.hi, a.hi - b.lo};
+}
+Iv operator*(Iv a, Iv b) {
+  const double p1 = a.lo * b.lo, p2 = a.lo * b.hi, p3 = a.hi * b.lo, p4 = a.hi * b.hi;
+  return {std::min({p1, p2, p3, p4}), std::max({p1, p2, p3, p4})};
+}
+Iv operator*(double c, Iv a) {
+  return c >= 0 ? Iv{c * a.lo, c * a.hi} : Iv{c * a.hi, c * a.lo};
+}
+// a / d for d > 0.
+Iv divide_positive(Iv a, Iv d) {
+  return a * Iv{1.0 / d.hi, 1.0 / d.lo};
+}
+
+// Ranges of the Bernstein coefficients of the first and second partial derivatives of a scalar
+// tensor Bernstein polynomial of degree (rows - 1, cols - 1) on the local box (differenced
+// coefficients; by the convex hull property each derivative lies in its range).
+struct DerivativeRanges {
+  Iv v, s, t, ss, st, tt;
+};
+
+DerivativeRanges derivative_ranges(const double* a, int rows, int cols) {
+  const double inf = std::numeric_limits<double>::infinity();
+  DerivativeRanges r{{inf, -inf}, {inf, -inf}, {inf, -inf}, {inf, -inf}, {inf, -inf}, {inf, -inf}};
+  auto grow = [](Iv& iv, double x) {
+    iv.lo = std::min(iv.lo, x);
+    iv.hi = std::max(iv.hi, x);
+  };
+  const int m = rows - 1, n = cols - 1;
+  for (int i = 0; i < rows; ++i) {
+    const double* row = a + i * cols;
+    for (int j = 0; j < cols; ++j) {
+      grow(r.v, row[j]);
+      if (i + 1 < rows) grow(r.s, m * (row[cols + j] - row[j]));
+      if (j + 1 < cols) grow(r.t, n * (row[j + 1] - row[j]));
+      if (i + 2 < rows)
+        grow(r.ss, m * (m - 1) * (row[2 * cols + j] - 2.0 * row[cols + j] + row[j]));
+      if (j + 2 < cols) grow(r.tt, n * (n - 1) * (row[j + 2] - 2.0 * row[j + 1] + row[j]));
+      if (i + 1 < rows && j + 1 < cols) {
+        grow(r.st, m * n * (row[cols + j + 1] - row[cols + j] - row[j + 1] + row[j]));
+      }
+    }
+  }
+  // Degree 0 in a direction: the derivative is identically zero.
+  for (Iv* iv : {&r.s, &r.t, &r.ss, &r.st, &r.tt}) {
+    if (iv->lo > iv->hi) *iv = {0.0, 0.0};
+  }
+  return r;
+}
+
+// Termination test (DESIGN.md): is F = N / D provably strictly convex on the sub-box?
+// For a polynomial patch D == 1 and this is the Bézier bound of the differenced coefficients of
+// F_ss, F_tt, F_st. For a rational patch it bounds the derivatives of F through those of N and D
+// by interval arithmetic on the quotient rule, N = F D:
+//   F_s  = (N_s - F D_s) / D,                 F_t = (N_t - F D_t) / D,
+//   F_ss = (N_ss - 2 F_s D_s - F D_ss) / D,   F_tt = (N_tt - 2 F_t D_t - F D_tt) / D,
+//   F_st = (N_st - F_s D_t - F_t D_s - F D_st) / D,
+// with F in [min f_ij, max f_ij] (f_ij = N_ij / D_ij, convex hull property of the rational form).
+// Then min F_ss > 0, min F_tt > 0 and min F_ss min F_tt > max F_st^2 imply a positive definite
+// Hessian on the whole box, hence a unique minimiser on the box that a descent method finds.
+bool convex_on_box(const double* n_grid, const double* d_grid, int rows, int cols, bool rational,
+                   Iv f_range) {
+  const DerivativeRanges n = derivative_ranges(n_grid, rows, cols);
+  Iv fss, ftt, fst;
+  if (!rational) {
+    fss = n.ss;
+    ftt = n.tt;
+    fst = n.st;
+  } else {
+    const DerivativeRanges d = derivative_ranges(d_grid, rows, cols);
+    const Iv fs = divide_positive(n.s - f_range * d.s, d.v);
+    const Iv ft = divide_positive(n.t - f_range * d.t, d.v);
+    fss = divide_positive(n.ss - 2.0 * (fs * d.s) - f_range * d.ss, d.v);
+    ftt = divide_positive(n.tt - 2.0 * (ft * d.t) - f_range * d.tt, d.v);
+    fst = divide_positive(n.st - fs * d.t - ft * d.s - f_range * d.st, d.v);
+  }
+  // A relative margin keeps rounding in the differences from faking convexity.
+  const double margin = 1e-12 * (std::abs(fss.hi) + std::abs(ftt.hi) + std::abs(fst.hi));
+  const double a = fss.lo - margin, b = ftt.lo - margin;
+  const double c = std::max(std::abs(fst.lo), std::abs(fst.hi)) + margin;
+  return a > 0.0 && b > 0.0 && a * b > c * c;
+}
+
+// de Casteljau at 1/2 along s (rows): `low` (in place) gets [s0, mid], `high` [mid, s1].
+void split_rows(double* low, double* high, int rows, int cols) {
+  double work[kMaxGridSide];
+  const int m = rows - 1;
+  for (int j = 0; j < cols; ++j) {
+    for (int i = 0; i < rows; ++i)
+      work[i] = low[i * cols + j];
+    high[m * cols + j] = work[m];
+    for (int r = 1; r <= m; ++r) {
+      for (int i = 0; i <= m - r; ++i)
+        work[i] = 0.5 * (work[i] + work[i + 1]);
+      low[r * cols + j] = work[0];
+      high[(m - r) * cols + j] = work[m - r];
+    }
+  }
+}
+
+// de Casteljau at 1/2 along t of one contiguous row of `count` values.
+void split_line(double* low, double* high, int count) {
+  double work[kMaxGridSide];
+  const int n = count - 1;
+  std::memcpy(work, low, sizeof(double) * count);
+  high[n] = work[n];
+  for (int r = 1; r <= n; ++r) {
+    for (int i = 0; i <= n - r; ++i)
+      work[i] = 0.5 * (work[i] + work[i + 1]);
+    low[r] = work[0];
+    high[n - r] = work[n - r];
+  }
+}
+
+void split_cols(double* low, double* high, int rows, int cols) {
+  for (int i = 0; i < rows; ++i)
+    split_line(low + i * cols, high + i * cols, cols);
+}
+
+double lower_bound(const double* n, const double* d, int count, bool rational) {
+  double lo = std::numeric_limits<double>::infinity();
+  if (rational) {
+    for (int k = 0; k < count; ++k)
+      lo = std::min(lo, n[k] / d[k]);
+  } else {
+    for (int k = 0; k < count; ++k)
+      lo = std::min(lo, n[k]);
+  }
+  return lo;
+}
+
+// Theorem 2 of seed 001 for a polynomial F: if the coefficients of one boundary row (column) are
+// below every coefficient of their column (row), F attains its minimum over the box on that edge.
+// Returns 0: s = s0, 1: s = s1, 2: t = t0, 3: t = t1, or -1. Not used for rational patches: the
+// proof compares F with F(u0, v) through the same Bernstein weights, which a rational F (weights
+// B D_ij / Σ B D) does not share, so it does not carry over.
+int boundary_edge(const double* f, int rows, int cols) {
+  auto row_below = [&](int r) {
+    const double* edge = f + r * cols;
+    for (int i = 0; i < rows; ++i) {
+      for (int j = 0; j < cols; ++j) {
+        if (f[i * cols + j] < edge[j]) return false;
+      }
+    }
+    return true;
+  };
+  auto col_below = [&](int c) {
+    for (int i = 0; i < rows; ++i) {
+      const double edge = f[i * cols + c];
+      for (int j = 0; j < cols; ++j) {
+        if (f[i * cols + j] < edge) return false;
+      }
+    }
+    return true;
+  };
+  if (row_below(0)) return 0;
+  if (row_below(rows - 1)) return 1;
+  if (col_below(0)) return 2;
+  if (col_below(cols - 1)) return 3;
+  return -1;
+}
+
+// The state of one clipping run on one patch.
+struct Clipper {
+  const PreparedPatch& pp;
+  const Vec3& p;
+  SurfaceScratch& sc;
+  SurfaceProjectionStats& st;
+  double alpha;      // upper bound on the minimum squared distance
+  double round_err;  // bound on rounding in any computed coefficient ratio
+  double eps_d;      // accepted loss in distance when eliminating (relative to the patch size)
+  double best_value = std::numeric_limits<double>::infinity();
+  double best_s = 0, best_t = 0;
+
+  // Theorem 1 with an accuracy tolerance and a rounding margin: drop the box when its lower bound
+  // (even lowered by the rounding bound) cannot beat alpha by more than 2 sqrt(alpha) eps_d,
+  // i.e. by more than eps_d in distance. With round_err > tolerance this is conservative.
+  bool eliminated(double lower) const {
+    if (!std::isfinite(alpha)) return false;
+    return lower - round_err >= alpha - 2.0 * std::sqrt(alpha) * eps_d;
+  }
+  // A value known only through coefficients (corner values): its bound is value + round_err.
+  void offer_coefficient(double value, double s, double t) {
+    if (value < best_value) {
+      best_value = value;
+      best_s = s;
+      best_t = t;
+    }
+    alpha = std::min(alpha, value + round_err);
+  }
+  // A value of the real geometry (Newton result).
+  void offer_exact(double value, double s, double t) {
+    if (value < best_value) {
+      best_value = value;
+      best_s = s;
+      best_t = t;
+    }
+    alpha = std::min(alpha, value);
+  }
+  void newton(double s0, double s1, double t0, double t1) {
+    double s = 0.5 * (s0 + s1), t = 0.5 * (t0 + t1);
+    Vec3 foot;
+    const double value = newton_on_patch(pp.patch, p, s0, s1, t0, t1, s, t, foot, &st);
+    offer_exact(value, s, t);
+  }
+
+  void clip_boundary(const double* coeffs, int count, bool along_t, double fixed, double a0,
+                     double a1);
+  void run();
+};
+
+// 1-D spherical clipping on a boundary row of a polynomial F (seed 002's circular clipping on the
+// boundary curve's squared distance): elimination by the minimum coefficient, termination when
+// the coefficient differences change sign at most once from - to + (then F has one minimum on the
+// interval, found by Newton on the boundary curve of the surface).
+void Clipper::clip_boundary(const double* coeffs, int count, bool along_t, double fixed, double a0,
+                            double a1) {
+  constexpr int kLine = 2 * kMaxDegree + 1;
+  int top = 0;
+  std::memcpy(sc.rows.data(), coeffs, sizeof(double) * count);
+  sc.intervals[top++] = {a0, a1, *std::min_element(coeffs, coeffs + count), 0};
+  auto at = [&](double a) { return along_t ? std::pair{fixed, a} : std::pair{a, fixed}; };
+  while (top > 0) {
+    const SurfaceScratch::Interval iv = sc.intervals[--top];
+    double* c = sc.rows.data() + top * kLine;
+    if (eliminated(iv.lower)) {
+      ++st.eliminations;
+      continue;
+    }
+    const auto [sa, ta] = at(iv.t0);
+    const auto [sb, tb] = at(iv.t1);
+    offer_coefficient(c[0], sa, ta);
+    offer_coefficient(c[count - 1], sb, tb);
+    int changes = 0;
+    int last_sign = 0;
+    bool falls_first = false;
+    for (int j = 0; j + 1 < count; ++j) {
+      const double delta = c[j + 1] - c[j];
+      const int sign = delta > 0 ? 1 : (delta < 0 ? -1 : 0);
+      if (sign == 0) continue;
+      if (last_sign == 0) falls_first = sign < 0;
+      if (last_sign != 0 && sign != last_sign) ++changes;
+      last_sign = sign;
+    }
+    if (changes == 0) continue;  // monotone: the minimum is an end value, already offered
+    if (changes == 1 && falls_first) {
+      ++st.convex_terminations;
+      const double s0 = along_t ? fixed : iv.t0, s1 = along_t ? fixed : iv.t1;
+      const double t0 = along_t ? iv.t0 : fixed, t1 = along_t ? iv.t1 : fixed;
+      newton(s0, s1, t0, t1);
+      continue;
+    }
+    if (iv.depth >= SurfaceScratch::kMaxDepth || top + 2 > SurfaceScratch::kStackCapacity) {
+      ++st.depth_limit_hits;
+      const double s0 = along_t ? fixed : iv.t0, s1 = along_t ? fixed : iv.t1;
+      const double t0 = along_t ? iv.t0 : fixed, t1 = along_t ? iv.t1 : fixed;
+      newton(s0, s1, t0, t1);
+      continue;
+    }
+    ++st.subdivisions;
+    double* high = c + kLine;
+    split_line(c, high, count);
+    const double mid = 0.5 * (iv.t0 + iv.t1);
+    const double low_lower = *std::min_element(c, c + count);
+    const double high_lower = *std::min_element(high, high + count);
+    SurfaceScratch::Interval first{iv.t0, mid, low_lower, iv.depth + 1};  // data in slot top
+    SurfaceScratch::Interval second{mid, iv.t1, high_lower, iv.depth + 1};
+    // Visit the more promising half first: it goes on top of the stack.
+    if (low_lower < high_lower) {
+      std::swap_ranges(c, c + count, high);
+      std::swap(first, second);
+    }
+    sc.intervals[top++] = first;
+    sc.intervals[top++] = second;
+  }
+}
+
+void Clipper::run() {
+  const int rows = pp.rows, cols = pp.cols, count = rows * cols;
+  constexpr int kSlot = 2 * SurfaceScratch::kGridCapacity;
+  double* base = sc.grids.data();
+  int top = 0;
+  pp.numerator(p, base);
+  std::memcpy(base + SurfaceScratch::kGridCapacity, pp.d.data(), sizeof(double) * count);
+  sc.boxes[top++] = {0.0,
+                     1.0,
+                     0.0,
+                     1.0,
+                     lower_bound(base, base + SurfaceScratch::kGridCapacity, count, pp.rational),
+                     0};
+  while (top > 0) {
+    const SurfaceScratch::Box b = sc.boxes[--top];
+    double* n = base + top * kSlot;
+    double* d = n + SurfaceScratch::kGridCapacity;
+    if (eliminated(b.lower)) {
+      ++st.eliminations;
+      continue;
+    }
+    // Corner values are exact values of F: they shrink the clipping sphere (seed 001 §2).
+    const int c00 = 0, c01 = cols - 1, c10 = (rows - 1) * cols, c11 = count - 1;
+    offer_coefficient(n[c00] / d[c00], b.s0, b.t0);
+    offer_coefficient(n[c01] / d[c01], b.s0, b.t1);
+    offer_coefficient(n[c10] / d[c10], b.s1, b.t0);
+    offer_coefficient(n[c11] / d[c11], b.s1, b.t1);
+    if (eliminated(b.lower)) {
+      ++st.eliminations;
+      continue;
+    }
+    if (!pp.rational) {
+      const int edge = boundary_edge(n, rows, cols);
+      if (edge >= 0) {
+        ++st.boundary_reductions;
+        double line[kMaxGridSide];
+        if (edge <= 1) {
+          const double* row = n + (edge == 0 ? 0 : (rows - 1) * cols);
+          clip_boundary(row, cols, true, edge == 0 ? b.s0 : b.s1, b.t0, b.t1);
+        } else {
+          const int c = edge == 2 ? 0 : cols - 1;
+          for (int i = 0; i < rows; ++i)
+            line[i] = n[i * cols + c];
+          clip_boundary(line, rows, false, edge == 2 ? b.t0 : b.t1, b.s0, b.s1);
+        }
+        continue;
+      }
+    }
+    double f_max = -std::numeric_limits<double>::infinity();
+    double var_s = 0.0, var_t = 0.0;
+    for (int i = 0; i < rows; ++i) {
+      for (int j = 0; j < cols; ++j) {
+        const int k = i * cols + j;
+        const double f = pp.rational ? n[k] / d[k] : n[k];
+        f_max = std::max(f_max, f);
+        if (i + 1 < rows) {
+          const double g = pp.rational ? n[k + cols] / d[k + cols] : n[k + cols];
+          var_s = std::max(var_s, std::abs(g - f));
+        }
+        if (j + 1 < cols) {
+          const double g = pp.rational ? n[k + 1] / d[k + 1] : n[k + 1];
+          var_t = std::max(var_t, std::abs(g - f));
+        }
+      }
+    }
+    if (convex_on_box(n, d, rows, cols, pp.rational, {b.lower, f_max})) {
+      ++st.convex_terminations;
+      newton(b.s0, b.s1, b.t0, b.t1);
+      continue;
+    }
+    if (b.depth >= SurfaceScratch::kMaxDepth || top + 2 > SurfaceScratch::kStackCapacity) {
+      ++st.depth_limit_hits;
+      newton(b.s0, b.s1, b.t0, b.t1);
+      continue;
+    }
+    ++st.subdivisions;
+    // Split across the direction in which F varies most: that is where the box is "long".
+    double* high = n + kSlot;
+    double* high_d = high + SurfaceScratch::kGridCapacity;
+    SurfaceScratch::Box lo = b, hi = b;
+    lo.depth = hi.depth = b.depth + 1;
+    if (var_s >= var_t) {
+      split_rows(n, high, rows, cols);
+      if (pp.rational) split_rows(d, high_d, rows, cols);
+      lo.s1 = hi.s0 = 0.5 * (b.s0 + b.s1);
+    } else {
+      split_cols(n, high, rows, cols);
+      if (pp.rational) split_cols(d, high_d, rows, cols);
+      lo.t1 = hi.t0 = 0.5 * (b.t0 + b.t1);
+    }
+    if (!pp.rational) std::memcpy(high_d, d, sizeof(double) * count);
+    lo.lower = lower_bound(n, d, count, pp.rational);
+    hi.lower = lower_bound(high, high_d, count, pp.rational);
+    // Depth first, the more promising half on top (it shrinks alpha soonest).
+    if (lo.lower < hi.lower) {
+      std::swap_ranges(n, n + count, high);
+      std::swap_ranges(d, d + count, high_d);
+      std::swap(lo, hi);
+    }
+    sc.boxes[top++] = lo;
+    sc.boxes[top++] = hi;
+  }
+}
+
+}  // namespace
+
+void SurfaceProjectionStats::add(const SurfaceProjectionStats& o) {
+  subdivisions += o.subdivisions;
+  newton_iterations += o.newton_iterations;
+  depth_limit_hits += o.depth_limit_hits;
+  patches_visited += o.patches_visited;
+  eliminations += o.eliminations;
+  convex_terminations += o.convex_terminations;
+  boundary_reductions += o.boundary_reductions;
+}
+
+SurfaceScratch::SurfaceScratch()
+    : grids(static_cast<std::size_t>(kStackCapacity + 1) * 2 * kGridCapacity),
+      boxes(kStackCapacity + 1),
+      rows(static_cast<std::size_t>(kStackCapacity + 1) * (2 * kMaxDegree + 1)),
+      intervals(kStackCapacity + 1) {
+  order.reserve(kDefaultPatchCapacity);
+}
+
+void PreparedPatch::numerator(const Vec3& point, double* out) const {
+  const Vec3 q = point - origin;
+  const double qq = q.squaredNorm();
+  const int count = rows * cols;
+  for (int k = 0; k < count; ++k)
+    out[k] = g[k] - 2.0 * q.dot(e[k]) + qq * d[k];
+}
+
+PreparedPatch prepare_patch(const BezierPatch& patch) {
+  assert(patch.degree_u <= kMaxDegree && patch.degree_v <= kMaxDegree);
+  PreparedPatch pp;
+  pp.patch = patch;
+  pp.box = bounding_box(patch);
+  pp.sphere = bounding_sphere(patch);
+  pp.origin = pp.sphere.center;
+  const int p = patch.degree_u, q = patch.degree_v;
+  pp.rows = 2 * p + 1;
+  pp.cols = 2 * q + 1;
+  const double w0 = patch.cw[0][3];
+  pp.rational = false;
+  for (const Vec4& c : patch.cw) {
+    if (std::abs(c[3] - w0) > 1e-14 * w0) pp.rational = true;
+  }
+  const int count = pp.rows * pp.cols;
+  pp.d.assign(count, 0.0);
+  pp.g.assign(count, 0.0);
+  pp.e.assign(count, Vec3::Zero());
+  // Homogeneous points relative to the origin, w (P - o); weights 1 for polynomial patches.
+  std::vector<Vec3> pw(patch.cw.size());
+  std::vector<double> w(patch.cw.size());
+  for (std::size_t k = 0; k < patch.cw.size(); ++k) {
+    const Vec4& c = patch.cw[k];
+    w[k] = pp.rational ? c[3] : 1.0;
+    pw[k] = w[k] * (c.head<3>() / c[3] - pp.origin);
+  }
+  // Bernstein product identity B_a^p B_c^p = C(p,a) C(p,c) / C(2p,a+c) B_{a+c}^{2p}.
+  const int stride = q + 1;
+  for (int a = 0; a <= p; ++a) {
+    for (int c = 0; c <= p; ++c) {
+      const double bu = binomial(p, a) * binomial(p, c) / binomial(2 * p, a + c);
+      for (int b = 0; b <= q; ++b) {
+        for (int dd = 0; dd <= q; ++dd) {
+          const double beta = bu * binomial(q, b) * binomial(q, dd) / binomial(2 * q, b + dd);
+          const int k = (a + c) * pp.cols + (b + dd);
+          const int ab = a * stride + b, cd = c * stride + dd;
+          pp.d[k] += beta * w[ab] * w[cd];
+          pp.g[k] += beta * pw[ab].dot(pw[cd]);
+          pp.e[k] += beta * 0.5 * (w[cd] * pw[ab] + w[ab] * pw[cd]);
+        }
+      }
+    }
+  }
+  if (!pp.rational) std::fill(pp.d.begin(), pp.d.end(), 1.0);
+  return pp;
+}
+
+double newton_on_patch(const BezierPatch& patch, const Vec3& p, double s0, double s1, double t0,
+                       double t1, double& s, double& t, Vec3& foot, SurfaceProjectionStats* stats) {
+  s = std::clamp(s, s0, s1);
+  t = std::clamp(t, t0, t1);
+  Vec3 d[6];
+  patch.derivatives(s, t, d);
+  Vec3 r = d[0] - p;
+  double f = r.squaredNorm();
+  long iterations = 0;
+  for (int it = 0; it < 60; ++it) {
+    ++iterations;
+    const Vec3 &su = d[1], &sv = d[2];
+    // Half gradient and half Hessian of F = |S - p|^2.
+    const double gs = r.dot(su), gt = r.dot(sv);
+    const double hss = su.dot(su) + r.dot(d[3]);
+    const double hst = su.dot(sv) + r.dot(d[4]);
+    const double htt = sv.dot(sv) + r.dot(d[5]);
+    // Projected Newton: a variable at a bound whose gradient pushes outward is held fixed.
+    const bool free_s = s1 > s0 && !((s <= s0 && gs > 0) || (s >= s1 && gs < 0));
+    const bool free_t = t1 > t0 && !((t <= t0 && gt > 0) || (t >= t1 && gt < 0));
+    if (!free_s && !free_t) break;
+    double ds = 0, dt = 0;
+    bool newton_step = false;
+    if (free_s && free_t) {
+      const double det = hss * htt - hst * hst;
+      if (hss > 0 && htt > 0 && det > 1e-12 * hss * htt) {
+        ds = -(htt * gs - hst * gt) / det;
+        dt = -(hss * gt - hst * gs) / det;
+        newton_step = true;
+      } else {
+        // Not locally convex: Gauss-Newton (J^T J is positive semi-definite), regularised for a
+        // degenerate parametrisation (a pole, where S_t = 0).
+        const double a = su.dot(su), b = su.dot(sv), c = sv.dot(sv);
+        const double mu = 1e-10 * (a + c) + 1e-300;
+        const double det2 = (a + mu) * (c + mu) - b * b;
+        ds = -((c + mu) * gs - b * gt) / det2;
+        dt = -((a + mu) * gt - b * gs) / det2;
+      }
+    } else if (free_s) {
+      newton_step = hss > 0;
+      ds = -gs / (newton_step ? hss : su.dot(su) + 1e-300);
+    } else {
+      newton_step = htt > 0;
+      dt = -gt / (newton_step ? htt : sv.dot(sv) + 1e-300);
+    }
+    if (!free_s) ds = 0;
+    if (!free_t) dt = 0;
+    if (!std::isfinite(ds) || !std::isfinite(dt)) break;
+    double step = 1.0;
+    bool accepted = false;
+    double ns = s, nt = t;
+    for (int ls = 0; ls < 60; ++ls) {
+      ns = std::clamp(s + step * ds, s0, s1);
+      nt = std::clamp(t + step * dt, t0, t1);
+      const double nf = (patch.evaluate(ns, nt) - p).squaredNorm();
+      const double predicted = 2.0 * (gs * (ns - s) + gt * (nt - t));
+      const double moved = std::max(std::abs(ns - s), std::abs(nt - t));
+      if (nf <= f + 1e-4 * predicted ||
+          // In the quadratic regime the change of F drowns in rounding; a short Newton step is
+          // still taken (it improves orthogonality) unless it visibly increases F.
+          (newton_step && step == 1.0 && moved < 1e-6 && nf <= f * (1.0 + 1e-14))) {
+        accepted = true;
+        break;
+      }
+      step *= 0.5;
+    }
+    if (!accepted) break;
+    const double moved = std::max(std::abs(ns - s), std::abs(nt - t));
+    s = ns;
+    t = nt;
+    patch.derivatives(s, t, d);
+    r = d[0] - p;
+    f = r.squaredNorm();
+    if (moved <= 1e-15) break;
+  }
+  if (stats) stats->newton_iterations += iterations;
+  foot = d[0];
+  return f;
+}
+
+bool project_onto_patch(const PreparedPatch& pp, const Vec3& p, SurfaceHit& best,
+                        SurfaceScratch& scratch, SurfaceProjectionStats* stats) {
+  SurfaceProjectionStats local;
+  const double reach = pp.sphere.radius + (p - pp.origin).norm();
+  Clipper clip{pp, p, scratch, local, best.distance_sq,
+               // Each coefficient is G - 2 q.E + |q|^2 D with terms up to reach^2 D; de Casteljau
+               // is a convex combination, so the error stays a small multiple of eps reach^2.
+               1e-14 * reach * reach, 1e-11 * pp.sphere.radius};
+  ++local.patches_visited;
+  clip.run();
+  bool improved = false;
+  if (std::isfinite(clip.best_value)) {
+    // Polish on the geometry over the whole patch (descent only: it can only improve).
+    double s = clip.best_s, t = clip.best_t;
+    Vec3 foot;
+    const double value = newton_on_patch(pp.patch, p, 0.0, 1.0, 0.0, 1.0, s, t, foot, &local);
+    if (value < best.distance_sq) {
+      best.u = pp.patch.param_u.to_parent(s);
+      best.v = pp.patch.param_v.to_parent(t);
+      best.distance_sq = value;
+      best.foot = foot;
+      improved = true;
+    }
+  }
+  if (stats) stats->add(local);
+  return improved;
+}
+
+}  // namespace nurbsreg::engine
