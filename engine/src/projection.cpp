@@ -24,6 +24,8 @@ void ProjectionResults::resize(std::size_t n) {
 
 struct Projector::ThreadState {
   SurfaceScratch surface_scratch;
+  SurfaceProjectionStats surface_stats;
+  CurveProjectionStats curve_stats;
   Bvh::Scratch bvh_scratch;
   ProjectionCounters counters;
 };
@@ -96,7 +98,8 @@ void Projector::project_range(PointView points, const ProjectionOptions& options
           [this](std::uint32_t k, const Vec3& x) { return model_.patch_lower_bound(k, x); },
           [&](std::uint32_t k, double& a) {
             ++state.counters.patches_visited;
-            if (project_onto_patch(model_.patch(k), p, best, state.surface_scratch)) {
+            if (project_onto_patch(model_.patch(k), p, best, state.surface_scratch,
+                                   &state.surface_stats)) {
               best_surface = model_.patch_surface(k);
               a = best.distance_sq;
             }
@@ -131,7 +134,7 @@ void Projector::project_range(PointView points, const ProjectionOptions& options
           [this](std::uint32_t k, const Vec3& x) { return model_.piece_lower_bound(k, x); },
           [&](std::uint32_t k, double& a) {
             ++state.counters.patches_visited;
-            if (project_onto_piece(model_.piece(k), p, best)) {
+            if (project_onto_piece(model_.piece(k), p, best, &state.curve_stats)) {
               best_curve = model_.piece_curve(k);
               a = best.distance_sq;
             }
@@ -157,7 +160,11 @@ void Projector::project(PointView points, const ProjectionOptions& options,
                         ProjectionResults& out, std::span<const ProjectionHint> hints,
                         ProjectionCounters* counters) {
   out.resize(points.size());
-  for (ThreadState& s : impl_->states) s.counters = {};
+  for (ThreadState& s : impl_->states) {
+    s.counters = {};
+    s.surface_stats = {};
+    s.curve_stats = {};
+  }
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, points.size(), std::max<std::size_t>(1, options.grain)),
                     [&](const tbb::blocked_range<std::size_t>& range) {
                       project_range(points, options, out, hints, range.begin(), range.end(),
@@ -170,7 +177,8 @@ void Projector::project(PointView points, const ProjectionOptions& options,
       counters->points += s.counters.points;
       counters->skipped += s.counters.skipped;
       counters->patches_visited += s.counters.patches_visited;
-      counters->subdivisions += s.counters.subdivisions;
+      counters->subdivisions += static_cast<std::uint64_t>(s.surface_stats.subdivisions) +
+                                static_cast<std::uint64_t>(s.curve_stats.subdivisions);
     }
   }
 }
@@ -181,8 +189,14 @@ void Projector::project_serial(PointView points, const ProjectionOptions& option
   out.resize(points.size());
   ThreadState& state = impl_->states.local();
   state.counters = {};
+  state.surface_stats = {};
+  state.curve_stats = {};
   project_range(points, options, out, hints, 0, points.size(), state);
-  if (counters) *counters = state.counters;
+  if (counters) {
+    *counters = state.counters;
+    counters->subdivisions = static_cast<std::uint64_t>(state.surface_stats.subdivisions) +
+                             static_cast<std::uint64_t>(state.curve_stats.subdivisions);
+  }
 }
 
 }  // namespace nurbsreg::engine
