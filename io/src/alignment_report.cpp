@@ -101,6 +101,8 @@ AlignmentReport parse_alignment_report(std::string_view text, const std::string&
     const auto position = detail::position_of(text, error.byte == 0 ? 0 : error.byte - 1);
     throw InputError(file_label, "line " + std::to_string(position.line) + ", column " +
                                      std::to_string(position.column) + ": invalid JSON");
+  } catch (const Json::exception& error) {
+    throw InputError(file_label, std::string("invalid JSON: ") + error.what());
   }
   if (!document.is_object()) throw InputError(file_label, "expected a JSON object");
   const ReportReader in(file_label, document);

@@ -352,6 +352,11 @@ engine::Model parse_model(std::string_view text, const std::string& file_label) 
     document = json::parse(text.begin(), text.end());
   } catch (const json::parse_error& error) {
     throw InputError(file_label, syntax_message(text, error));
+  } catch (const json::exception& error) {
+    // out_of_range 406: a literal such as 1e999 that no double holds (no position available).
+    std::string what = error.what();
+    what = what.substr(what.find(']') + 2);
+    throw InputError(file_label, "invalid JSON: " + what + " (numbers must fit a double)");
   }
   EntityReader top(file_label, "");
   if (!document.is_object()) {
