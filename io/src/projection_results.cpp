@@ -371,7 +371,16 @@ ProjectionTable read_projection_pcd(const std::string& path) {
   detail::require_readable(path);
   pcl::PCLPointCloud2 cloud;
   pcl::PCDReader reader;
-  if (reader.read(path, cloud) < 0) throw InputError(path, "not a readable PCD file");
+  // PCL 1.13's PCDReader::read dereferences the field list even when the header has none and
+  // crashes on non-PCD or empty files (PCL issue #5854). Its readHeader is safe: check first.
+  if (reader.readHeader(path, cloud) < 0 || cloud.fields.empty()) {
+    throw InputError(path, "not a PCD file (no valid header with FIELDS)");
+  }
+  if (static_cast<std::size_t>(cloud.width) * cloud.height == 0) {
+    cloud.data.clear();  // a table with no rows: nothing after the header to read
+  } else if (reader.read(path, cloud) < 0) {
+    throw InputError(path, "not a readable PCD file (PCL could not read its data)");
+  }
   ProjectionTable table;
   std::vector<std::string> names;
   for (const pcl::PCLPointField& f : cloud.fields) {
