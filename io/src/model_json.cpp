@@ -143,6 +143,23 @@ int implied_count(const EntityReader& reader, const char* field, std::size_t kno
   return static_cast<int>(count);
 }
 
+// Knot errors (decreasing, empty domain, multiplicity above the degree) before any control point
+// is read, reported against `field`. The engine's rules are reused through a placeholder curve
+// whose count comes from the knot vector itself, so the allocation is bounded by the file size.
+void check_knot_vector(const EntityReader& reader, const char* field,
+                       const std::vector<double>& knots, int degree, int count) {
+  engine::NurbsCurve probe;
+  probe.degree = degree;
+  probe.knots = knots;
+  probe.control_points.assign(static_cast<std::size_t>(count), engine::Vec3::Zero());
+  if (auto error = probe.validate()) {
+    // Degree and count were checked already, so the message is about "knots...".
+    const std::string_view rest = std::string_view(*error).substr(std::string_view("knots").size());
+    reader.fail(field + std::string(rest.substr(0, rest.find(':'))),
+                std::string(rest.substr(std::min(rest.size(), rest.find(':') + 2))));
+  }
+}
+
 engine::NurbsSurface read_surface(const std::string& file, std::size_t index, const json& entity) {
   EntityReader reader(file, "surface " + std::to_string(index));
   if (!entity.is_object()) reader.fail("", "expected an object, got " + describe(entity));
@@ -166,10 +183,8 @@ engine::NurbsSurface read_surface(const std::string& file, std::size_t index, co
   s.knots_v = reader.numbers(reader.required(entity, "knots_v"), "knots_v");
   s.count_u = implied_count(reader, "knots_u", s.knots_u.size(), s.degree_u);
   s.count_v = implied_count(reader, "knots_v", s.knots_v.size(), s.degree_v);
-  // Knot errors (decreasing, empty domain, multiplicity) before any control point is read:
-  // validate() checks degrees and knots first and placeholder points are finite.
-  s.control_points.assign(static_cast<std::size_t>(s.count_u) * s.count_v, engine::Vec3::Zero());
-  if (auto error = s.validate()) throw InputError(file, reader.label() + ": " + *error);
+  check_knot_vector(reader, "knots_u", s.knots_u, s.degree_u, s.count_u);
+  check_knot_vector(reader, "knots_v", s.knots_v, s.degree_v, s.count_v);
 
   const std::string shape =
       std::to_string(s.count_u) + " rows of " + std::to_string(s.count_v) +
@@ -180,6 +195,7 @@ engine::NurbsSurface read_surface(const std::string& file, std::size_t index, co
     reader.fail("control_points",
                 "expected " + shape + ", got " + std::to_string(rows.size()) + " rows");
   }
+  // Every row's length first: only then is count_u x count_v known to match the file's size.
   for (int i = 0; i < s.count_u; ++i) {
     const std::string row_field = "control_points[" + std::to_string(i) + "]";
     const json& row = reader.array(rows[i], row_field);
@@ -187,8 +203,12 @@ engine::NurbsSurface read_surface(const std::string& file, std::size_t index, co
       reader.fail(row_field, "expected " + std::to_string(s.count_v) + " points (count_v), got " +
                                  std::to_string(row.size()));
     }
+  }
+  s.control_points.resize(static_cast<std::size_t>(s.count_u) * s.count_v);
+  for (int i = 0; i < s.count_u; ++i) {
+    const std::string row_field = "control_points[" + std::to_string(i) + "]";
     for (int j = 0; j < s.count_v; ++j) {
-      reader.point(row[j], row_field + "[" + std::to_string(j) + "]", false,
+      reader.point(rows[i][j], row_field + "[" + std::to_string(j) + "]", false,
                    s.control_points[static_cast<std::size_t>(i) * s.count_v + j]);
     }
   }
@@ -227,8 +247,8 @@ engine::NurbsCurve read_curve(const std::string& file, std::size_t index, const 
   }
   c.knots = reader.numbers(reader.required(entity, "knots"), "knots");
   const int count = implied_count(reader, "knots", c.knots.size(), c.degree);
-  c.control_points.assign(static_cast<std::size_t>(count), engine::Vec3::Zero());
-  if (auto error = c.validate()) throw InputError(file, reader.label() + ": " + *error);
+  check_knot_vector(reader, "knots", c.knots, c.degree, count);
+  c.control_points.resize(static_cast<std::size_t>(count));
 
   const json& points = reader.array(reader.required(entity, "control_points"), "control_points");
   if (points.size() != static_cast<std::size_t>(count)) {

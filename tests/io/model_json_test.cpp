@@ -343,6 +343,23 @@ INSTANTIATE_TEST_SUITE_P(Table, ModelJsonErrors, ::testing::ValuesIn(error_cases
                            return name;
                          });
 
+// Counts implied by long knot vectors must not be trusted before the control points confirm
+// them: 20,002 x 20,002 placeholder points would be 9.6 GB.
+TEST(ModelJson, LongKnotVectorsWithFewPointsFailFastWithoutHugeAllocation) {
+  std::string knots = "[0, 0, 0";
+  for (int k = 0; k < 20000; ++k)
+    knots += ", " + std::to_string(k);
+  knots += ", 20000, 20000, 20000]";
+  std::string text = surface_with("knots_u", knots);
+  const std::string key = R"("knots_v": [0, 0, 1, 1])";
+  text.replace(text.find(key), key.size(), "\"knots_v\": " + knots);
+  text.replace(text.find(R"("degree": [2, 1])"), 16, R"("degree": [3, 3])");
+  EXPECT_NE(
+      parse_error(text).find("surface 0 \"hood\": control_points: expected 20002 rows of 20002"),
+      std::string::npos)
+      << parse_error(text);
+}
+
 TEST(ModelJson, UnreadableFilesAreInputErrors) {
   const auto dir = temp_dir();
   try {
