@@ -339,28 +339,28 @@ ProjectionTable read_projection_csv(const std::string& path) {
     ++line_number;
     if (line.find_first_not_of(" \t\r") == std::string_view::npos) continue;
     split_csv(line, fields);
-    const std::string where = "line " + std::to_string(line_number);
+    // Built only for a message: formatting it for every row would dominate the reader.
+    const auto where = [line_number] { return "line " + std::to_string(line_number); };
     if (!have_header) {
       std::vector<std::string> names(fields.begin(), fields.end());
-      map = map_columns(path, where + " (header)", names, table);
+      map = map_columns(path, where() + " (header)", names, table);
       values.resize(names.size());
       have_header = true;
       continue;
     }
     if (fields.size() != values.size()) {
-      throw InputError(path, where + ": expected " + std::to_string(values.size()) +
+      throw InputError(path, where() + ": expected " + std::to_string(values.size()) +
                                  " comma-separated values (as in the header), got " +
                                  std::to_string(fields.size()));
     }
     for (std::size_t k = 0; k < fields.size(); ++k) {
       if (!detail::parse_number(fields[k], values[k])) {
-        throw InputError(path, where + ", column " + std::to_string(k + 1) + ": \"" +
+        throw InputError(path, where() + ", column " + std::to_string(k + 1) + ": \"" +
                                    std::string(fields[k]) + "\" is not a number");
       }
     }
     append_row(
-        path, map, [&values](std::size_t k) { return values[k]; }, [&where] { return where; },
-        table);
+        path, map, [&values](std::size_t k) { return values[k]; }, where, table);
   }
   if (!have_header) throw InputError(path, "empty file: expected a header line");
   return table;
