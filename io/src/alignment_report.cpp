@@ -98,7 +98,7 @@ AlignmentReport parse_alignment_report(std::string_view text, const std::string&
   try {
     document = Json::parse(text.begin(), text.end());
   } catch (const Json::parse_error& error) {
-    const auto position = detail::position_of(text, error.byte == 0 ? 0 : error.byte - 1);
+    const auto position = text_detail::position_of(text, error.byte == 0 ? 0 : error.byte - 1);
     throw InputError(file_label, "line " + std::to_string(position.line) + ", column " +
                                      std::to_string(position.column) + ": invalid JSON");
   } catch (const Json::exception& error) {
@@ -159,7 +159,7 @@ AlignmentReport parse_alignment_report(std::string_view text, const std::string&
 }
 
 AlignmentReport read_alignment_report(const std::string& path) {
-  const std::string text = detail::read_text_file(path);
+  const std::string text = text_detail::read_text_file(path);
   return parse_alignment_report(text, path);
 }
 

@@ -288,7 +288,7 @@ std::string syntax_message(std::string_view text, const json::parse_error& error
   const std::size_t colon = what.find(": ", what.find("column"));
   what = colon == std::string::npos ? what : what.substr(colon + 2);
   // e.byte is 1-based and points one past the offending character.
-  const auto position = detail::position_of(text, error.byte == 0 ? 0 : error.byte - 1);
+  const auto position = text_detail::position_of(text, error.byte == 0 ? 0 : error.byte - 1);
   return "line " + std::to_string(position.line) + ", column " + std::to_string(position.column) +
          ": invalid JSON: " + what;
 }
@@ -297,7 +297,7 @@ void append_point(std::string& out, const engine::Vec3& p, int dimension) {
   out += '[';
   for (int k = 0; k < dimension; ++k) {
     if (k > 0) out += ", ";
-    detail::append_number(out, p[k]);
+    text_detail::append_number(out, p[k]);
   }
   out += ']';
 }
@@ -306,7 +306,7 @@ void append_numbers(std::string& out, const double* values, std::size_t n) {
   out += '[';
   for (std::size_t k = 0; k < n; ++k) {
     if (k > 0) out += ", ";
-    detail::append_number(out, values[k]);
+    text_detail::append_number(out, values[k]);
   }
   out += ']';
 }
@@ -423,7 +423,7 @@ engine::Model parse_model(std::string_view text, const std::string& file_label) 
 }
 
 engine::Model read_model(const std::string& path) {
-  const std::string text = detail::read_text_file(path);
+  const std::string text = text_detail::read_text_file(path);
   return parse_model(text, path);
 }
 

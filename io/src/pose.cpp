@@ -13,7 +13,7 @@ namespace {
 
 std::string format(double x) {
   std::string s;
-  detail::append_number(s, x);
+  text_detail::append_number(s, x);
   return s;
 }
 
@@ -49,7 +49,7 @@ Eigen::Matrix4d parse_pose(std::string_view text, const std::string& file_label)
                          where + ": unexpected extra data after the 4 rows of the pose");
       }
       double value = 0.0;
-      if (!detail::parse_number(token, value) || !std::isfinite(value)) {
+      if (!text_detail::parse_number(token, value) || !std::isfinite(value)) {
         throw InputError(file_label,
                          where + ": \"" + std::string(token) + "\" is not a finite number");
       }
@@ -105,7 +105,7 @@ Eigen::Matrix4d parse_pose(std::string_view text, const std::string& file_label)
 }
 
 Eigen::Matrix4d read_pose(const std::string& path) {
-  const std::string text = detail::read_text_file(path);
+  const std::string text = text_detail::read_text_file(path);
   return parse_pose(text, path);
 }
 
@@ -114,7 +114,7 @@ std::string pose_to_text(const Eigen::Matrix4d& T_model_scan) {
   for (int r = 0; r < 4; ++r) {
     for (int c = 0; c < 4; ++c) {
       if (c > 0) out += ' ';
-      detail::append_number(out, T_model_scan(r, c));
+      text_detail::append_number(out, T_model_scan(r, c));
     }
     out += '\n';
   }

@@ -241,24 +241,24 @@ void write_projection_csv(const std::string& path, const ProjectionColumns& c) {
       buffer += ',' + e.name;
     buffer += '\n';
     stream_rows(out, buffer, c.rows(), [&c](std::string& b, std::size_t r) {
-      detail::append_integer(b, static_cast<std::int64_t>(row_index(c, r)));
+      text_detail::append_integer(b, static_cast<std::int64_t>(row_index(c, r)));
       for (const engine::Vec3* p : {&c.point[r], &c.foot[r]}) {
         for (int k = 0; k < 3; ++k) {
           b += ',';
-          detail::append_number(b, (*p)[k]);
+          text_detail::append_number(b, (*p)[k]);
         }
       }
       b += ',';
-      detail::append_number(b, c.distance[r]);
+      text_detail::append_number(b, c.distance[r]);
       b += ',';
-      detail::append_integer(b, c.entity[r]);
+      text_detail::append_integer(b, c.entity[r]);
       b += ',';
-      detail::append_number(b, c.u[r]);
+      text_detail::append_number(b, c.u[r]);
       b += ',';
-      detail::append_number(b, c.v[r]);
+      text_detail::append_number(b, c.v[r]);
       for (const ExtraColumn& e : c.extra) {
         b += ',';
-        detail::append_number(b, e.values[r]);
+        text_detail::append_number(b, e.values[r]);
       }
       b += '\n';
     });
@@ -323,7 +323,7 @@ void write_projection_results(const std::string& path, const ProjectionColumns& 
 }
 
 ProjectionTable read_projection_csv(const std::string& path) {
-  const std::string text = detail::read_text_file(path);
+  const std::string text = text_detail::read_text_file(path);
   ProjectionTable table;
   std::vector<std::string_view> fields;
   std::vector<double> values;
@@ -354,7 +354,7 @@ ProjectionTable read_projection_csv(const std::string& path) {
                                  std::to_string(fields.size()));
     }
     for (std::size_t k = 0; k < fields.size(); ++k) {
-      if (!detail::parse_number(fields[k], values[k])) {
+      if (!text_detail::parse_number(fields[k], values[k])) {
         throw InputError(path, where() + ", column " + std::to_string(k + 1) + ": \"" +
                                    std::string(fields[k]) + "\" is not a number");
       }
@@ -368,7 +368,7 @@ ProjectionTable read_projection_csv(const std::string& path) {
 
 ProjectionTable read_projection_pcd(const std::string& path) {
   // PCL reports a missing file only through its console log; say it ourselves.
-  detail::require_readable(path);
+  text_detail::require_readable(path);
   pcl::PCLPointCloud2 cloud;
   pcl::PCDReader reader;
   // PCL 1.13's PCDReader::read dereferences the field list even when the header has none and

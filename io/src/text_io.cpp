@@ -7,7 +7,7 @@
 
 #include "nurbsreg/io/errors.hpp"
 
-namespace nurbsreg::io::detail {
+namespace nurbsreg::io::text_detail {
 
 void require_readable(const std::string& path) {
   // A directory opens as an ifstream on Linux and then reads as empty: name it instead.
@@ -46,4 +46,4 @@ TextPosition position_of(std::string_view text, std::size_t offset) {
   return position;
 }
 
-}  // namespace nurbsreg::io::detail
+}  // namespace nurbsreg::io::text_detail

@@ -7,7 +7,7 @@
 #include <string>
 #include <string_view>
 
-namespace nurbsreg::io::detail {
+namespace nurbsreg::io::text_detail {
 
 // The whole file as bytes. Throws InputError naming the file when it cannot be opened or read.
 std::string read_text_file(const std::string& path);
@@ -43,4 +43,4 @@ struct TextPosition {
 };
 TextPosition position_of(std::string_view text, std::size_t offset);
 
-}  // namespace nurbsreg::io::detail
+}  // namespace nurbsreg::io::text_detail
