@@ -184,8 +184,9 @@ void check_body_size(const std::string& path, const std::string& data, const Pre
     return InputError(path, "PCD data is truncated or corrupt: " + what);
   };
   if (h.data_type == "ascii") {
-    // Every value takes at least two bytes ("0 " or "0\n").
-    if (values_per_point != 0 && points > available / (2 * values_per_point)) {
+    // Every value takes at least one byte: a bogus POINTS cannot make us allocate more than
+    // a few times the file size.
+    if (values_per_point != 0 && points > available / values_per_point) {
       throw truncated("POINTS " + std::to_string(points) + " cannot fit in " +
                       std::to_string(available) + " bytes of ascii data");
     }
@@ -229,6 +230,12 @@ void check_body_size(const std::string& path, const std::string& data, const Pre
 void read_ascii_body(const std::string& path, const std::string& data, const Prescan& h,
                      PcdData& out) {
   out.values.resize(h.points * out.values_per_point);
+  // A value of a TYPE F SIZE 4 field is a float, as in binary files: round the text to float so
+  // that the encoding does not change the coordinates.
+  std::vector<char> is_float(out.values_per_point, 0);
+  for (const PcdField& f : out.fields) {
+    if (f.type == 'F' && f.size == 4) std::fill_n(is_float.begin() + f.first, f.count, 1);
+  }
   const char* p = data.data() + h.header_end;
   const char* const end = data.data() + data.size();
   std::size_t line = h.header_lines;
@@ -262,6 +269,7 @@ void read_ascii_body(const std::string& path, const std::string& data, const Pre
         throw InputError(path, "line " + std::to_string(line) + ": not a number: '" +
                                    std::string(token.substr(0, 40)) + "'");
       }
+      if (is_float[k]) row[k] = static_cast<float>(row[k]);
       ++k;
     }
     if (row == nullptr) continue;  // blank line

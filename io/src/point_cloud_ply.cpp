@@ -277,6 +277,8 @@ void read_ascii(const std::string& path, const std::string& data, const Header& 
           for (auto n = static_cast<std::uint64_t>(value); n > 0; --n)
             need();
         } else if (is_vertex) {
+          // A float property holds a float whatever the encoding (binary files agree).
+          if (property.type == Scalar::float32) value = static_cast<float>(value);
           for (int axis = 0; axis < 3; ++axis) {
             if (layout.property[axis] == k) xyz[axis] = value;
           }
