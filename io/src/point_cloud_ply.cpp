@@ -242,6 +242,7 @@ void read_ascii(const std::string& path, const std::string& data, const Header& 
   for (std::size_t e = 0; e <= layout.element; ++e) {
     const Element& element = header.elements[e];
     const bool is_vertex = e == layout.element;
+    if (element.properties.empty()) continue;  // no data at all, whatever its count
     if (is_vertex) {
       // Each ascii vertex takes at least 6 bytes ("0 0 0\n"): a bogus count cannot make us
       // reserve more than the file could hold.

@@ -745,6 +745,53 @@ TEST(MalformedInput, CsvTable) {
   expect_cloud_error(bad, {"line 1", "header naming columns x, y, z"});
 }
 
+// Random byte corruption of valid files of every format: each read either succeeds or throws
+// InputError (never crashes, hangs or throws anything else). Deterministic seeds.
+TEST(MalformedInput, CorruptedBytesNeverCrash) {
+  TempDir dir;
+  const std::vector<Vec3> points = random_points(300, 5);
+  std::vector<std::string> sources;
+  for (const std::string name : {"a.pcd", "b.pcd", "c.pcd", "d.ply", "e.xyz"}) {
+    const PcdEncoding encoding = name == "b.pcd"   ? PcdEncoding::ascii
+                                 : name == "c.pcd" ? PcdEncoding::binary_compressed
+                                                   : PcdEncoding::binary;
+    write_point_cloud(dir.file(name), points, {encoding, false});
+    sources.push_back(dir.file(name));
+  }
+  const std::string odd = dir.file("odd.ply");
+  write_bytes(odd, odd_ply(true, {{1, 2, 3}, {4, 5, 6}, {7, 8, 9}}));
+  sources.push_back(odd);
+  std::mt19937_64 rng(99);
+  std::size_t failures = 0, successes = 0;
+  for (const std::string& source : sources) {
+    const std::string original = read_bytes(source);
+    const std::string corrupt = dir.file("corrupt" + fs::path(source).extension().string());
+    for (int trial = 0; trial < 100; ++trial) {
+      std::string bytes = original;
+      // Mostly the header and the first bytes of data, where sizes and counts live.
+      const std::size_t span =
+          trial % 2 == 0 ? std::min<std::size_t>(bytes.size(), 400) : bytes.size();
+      const int flips = 1 + static_cast<int>(rng() % 4);
+      for (int f = 0; f < flips; ++f) {
+        bytes[rng() % span] = static_cast<char>(rng() % 256);
+      }
+      if (trial % 5 == 0) bytes.resize(rng() % bytes.size());
+      write_bytes(corrupt, bytes);
+      try {
+        const PointCloud cloud = read_point_cloud(corrupt);
+        EXPECT_EQ(cloud.size() + cloud.skipped_nonfinite, cloud.total);
+        ++successes;
+      } catch (const InputError&) {
+        ++failures;
+      } catch (const std::exception& e) {
+        ADD_FAILURE() << source << " trial " << trial << ": " << e.what();
+      }
+    }
+  }
+  EXPECT_GT(failures, 60u);   // the corruption really was seen
+  EXPECT_GT(successes, 10u);  // and flipped data bytes still read
+}
+
 // ---- atomic writes -----------------------------------------------------------------------
 
 TEST(AtomicWrites, MissingDirectoryGivesOutputErrorAndNoFile) {
