@@ -22,6 +22,20 @@ void ProjectionResults::resize(std::size_t n) {
   status.resize(n);
 }
 
+void ProjectionResults::copy_from(const ProjectionResults& part, std::size_t offset) {
+  auto put = [offset](auto& to, const auto& from) {
+    std::copy(from.begin(), from.end(), to.begin() + static_cast<std::ptrdiff_t>(offset));
+  };
+  put(foot, part.foot);
+  put(distance, part.distance);
+  put(signed_distance, part.signed_distance);
+  put(entity, part.entity);
+  put(u, part.u);
+  put(v, part.v);
+  put(normal, part.normal);
+  put(status, part.status);
+}
+
 struct Projector::ThreadState {
   SurfaceScratch surface_scratch;
   SurfaceProjectionStats surface_stats;
@@ -50,14 +64,14 @@ void write_missing(ProjectionResults& out, std::size_t i, ProjectionStatus statu
 }
 
 bool valid_hint(const ProjectionHint* hint, std::size_t entities) {
-  return hint != nullptr && hint->entity >= 0 && static_cast<std::size_t>(hint->entity) < entities &&
-         std::isfinite(hint->u) && std::isfinite(hint->v);
+  return hint != nullptr && hint->entity >= 0 &&
+         static_cast<std::size_t>(hint->entity) < entities && std::isfinite(hint->u) &&
+         std::isfinite(hint->v);
 }
 
 }  // namespace
 
-Projector::Projector(const PreparedModel& model)
-    : model_(model), impl_(std::make_unique<Impl>()) {}
+Projector::Projector(const PreparedModel& model) : model_(model), impl_(std::make_unique<Impl>()) {}
 
 Projector::~Projector() = default;
 
@@ -156,20 +170,20 @@ void Projector::project_range(PointView points, const ProjectionOptions& options
   }
 }
 
-void Projector::project(PointView points, const ProjectionOptions& options,
-                        ProjectionResults& out, std::span<const ProjectionHint> hints,
-                        ProjectionCounters* counters) {
+void Projector::project(PointView points, const ProjectionOptions& options, ProjectionResults& out,
+                        std::span<const ProjectionHint> hints, ProjectionCounters* counters) {
   out.resize(points.size());
   for (ThreadState& s : impl_->states) {
     s.counters = {};
     s.surface_stats = {};
     s.curve_stats = {};
   }
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, points.size(), std::max<std::size_t>(1, options.grain)),
-                    [&](const tbb::blocked_range<std::size_t>& range) {
-                      project_range(points, options, out, hints, range.begin(), range.end(),
-                                    impl_->states.local());
-                    });
+  tbb::parallel_for(
+      tbb::blocked_range<std::size_t>(0, points.size(), std::max<std::size_t>(1, options.grain)),
+      [&](const tbb::blocked_range<std::size_t>& range) {
+        project_range(points, options, out, hints, range.begin(), range.end(),
+                      impl_->states.local());
+      });
   if (counters) {
     *counters = {};
     // Integer sums: the order of combination does not matter.

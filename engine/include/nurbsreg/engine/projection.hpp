@@ -22,9 +22,9 @@ namespace nurbsreg::engine {
 enum class ProjectionTarget : std::uint8_t { surfaces, curves };
 
 enum class ProjectionStatus : std::uint8_t {
-  ok,                // exact closest point found
-  skipped_nonfinite, // the input point had a NaN or infinite coordinate
-  no_geometry,       // the model has no entity of the requested target kind
+  ok,                 // exact closest point found
+  skipped_nonfinite,  // the input point had a NaN or infinite coordinate
+  no_geometry,        // the model has no entity of the requested target kind
 };
 
 // Where a point's closest point was last time (e.g. the previous ICP iteration): entity index
@@ -43,12 +43,14 @@ struct ProjectionResults {
   std::vector<double> signed_distance;  // positive on the side the normal points to
   std::vector<std::int32_t> entity;     // surface (or curve) index in the model, -1 if none
   std::vector<double> u;
-  std::vector<double> v;                // 0 for curves
-  std::vector<Vec3> normal;             // unit surface normal Su x Sv at the foot; 0 for curves
+  std::vector<double> v;     // 0 for curves
+  std::vector<Vec3> normal;  // unit surface normal Su x Sv at the foot; 0 for curves
   std::vector<ProjectionStatus> status;
 
   std::size_t size() const { return status.size(); }
   void resize(std::size_t n);
+  // Copies `part` into entries [offset, offset + part.size()) (frames projected in blocks).
+  void copy_from(const ProjectionResults& part, std::size_t offset);
   ProjectionHint hint(std::size_t i) const {
     return status[i] == ProjectionStatus::ok ? ProjectionHint{entity[i], u[i], v[i]}
                                              : ProjectionHint{};
