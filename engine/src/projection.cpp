@@ -106,6 +106,12 @@ void Projector::project_range(PointView points, const ProjectionOptions& options
         best.distance_sq = (best.foot - p).squaredNorm();
         best_surface = hint->entity;
       }
+      const double limit_sq = options.max_distance * options.max_distance;
+      if (best.distance_sq >= limit_sq) {
+        best = SurfaceHit{};
+        best.distance_sq = limit_sq;
+        best_surface = -1;
+      }
       double alpha = best.distance_sq;
       model_.patch_hierarchy().nearest(
           p, alpha, state.bvh_scratch,
@@ -119,7 +125,7 @@ void Projector::project_range(PointView points, const ProjectionOptions& options
             }
           });
       if (best_surface < 0) {
-        write_missing(out, i, ProjectionStatus::no_geometry);
+        write_missing(out, i, ProjectionStatus::beyond_max_distance);
         continue;
       }
       const NurbsSurface& s = model.surfaces[best_surface];
@@ -142,6 +148,12 @@ void Projector::project_range(PointView points, const ProjectionOptions& options
         best.distance_sq = (best.foot - p).squaredNorm();
         best_curve = hint->entity;
       }
+      const double limit_sq = options.max_distance * options.max_distance;
+      if (best.distance_sq >= limit_sq) {
+        best = CurveHit{};
+        best.distance_sq = limit_sq;
+        best_curve = -1;
+      }
       double alpha = best.distance_sq;
       model_.piece_hierarchy().nearest(
           p, alpha, state.bvh_scratch,
@@ -154,7 +166,7 @@ void Projector::project_range(PointView points, const ProjectionOptions& options
             }
           });
       if (best_curve < 0) {
-        write_missing(out, i, ProjectionStatus::no_geometry);
+        write_missing(out, i, ProjectionStatus::beyond_max_distance);
         continue;
       }
       const double distance = std::sqrt(best.distance_sq);

@@ -18,7 +18,8 @@ using test::uniform;
 Model mixed_model() {
   Model m;
   NurbsSurface sheet = test::random_surface(11, 3, 3, 8, 8, true);
-  for (Vec3& p : sheet.control_points) p = Vec3(p.x() - 3.5, p.y() - 3.5, 0.3 * p.z());
+  for (Vec3& p : sheet.control_points)
+    p = Vec3(p.x() - 3.5, p.y() - 3.5, 0.3 * p.z());
   sheet.name = "sheet";
   m.surfaces.push_back(sheet);
   m.surfaces.push_back(make_sphere(Vec3(0, 0, 1.5), 1.5));
@@ -34,7 +35,8 @@ std::vector<Vec3> query_points(const Aabb& box, std::size_t n, std::uint64_t see
   const Vec3 hi = box.hi + 0.2 * (box.hi - box.lo);
   std::vector<Vec3> points(n);
   for (Vec3& p : points) {
-    p = Vec3(uniform(rng, lo.x(), hi.x()), uniform(rng, lo.y(), hi.y()), uniform(rng, lo.z(), hi.z()));
+    p = Vec3(uniform(rng, lo.x(), hi.x()), uniform(rng, lo.y(), hi.y()),
+             uniform(rng, lo.z(), hi.z()));
   }
   return points;
 }
@@ -51,16 +53,17 @@ TEST_F(ProjectionTest, EqualsTheBestSingleSurfaceProjection) {
   ProjectionResults results;
   projector.project(PointView::of(points_), {}, results);
   std::vector<SurfaceProjector> singles;
-  for (const NurbsSurface& s : prepared_.model().surfaces) singles.emplace_back(s);
+  for (const NurbsSurface& s : prepared_.model().surfaces)
+    singles.emplace_back(s);
   SurfaceScratch scratch;
   const double tolerance = 1e-9 * prepared_.bounds().diagonal();
   for (std::size_t i = 0; i < points_.size(); ++i) {
     ASSERT_EQ(results.status[i], ProjectionStatus::ok);
     double best = std::numeric_limits<double>::infinity();
     for (const SurfaceProjector& single : singles) {
-      best = std::min(best, std::sqrt(single.project(points_[i], SurfaceStrategy::spherical_clipping,
-                                                     scratch)
-                                          .distance_sq));
+      best = std::min(
+          best, std::sqrt(single.project(points_[i], SurfaceStrategy::spherical_clipping, scratch)
+                              .distance_sq));
     }
     EXPECT_NEAR(results.distance[i], best, tolerance) << "point " << i;
     // The reported foot is on the reported surface at the reported parameters.
@@ -108,7 +111,8 @@ TEST_F(ProjectionTest, WarmStartsStayExactEvenWithWrongHints) {
   // Good hints: the feet of slightly perturbed points (as in ICP).
   std::mt19937_64 rng(3);
   std::vector<Vec3> moved(points_);
-  for (Vec3& p : moved) p += Vec3(uniform(rng, -1, 1), uniform(rng, -1, 1), uniform(rng, -1, 1)) * 1e-3;
+  for (Vec3& p : moved)
+    p += Vec3(uniform(rng, -1, 1), uniform(rng, -1, 1), uniform(rng, -1, 1)) * 1e-3;
   ProjectionResults previous;
   projector.project(PointView::of(moved), {}, previous);
   std::vector<ProjectionHint> good(points_.size());
@@ -154,7 +158,8 @@ TEST_F(ProjectionTest, CurvesTargetEqualsBestSingleCurve) {
   ProjectionResults results;
   projector.project(PointView::of(points_), options, results);
   std::vector<CurveProjector> singles;
-  for (const NurbsCurve& c : prepared_.model().curves) singles.emplace_back(c);
+  for (const NurbsCurve& c : prepared_.model().curves)
+    singles.emplace_back(c);
   const double tolerance = 1e-9 * prepared_.bounds().diagonal();
   for (std::size_t i = 0; i < points_.size(); i += 3) {
     double best = std::numeric_limits<double>::infinity();
@@ -164,6 +169,30 @@ TEST_F(ProjectionTest, CurvesTargetEqualsBestSingleCurve) {
     EXPECT_NEAR(results.distance[i], best, tolerance);
     EXPECT_EQ(results.v[i], 0.0);
   }
+}
+
+TEST_F(ProjectionTest, MaxDistanceLeavesFarPointsOut) {
+  Projector projector(prepared_);
+  ProjectionResults all;
+  projector.project(PointView::of(points_), {}, all);
+  ProjectionOptions options;
+  options.max_distance = 0.5;
+  ProjectionResults near;
+  std::vector<ProjectionHint> hints(points_.size());
+  for (std::size_t i = 0; i < points_.size(); ++i)
+    hints[i] = all.hint(i);  // hints beyond too
+  projector.project(PointView::of(points_), options, near, hints);
+  std::size_t beyond = 0;
+  for (std::size_t i = 0; i < points_.size(); ++i) {
+    if (all.distance[i] < 0.5 * (1 - 1e-9)) {
+      ASSERT_EQ(near.status[i], ProjectionStatus::ok) << i;
+      EXPECT_NEAR(near.distance[i], all.distance[i], 1e-9 * prepared_.bounds().diagonal());
+    } else if (all.distance[i] > 0.5 * (1 + 1e-9)) {
+      EXPECT_EQ(near.status[i], ProjectionStatus::beyond_max_distance) << i;
+      ++beyond;
+    }
+  }
+  EXPECT_GT(beyond, 100u);
 }
 
 TEST(PreparedModel, RejectsInvalidModels) {

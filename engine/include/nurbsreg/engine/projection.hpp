@@ -11,6 +11,7 @@
 // resized.
 
 #include <cstdint>
+#include <limits>
 #include <memory>
 #include <span>
 #include <vector>
@@ -22,9 +23,10 @@ namespace nurbsreg::engine {
 enum class ProjectionTarget : std::uint8_t { surfaces, curves };
 
 enum class ProjectionStatus : std::uint8_t {
-  ok,                 // exact closest point found
-  skipped_nonfinite,  // the input point had a NaN or infinite coordinate
-  no_geometry,        // the model has no entity of the requested target kind
+  ok,                   // exact closest point found
+  skipped_nonfinite,    // the input point had a NaN or infinite coordinate
+  no_geometry,          // the model has no entity of the requested target kind
+  beyond_max_distance,  // nothing of the model within ProjectionOptions::max_distance
 };
 
 // Where a point's closest point was last time (e.g. the previous ICP iteration): entity index
@@ -61,6 +63,10 @@ struct ProjectionOptions {
   ProjectionTarget target = ProjectionTarget::surfaces;
   // Points per parallel task.
   std::size_t grain = 256;
+  // Points with nothing of the model within this distance get status beyond_max_distance
+  // without an exact foot: the search starts with alpha = max_distance^2, so far points (ICP
+  // outliers) cost almost nothing. Infinity: every point gets its exact closest point.
+  double max_distance = std::numeric_limits<double>::infinity();
 };
 
 // Work counters summed over a frame (for benchmarks and progress logs).
