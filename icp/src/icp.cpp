@@ -76,9 +76,10 @@ struct Centroid {
 };
 
 struct LinearSystem {
-  Moments m;
+  Moments m;  // H, g about `center`; point-to-point moments about `centroid`
   std::size_t count = 0;
-  Vec3 center = Vec3::Zero();
+  Vec3 centroid = Vec3::Zero();  // inlier centroid c
+  Vec3 center = Vec3::Zero();    // linearisation and update centre c' (see decouple())
   double length_scale = 1.0;
 };
 
@@ -160,8 +161,8 @@ void find_correspondences(CorrespondenceFinder& finder, double max_distance, boo
 
 // Step 3, reject: d_i <= max distance, then Trimmed ICP (Chetverikov et al. 2002): keep the
 // ceil(keep_fraction * m) smallest distances (all ties of the cut value, so the set depends
-// on the values only). Returns the inlier count and RMS of d_i over the inliers.
-Rejection reject_outliers(double max_distance, double keep_fraction, Buffers& b) {
+// on the values only).
+void reject_outliers(double max_distance, double keep_fraction, Buffers& b) {
   const std::size_t n = b.ids.size();
   b.scratch.clear();
   for (std::size_t k = 0; k < n; ++k) {
@@ -181,10 +182,13 @@ Rejection reject_outliers(double max_distance, double keep_fraction, Buffers& b)
       if (b.inlier[k] && b.matches[k].distance > cut) b.inlier[k] = 0;
     }
   }
-  // Sum of squares in index order (serial: a single O(n) pass, cheaper than a block reduction).
+}
+
+// Inlier count and RMS of d_i over the inliers (serial sum in index order: one cheap pass).
+Rejection inlier_statistics(const Buffers& b) {
   Rejection r;
   double sum = 0.0;
-  for (std::size_t k = 0; k < n; ++k) {
+  for (std::size_t k = 0; k < b.ids.size(); ++k) {
     if (!b.inlier[k]) continue;
     ++r.inliers;
     sum += b.matches[k].distance * b.matches[k].distance;
@@ -220,7 +224,8 @@ double kernel_weight(RobustKernel kernel, double r, double s) {
 // Step 4, weight: residuals r_i (point-to-plane: n_i . (q_i - f_i), the linearised distance
 // of Chen & Medioni; point-to-point: d_i) and IRLS weights w_i = w(r_i; s). With an automatic
 // scale s = 1.4826 median_inliers |r_i| (MAD about 0, consistent for Gaussian noise), floored
-// at 1e-12 L so that an exact fit (all r = 0) keeps unit weights. Returns s (0: no kernel).
+// at 1e-12 L so that an exact fit (all r = 0) keeps unit weights. Points whose weight is 0
+// (beyond Tukey's cut-off) stop counting as inliers. Returns s (0: no kernel).
 double compute_weights(const IcpOptions& o, double length_scale, Buffers& b) {
   const std::size_t n = b.ids.size();
   for (std::size_t k = 0; k < n; ++k) {
@@ -237,6 +242,10 @@ double compute_weights(const IcpOptions& o, double length_scale, Buffers& b) {
   double scale = o.kernel_scale;
   if (scale == 0.0) {
     b.scratch.clear();
+    if (std::none_of(b.inlier.begin(), b.inlier.begin() + static_cast<std::ptrdiff_t>(n),
+                     [](std::uint8_t x) { return x != 0; })) {
+      return 0.0;
+    }
     for (std::size_t k = 0; k < n; ++k) {
       if (b.inlier[k]) b.scratch.push_back(std::abs(b.residual[k]));
     }
@@ -246,8 +255,40 @@ double compute_weights(const IcpOptions& o, double length_scale, Buffers& b) {
   }
   for (std::size_t k = 0; k < n; ++k) {
     b.weight[k] = b.inlier[k] ? kernel_weight(o.kernel, b.residual[k], scale) : 0.0;
+    if (b.weight[k] <= 0.0) b.inlier[k] = 0;
   }
   return scale;
+}
+
+// Moves the linearisation centre from c to the point c' = c + d about which rotations and
+// translations are least coupled: the "centre of stiffness" that makes the off-diagonal block
+// sum w ((q - c') x n / L) n^T of H_s vanish in the least-squares sense. With
+// J'_s = T J_s, T = [I, -[d]x / L; 0, I], the block becomes H_rt - [d]x H_tt / L, so d solves
+// [d]x N_k = L C_k for the columns k of N = H_tt, C = H_rt, the minimum-norm solution when
+// that is underdetermined. Full-rank Gauss-Newton steps do not depend on the centre (to first
+// order), but the split into free and constrained directions does: about c' a sphere's free
+// motions are pure rotations about its centre, orthogonal to every translation, so the
+// constrained step translates without rotating (and a plane's c' stays at c).
+void decouple(LinearSystem& sys) {
+  const double L = sys.length_scale;
+  const Matrix3d C = sys.m.H.topRightCorner<3, 3>();
+  const Matrix3d N = sys.m.H.bottomRightCorner<3, 3>();
+  Eigen::Matrix<double, 9, 3> M;
+  Eigen::Matrix<double, 9, 1> rhs;
+  for (int k = 0; k < 3; ++k) {
+    M.block<3, 3>(3 * k, 0) = -skew(N.col(k));
+    rhs.segment<3>(3 * k) = L * C.col(k);
+  }
+  Eigen::JacobiSVD<Eigen::Matrix<double, 9, 3>> svd(M, Eigen::ComputeFullU | Eigen::ComputeFullV);
+  svd.setThreshold(1e-9);
+  const Vec3 d = svd.solve(rhs);
+  // A centre far outside the scan means the decoupling is numerically meaningless: keep c.
+  if (!d.allFinite() || d.norm() > 1e3 * L) return;
+  Mat6 T = Mat6::Identity();
+  T.topRightCorner<3, 3>() = -skew(d) / L;
+  sys.m.H = T * sys.m.H * T.transpose();
+  sys.m.g = T * sys.m.g;
+  sys.center = sys.centroid + d;
 }
 
 // Step 5, linearize. A left increment about the inlier centroid c moves q to
@@ -256,7 +297,8 @@ double compute_weights(const IcpOptions& o, double length_scale, Buffers& b) {
 //   r_i(xi) = n_i . (q_i - f_i) + ((q_i - c) x n_i) . omega + n_i . v = r_i + J_i^T xi,
 // and in scaled coordinates xi_s = (L omega, v): J_s,i = [(q_i - c) x n_i / L ; n_i].
 // Normal equations H_s = sum w J_s J_s^T, g_s = sum w J_s r (eq. GN), reduced by blocks.
-// The point-to-point moments about c are collected in the same pass.
+// The point-to-point moments about c are collected in the same pass; then the centre moves
+// to c' (decouple()).
 LinearSystem linearize(double length_scale, bool parallel, Buffers& b) {
   const std::size_t n = b.ids.size();
   LinearSystem sys;
@@ -278,6 +320,7 @@ LinearSystem linearize(double length_scale, bool parallel, Buffers& b) {
   sys.count = total.count;
   if (total.count == 0) return sys;
   const Vec3 c = total.sum / static_cast<double>(total.count);
+  sys.centroid = c;
   sys.center = c;
   const double inv_l = 1.0 / length_scale;
   for_each_block(n, parallel, [&](std::size_t begin, std::size_t end, std::size_t block) {
@@ -304,6 +347,7 @@ LinearSystem linearize(double length_scale, bool parallel, Buffers& b) {
   });
   for (std::size_t block = 0; block < block_count(n); ++block)
     sys.m.add(b.moment_blocks[block]);
+  decouple(sys);
   return sys;
 }
 
@@ -349,7 +393,9 @@ Step solve(IcpMethod method, const LinearSystem& sys, double threshold) {
     if ((svd.matrixU() * svd.matrixV().transpose()).determinant() < 0.0) S(2, 2) = -1.0;
     // a -> R a + t about c, i.e. the (omega, v) = (log R, t) of the update in step 7.
     const Matrix3d R = svd.matrixU() * S * svd.matrixV().transpose();
-    xi_s << L * log_so3(R), mean_b - R * mean_a;
+    // About the update centre c' = c + d: t' = t + (R - I) d.
+    const Vec3 d = sys.center - sys.centroid;
+    xi_s << L * log_so3(R), mean_b - R * mean_a + (R - Matrix3d::Identity()) * d;
     xi_s = U * (U.transpose() * xi_s);
   }
   step.xi << xi_s.head<3>() / L, xi_s.tail<3>();
@@ -495,8 +541,10 @@ IcpResult IcpSolver::align(CorrespondenceFinder& finder, std::span<const Vec3> s
       const auto t0 = Clock::now();
       transform_points(T, scan, b, o.parallel);
       find_correspondences(finder, o.max_correspondence_distance, o.parallel, b);
-      const Rejection kept = reject_outliers(o.max_correspondence_distance, o.keep_fraction, b);
+      reject_outliers(o.max_correspondence_distance, o.keep_fraction, b);
       IcpIteration it;
+      it.kernel_scale = compute_weights(o, L, b);
+      const Rejection kept = inlier_statistics(b);
       it.stage = static_cast<int>(stage);
       it.points = b.ids.size();
       it.inliers = kept.inliers;
@@ -508,13 +556,7 @@ IcpResult IcpSolver::align(CorrespondenceFinder& finder, std::span<const Vec3> s
                   std::to_string(o.min_correspondences) + ")";
         break;
       }
-      it.kernel_scale = compute_weights(o, L, b);
       const LinearSystem sys = linearize(L, o.parallel, b);
-      if (!(sys.m.sum_w > 0.0)) {
-        termination = IcpTermination::too_few_correspondences;
-        message = "all robust weights are zero (kernel_scale too small?)";
-        break;
-      }
       const Step step = solve(o.method, sys, o.degeneracy_threshold);
       if (!step.finite) {
         termination = IcpTermination::numerical_failure;
@@ -550,11 +592,12 @@ IcpResult IcpSolver::align(CorrespondenceFinder& finder, std::span<const Vec3> s
   b.resize(b.ids.size());
   transform_points(T, scan, b, o.parallel);
   find_correspondences(finder, o.max_correspondence_distance, o.parallel, b);
-  const Rejection kept = reject_outliers(o.max_correspondence_distance, o.keep_fraction, b);
+  reject_outliers(o.max_correspondence_distance, o.keep_fraction, b);
+  compute_weights(o, L, b);
+  const Rejection kept = inlier_statistics(b);
   result.inliers = kept.inliers;
   result.rms = kept.rms;
   if (kept.inliers > 0) {
-    compute_weights(o, L, b);
     const LinearSystem sys = linearize(L, o.parallel, b);
     if (sys.m.sum_w > 0.0 && sys.m.H.allFinite()) {
       result.covariance = pose_covariance(sys, o.degeneracy_threshold);

@@ -107,7 +107,7 @@ std::string_view to_string(IcpTermination termination);
 struct IcpIteration {
   int stage = 0;               // 0 .. coarse stages, last = all points
   std::size_t points = 0;      // points used in this iteration
-  std::size_t inliers = 0;     // after rejection
+  std::size_t inliers = 0;     // after rejection, with weight > 0
   double rms = 0.0;            // inlier point-to-surface RMS before the update
   double kernel_scale = 0.0;   // s used for the weights (0 with RobustKernel::none)
   double rotation_step = 0.0;  // |omega| of the applied increment [rad]
@@ -119,7 +119,8 @@ struct IcpResult {
   Eigen::Isometry3d T_model_scan = Eigen::Isometry3d::Identity();
   IcpTermination termination = IcpTermination::invalid_input;
   std::string message;
-  int iterations = 0;       // over all stages
+  int iterations = 0;  // over all stages
+  // Inliers: within max_correspondence_distance, kept by trimming and with robust weight > 0.
   std::size_t inliers = 0;  // at the final pose, all points
   std::size_t points = 0;   // scan size
   double rms = 0.0;         // inlier point-to-surface RMS at the final pose
