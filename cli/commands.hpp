@@ -11,5 +11,6 @@ namespace nurbsreg::cli {
 void add_info_command(CLI::App& app);
 void add_project_command(CLI::App& app);
 void add_synth_command(CLI::App& app);
+void add_align_command(CLI::App& app);
 
 }  // namespace nurbsreg::cli
