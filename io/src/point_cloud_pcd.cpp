@@ -17,6 +17,7 @@
 #include <charconv>
 #include <cstring>
 #include <limits>
+#include <mutex>
 #include <sstream>
 
 #include "point_cloud_detail.hpp"
@@ -26,9 +27,11 @@ namespace {
 
 // PCL reports problems on its console; we report them as exceptions instead, so its output is
 // silenced while we call it (and restored after, for applications that use PCL themselves).
+// The verbosity is a PCL global: the lock keeps concurrent reads from restoring each other's
+// "silenced" level for good (it serialises only the PCL decoding step).
 class QuietPcl {
  public:
-  QuietPcl() : saved_(pcl::console::getVerbosityLevel()) {
+  QuietPcl() : lock_(mutex()), saved_(pcl::console::getVerbosityLevel()) {
     pcl::console::setVerbosityLevel(pcl::console::L_ALWAYS);
   }
   ~QuietPcl() { pcl::console::setVerbosityLevel(saved_); }
@@ -36,6 +39,11 @@ class QuietPcl {
   QuietPcl& operator=(const QuietPcl&) = delete;
 
  private:
+  static std::mutex& mutex() {
+    static std::mutex m;
+    return m;
+  }
+  std::lock_guard<std::mutex> lock_;
   pcl::console::VERBOSITY_LEVEL saved_;
 };
 
