@@ -18,6 +18,9 @@ namespace nurbsreg::io::detail {
 // The whole file as bytes. Throws InputError when it cannot be opened or read.
 std::string read_file(const std::string& path);
 
+// Byte-order mark that some editors and spreadsheets put at the start of text files.
+inline constexpr std::string_view kUtf8Bom = "\xEF\xBB\xBF";
+
 // Lower-case extension including the dot (".pcd"), empty when there is none.
 std::string lower_extension(const std::string& path);
 

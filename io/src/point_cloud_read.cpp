@@ -106,6 +106,7 @@ void read_text(const std::string& path, PointCloud& cloud) {
 
   const char* p = data.data();
   const char* const end = p + data.size();
+  if (data.starts_with(kUtf8Bom)) p += kUtf8Bom.size();  // spreadsheet exports start with one
   std::size_t line_number = 0;
   while (p < end) {
     ++line_number;

@@ -300,6 +300,7 @@ PointTable read_csv_table(const std::string& path) {
   bool have_header = false;
   const char* p = data.data();
   const char* const end = p + data.size();
+  if (data.starts_with(detail::kUtf8Bom)) p += detail::kUtf8Bom.size();
   std::size_t line_number = 0;
   while (p < end) {
     ++line_number;

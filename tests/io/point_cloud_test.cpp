@@ -474,6 +474,30 @@ TEST(PointTableIo, CsvRoundTripIsExact) {
   EXPECT_EQ(cloud.points[7].x(), (*table.values<double>("x"))[7]);
 }
 
+TEST(PointTableIo, IntegerAndDoubleCoordinatesReadAsPoints) {
+  TempDir dir;
+  PointTable table;
+  table.add_column<std::int32_t>("x", {-7, 2147483647, 0});
+  table.add_column<std::uint32_t>("y", {4294967295u, 1, 2});
+  table.add_column<double>("z", {0.1, -1e-310, 3});
+  table.add_column<float>("intensity", {1, 2, 3});
+  for (const PcdEncoding encoding :
+       {PcdEncoding::binary, PcdEncoding::ascii, PcdEncoding::binary_compressed}) {
+    const std::string path = dir.file("i.pcd");
+    write_pcd(path, table, encoding);
+    const PointCloud cloud = read_point_cloud(path);
+    ASSERT_EQ(cloud.size(), 3u);
+    EXPECT_EQ(cloud.points[0], Vec3(-7, 4294967295.0, 0.1));
+    EXPECT_EQ(cloud.points[1], Vec3(2147483647, 1, -1e-310));
+  }
+  // Text with a byte-order mark and a header naming the columns in another order.
+  const std::string csv = dir.file("bom.csv");
+  write_bytes(csv, "\xEF\xBB\xBFZ, Y, X, w\n3,2,1,0\n6,5,4,0\n");
+  const PointCloud cloud = read_point_cloud(csv);
+  ASSERT_EQ(cloud.size(), 2u);
+  EXPECT_EQ(cloud.points[1], Vec3(4, 5, 6));
+}
+
 TEST(PointTableIo, InvalidTablesAreRejected) {
   PointTable uneven;
   uneven.add_column<double>("x", {1, 2});
