@@ -223,9 +223,7 @@ void check_body_size(const std::string& path, const std::string& data, const Pre
   }
   if (uncompressed != bytes) {
     throw truncated("uncompressed size " + std::to_string(uncompressed) +
-                    " differs from POINTS x "
-                    "point size = " +
-                    std::to_string(bytes));
+                    " differs from POINTS x point size = " + std::to_string(bytes));
   }
   // LZF cannot expand by more than about 100x (a 3-byte back reference copies <= 264 bytes), so
   // a larger claim is corrupt, and refusing it keeps PCL from allocating for it.
@@ -313,6 +311,16 @@ void read_binary_body(const std::string& path, const std::string& data, const Pr
       throw InputError(path, "PCD header: PCL computes " + std::to_string(cloud.data.size()) +
                                  " data bytes, expected " +
                                  std::to_string(h.points * out.point_step));
+    }
+    // Our row layout (PcdField::offset) must be PCL's, or the values would be read wrongly.
+    for (const PcdField& ours : out.fields) {
+      for (const pcl::PCLPointField& theirs : cloud.fields) {
+        if (theirs.name == ours.name && theirs.offset != ours.offset) {
+          throw InputError(path, "PCD header: field '" + ours.name + "' at byte " +
+                                     std::to_string(theirs.offset) + " for PCL, " +
+                                     std::to_string(ours.offset) + " by FIELDS/SIZE/COUNT");
+        }
+      }
     }
     status = reader.readBodyBinary(reinterpret_cast<const unsigned char*>(data.data()), cloud,
                                    version, data_type == 2, static_cast<unsigned>(h.header_end));

@@ -308,6 +308,33 @@ std::vector<Vec3> random_points(std::size_t n, std::uint64_t seed) {
   return points;
 }
 
+// PCL pads PointXYZRGB-like types with `_` fields; the coordinates after the padding must be
+// found at the right offsets (binary: interleaved rows).
+TEST(HandMadePcd, PaddingFieldsAndFieldOrder) {
+  TempDir dir;
+  const std::string path = dir.file("pad.pcd");
+  std::string bytes =
+      "# .PCD v0.7\nVERSION 0.7\nFIELDS rgb _ z x y\nSIZE 4 1 8 4 2\nTYPE U U F F I\n"
+      "COUNT 1 4 1 1 1\nWIDTH 2\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS 2\nDATA binary\n";
+  for (int i = 0; i < 2; ++i) {
+    const std::uint32_t rgb = 0xff00ffu;
+    const char pad[4] = {9, 9, 9, 9};
+    const double z = 0.5 + i;
+    const float x = -1.25f * static_cast<float>(i + 1);
+    const std::int16_t y = static_cast<std::int16_t>(-300 + i);
+    bytes.append(reinterpret_cast<const char*>(&rgb), 4);
+    bytes.append(pad, 4);
+    bytes.append(reinterpret_cast<const char*>(&z), 8);
+    bytes.append(reinterpret_cast<const char*>(&x), 4);
+    bytes.append(reinterpret_cast<const char*>(&y), 2);
+  }
+  write_bytes(path, bytes);
+  const PointCloud cloud = read_point_cloud(path);
+  ASSERT_EQ(cloud.size(), 2u);
+  EXPECT_EQ(cloud.points[0], Vec3(-1.25, -300, 0.5));
+  EXPECT_EQ(cloud.points[1], Vec3(-2.5, -299, 1.5));
+}
+
 TEST(RoundTrip, EveryPointFormatDoublePrecision) {
   TempDir dir;
   const std::vector<Vec3> points = random_points(5000, 7);
