@@ -58,6 +58,18 @@ struct PcdData {
 
 PcdData read_pcd_data(const std::string& path);
 
+// A token from the file for an error message: quoted, at most 40 characters, control and
+// non-ASCII bytes shown as '?' so that the message stays one printable line.
+inline std::string quote(std::string_view token) {
+  constexpr std::size_t kMax = 40;
+  std::string out = "'";
+  for (const char c : token.substr(0, kMax)) {
+    out.push_back(c >= 0x20 && c < 0x7f ? c : '?');
+  }
+  if (token.size() > kMax) out += "...";
+  return out + "'";
+}
+
 // Appends point `index` of the file, or counts it as skipped when a coordinate is not finite.
 inline void add_point(PointCloud& cloud, double x, double y, double z) {
   const std::uint64_t index = cloud.total++;

@@ -64,7 +64,7 @@ std::uint64_t parse_count(const std::string& path, std::size_t line, std::string
   const auto [end, ec] = std::from_chars(token.data(), token.data() + token.size(), value);
   if (ec != std::errc() || end != token.data() + token.size()) {
     throw InputError(path, "line " + std::to_string(line) + ": " + std::string(keyword) +
-                               ": not a non-negative integer: '" + std::string(token) + "'");
+                               ": not a non-negative integer: " + quote(token));
   }
   return value;
 }
@@ -118,7 +118,7 @@ Prescan prescan_header(const std::string& path, const std::string& data) {
       for (std::size_t i = 1; i < words.size(); ++i) {
         if (words[i].size() != 1 ||
             std::string_view("FIU").find(words[i][0]) == std::string_view::npos) {
-          throw fail("TYPE must be F, I or U, got '" + std::string(words[i]) + "'");
+          throw fail("TYPE must be F, I or U, got " + quote(words[i]));
         }
         h.types.push_back(words[i][0]);
       }
@@ -147,7 +147,7 @@ Prescan prescan_header(const std::string& path, const std::string& data) {
       h.header_end = pos;
       break;
     } else {
-      throw fail("unknown PCD header keyword '" + std::string(key) + "'");
+      throw fail("unknown PCD header keyword " + quote(key));
     }
   }
   if (h.names.empty()) throw InputError(path, "PCD header has no FIELDS line");
@@ -272,8 +272,7 @@ void read_ascii_body(const std::string& path, const std::string& data, const Pre
       }
       if (k == out.values_per_point) break;  // counted below as too many values
       if (!parse_double(token, row[k])) {
-        throw InputError(path, "line " + std::to_string(line) + ": not a number: '" +
-                                   std::string(token.substr(0, 40)) + "'");
+        throw InputError(path, "line " + std::to_string(line) + ": not a number: " + quote(token));
       }
       if (is_float[k]) row[k] = static_cast<float>(row[k]);
       ++k;

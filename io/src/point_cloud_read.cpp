@@ -86,12 +86,6 @@ std::string lower(std::string_view s) {
   return out;
 }
 
-std::string quoted(std::string_view token) {
-  constexpr std::size_t kMax = 40;
-  if (token.size() > kMax) return "'" + std::string(token.substr(0, kMax)) + "...'";
-  return "'" + std::string(token) + "'";
-}
-
 }  // namespace
 
 void read_text(const std::string& path, PointCloud& cloud) {
@@ -157,7 +151,7 @@ void read_text(const std::string& path, PointCloud& cloud) {
       for (int axis = 0; axis < 3; ++axis) {
         if (column[axis] != index) continue;
         if (!parse_double(field, xyz[axis])) {
-          throw at_line("column " + std::to_string(index + 1) + ": not a number: " + quoted(field));
+          throw at_line("column " + std::to_string(index + 1) + ": not a number: " + quote(field));
         }
         ++got;
       }

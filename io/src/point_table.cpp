@@ -334,8 +334,8 @@ PointTable read_csv_table(const std::string& path) {
         }
         double value = 0.0;
         if (!detail::parse_double(token, value)) {
-          throw fail("column '" + table.columns()[k].name + "': not a number: '" +
-                     std::string(token.substr(0, 40)) + "'");
+          throw fail("column '" + table.columns()[k].name +
+                     "': not a number: " + detail::quote(token));
         }
         columns[k]->push_back(value);
       }

@@ -358,6 +358,19 @@ TEST(RoundTrip, EveryPointFormatDoublePrecision) {
   EXPECT_EQ(dir.entries(), 7u);  // no temporaries left behind
 }
 
+TEST(RoundTrip, EmptyClouds) {
+  TempDir dir;
+  for (const std::string name : {"a.pcd", "b.ply", "c.xyz", "d.csv"}) {
+    for (const PcdEncoding encoding :
+         {PcdEncoding::binary, PcdEncoding::ascii, PcdEncoding::binary_compressed}) {
+      write_point_cloud(dir.file(name), std::vector<Vec3>{}, {encoding, false});
+      const PointCloud back = read_point_cloud(dir.file(name));
+      EXPECT_EQ(back.total, 0u) << name;
+      EXPECT_TRUE(back.points.empty()) << name;
+    }
+  }
+}
+
 TEST(RoundTrip, SinglePrecisionGivesTheFloatValues) {
   TempDir dir;
   std::vector<Vec3> points = random_points(3000, 8);
@@ -832,7 +845,12 @@ TEST(MalformedInput, CorruptedBytesNeverCrash) {
         const PointCloud cloud = read_point_cloud(corrupt);
         EXPECT_EQ(cloud.size() + cloud.skipped_nonfinite, cloud.total);
         ++successes;
-      } catch (const InputError&) {
+      } catch (const InputError& e) {
+        // The CLI prints the message as one line: no control or non-ASCII bytes from the file.
+        const std::string what = e.what();
+        EXPECT_TRUE(std::all_of(what.begin(), what.end(), [](char c) {
+          return c >= 0x20 && c < 0x7f;
+        })) << what;
         ++failures;
       } catch (const std::exception& e) {
         ADD_FAILURE() << source << " trial " << trial << ": " << e.what();
