@@ -178,8 +178,9 @@ PointCloud read_point_cloud(const std::string& path) {
   } else if (ext == ".xyz" || ext == ".txt" || ext == ".csv") {
     detail::read_text(path, cloud);
   } else {
-    throw InputError(path, "unsupported point-cloud format '" + ext +
-                               "' (supported: .pcd, .ply, .xyz, .txt, .csv)");
+    throw InputError(path, (ext.empty() ? std::string("file name has no extension")
+                                        : "unsupported point-cloud format " + detail::quote(ext)) +
+                               " (supported: .pcd, .ply, .xyz, .txt, .csv)");
   }
   if (cloud.height == 0) {
     cloud.width = static_cast<std::uint32_t>(cloud.total);

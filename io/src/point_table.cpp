@@ -215,6 +215,7 @@ void write_pcd(const std::string& path, const PointTable& table, PcdEncoding enc
       std::vector<char> soa(bytes);
       std::size_t offset = 0;
       for (const ColumnView& v : views) {
+        if (rows == 0) break;  // memcpy from an empty vector's null data() is undefined
         std::memcpy(soa.data() + offset, v.data, rows * v.size);
         offset += rows * v.size;
       }

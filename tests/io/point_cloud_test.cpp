@@ -389,6 +389,11 @@ TEST(RoundTrip, SinglePrecisionGivesTheFloatValues) {
       }
     }
   }
+  // Our binary_compressed and binary files, decoded by the independent reference decoder.
+  for (const PcdEncoding encoding : {PcdEncoding::binary_compressed, PcdEncoding::binary}) {
+    write_point_cloud(dir.file("r.pcd"), points, {encoding, false});
+    expect_matches(read_point_cloud(dir.file("r.pcd")), ref_pcd_points(dir.file("r.pcd")));
+  }
   // The default PCD is binary with F4 fields (what PCL's PointXYZ expects).
   const std::string header = read_bytes(dir.file("a.pcd")).substr(0, 200);
   EXPECT_NE(header.find("SIZE 4 4 4\nTYPE F F F"), std::string::npos) << header;
