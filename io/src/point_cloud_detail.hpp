@@ -18,6 +18,9 @@ namespace nurbsreg::io::detail {
 // The whole file as bytes. Throws InputError when it cannot be opened or read.
 std::string read_file(const std::string& path);
 
+// Byte-order mark that some editors and spreadsheets put at the start of text files.
+inline constexpr std::string_view kUtf8Bom = "\xEF\xBB\xBF";
+
 // Lower-case extension including the dot (".pcd"), empty when there is none.
 std::string lower_extension(const std::string& path);
 
@@ -54,6 +57,18 @@ struct PcdData {
 };
 
 PcdData read_pcd_data(const std::string& path);
+
+// A token from the file for an error message: quoted, at most 40 characters, control and
+// non-ASCII bytes shown as '?' so that the message stays one printable line.
+inline std::string quote(std::string_view token) {
+  constexpr std::size_t kMax = 40;
+  std::string out = "'";
+  for (const char c : token.substr(0, kMax)) {
+    out.push_back(c >= 0x20 && c < 0x7f ? c : '?');
+  }
+  if (token.size() > kMax) out += "...";
+  return out + "'";
+}
 
 // Appends point `index` of the file, or counts it as skipped when a coordinate is not finite.
 inline void add_point(PointCloud& cloud, double x, double y, double z) {

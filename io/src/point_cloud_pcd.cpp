@@ -17,6 +17,7 @@
 #include <charconv>
 #include <cstring>
 #include <limits>
+#include <mutex>
 #include <sstream>
 
 #include "point_cloud_detail.hpp"
@@ -26,9 +27,11 @@ namespace {
 
 // PCL reports problems on its console; we report them as exceptions instead, so its output is
 // silenced while we call it (and restored after, for applications that use PCL themselves).
+// The verbosity is a PCL global: the lock keeps concurrent reads from restoring each other's
+// "silenced" level for good (it serialises only the PCL decoding step).
 class QuietPcl {
  public:
-  QuietPcl() : saved_(pcl::console::getVerbosityLevel()) {
+  QuietPcl() : lock_(mutex()), saved_(pcl::console::getVerbosityLevel()) {
     pcl::console::setVerbosityLevel(pcl::console::L_ALWAYS);
   }
   ~QuietPcl() { pcl::console::setVerbosityLevel(saved_); }
@@ -36,6 +39,11 @@ class QuietPcl {
   QuietPcl& operator=(const QuietPcl&) = delete;
 
  private:
+  static std::mutex& mutex() {
+    static std::mutex m;
+    return m;
+  }
+  std::lock_guard<std::mutex> lock_;
   pcl::console::VERBOSITY_LEVEL saved_;
 };
 
@@ -56,7 +64,7 @@ std::uint64_t parse_count(const std::string& path, std::size_t line, std::string
   const auto [end, ec] = std::from_chars(token.data(), token.data() + token.size(), value);
   if (ec != std::errc() || end != token.data() + token.size()) {
     throw InputError(path, "line " + std::to_string(line) + ": " + std::string(keyword) +
-                               ": not a non-negative integer: '" + std::string(token) + "'");
+                               ": not a non-negative integer: " + quote(token));
   }
   return value;
 }
@@ -110,7 +118,7 @@ Prescan prescan_header(const std::string& path, const std::string& data) {
       for (std::size_t i = 1; i < words.size(); ++i) {
         if (words[i].size() != 1 ||
             std::string_view("FIU").find(words[i][0]) == std::string_view::npos) {
-          throw fail("TYPE must be F, I or U, got '" + std::string(words[i]) + "'");
+          throw fail("TYPE must be F, I or U, got " + quote(words[i]));
         }
         h.types.push_back(words[i][0]);
       }
@@ -139,7 +147,7 @@ Prescan prescan_header(const std::string& path, const std::string& data) {
       h.header_end = pos;
       break;
     } else {
-      throw fail("unknown PCD header keyword '" + std::string(key) + "'");
+      throw fail("unknown PCD header keyword " + quote(key));
     }
   }
   if (h.names.empty()) throw InputError(path, "PCD header has no FIELDS line");
@@ -215,9 +223,7 @@ void check_body_size(const std::string& path, const std::string& data, const Pre
   }
   if (uncompressed != bytes) {
     throw truncated("uncompressed size " + std::to_string(uncompressed) +
-                    " differs from POINTS x "
-                    "point size = " +
-                    std::to_string(bytes));
+                    " differs from POINTS x point size = " + std::to_string(bytes));
   }
   // LZF cannot expand by more than about 100x (a 3-byte back reference copies <= 264 bytes), so
   // a larger claim is corrupt, and refusing it keeps PCL from allocating for it.
@@ -266,8 +272,7 @@ void read_ascii_body(const std::string& path, const std::string& data, const Pre
       }
       if (k == out.values_per_point) break;  // counted below as too many values
       if (!parse_double(token, row[k])) {
-        throw InputError(path, "line " + std::to_string(line) + ": not a number: '" +
-                                   std::string(token.substr(0, 40)) + "'");
+        throw InputError(path, "line " + std::to_string(line) + ": not a number: " + quote(token));
       }
       if (is_float[k]) row[k] = static_cast<float>(row[k]);
       ++k;
@@ -305,6 +310,16 @@ void read_binary_body(const std::string& path, const std::string& data, const Pr
       throw InputError(path, "PCD header: PCL computes " + std::to_string(cloud.data.size()) +
                                  " data bytes, expected " +
                                  std::to_string(h.points * out.point_step));
+    }
+    // Our row layout (PcdField::offset) must be PCL's, or the values would be read wrongly.
+    for (const PcdField& ours : out.fields) {
+      for (const pcl::PCLPointField& theirs : cloud.fields) {
+        if (theirs.name == ours.name && theirs.offset != ours.offset) {
+          throw InputError(path, "PCD header: field '" + ours.name + "' at byte " +
+                                     std::to_string(theirs.offset) + " for PCL, " +
+                                     std::to_string(ours.offset) + " by FIELDS/SIZE/COUNT");
+        }
+      }
     }
     status = reader.readBodyBinary(reinterpret_cast<const unsigned char*>(data.data()), cloud,
                                    version, data_type == 2, static_cast<unsigned>(h.header_end));

@@ -146,7 +146,7 @@ Header parse_header(const std::string& path, const std::string& data) {
       } else if (words[1] == "binary_big_endian") {
         header.format = Format::binary_be;
       } else {
-        throw fail("unknown format '" + std::string(words[1]) + "'");
+        throw fail("unknown format " + quote(words[1]));
       }
       have_format = true;
     } else if (key == "element") {
@@ -170,14 +170,14 @@ Header parse_header(const std::string& path, const std::string& data) {
         property = Property{std::string(words[4]), *item_type, true, *count_type};
       } else if (words.size() == 3) {
         const auto type = scalar_from_name(words[1]);
-        if (!type) throw fail("unknown property type '" + std::string(words[1]) + "'");
+        if (!type) throw fail("unknown property type " + quote(words[1]));
         property = Property{std::string(words[2]), *type, false, Scalar::uint8};
       } else {
         throw fail("expected 'property <type> <name>' or 'property list <type> <type> <name>'");
       }
       header.elements.back().properties.push_back(std::move(property));
     } else {
-      throw fail("unknown header keyword '" + std::string(key) + "'");
+      throw fail("unknown header keyword " + quote(key));
     }
   }
   if (!have_format) throw InputError(path, "PLY header has no format line");
@@ -268,8 +268,7 @@ void read_ascii(const std::string& path, const std::string& data, const Header& 
         need();
         double value = 0.0;
         if (!parse_double(token, value)) {
-          throw fail("property '" + property.name + "': not a number: '" +
-                     std::string(token.substr(0, 40)) + "'");
+          throw fail("property '" + property.name + "': not a number: " + quote(token));
         }
         if (property.is_list) {
           if (value < 0 || value != static_cast<double>(static_cast<std::uint64_t>(value))) {

@@ -86,12 +86,6 @@ std::string lower(std::string_view s) {
   return out;
 }
 
-std::string quoted(std::string_view token) {
-  constexpr std::size_t kMax = 40;
-  if (token.size() > kMax) return "'" + std::string(token.substr(0, kMax)) + "...'";
-  return "'" + std::string(token) + "'";
-}
-
 }  // namespace
 
 void read_text(const std::string& path, PointCloud& cloud) {
@@ -106,6 +100,7 @@ void read_text(const std::string& path, PointCloud& cloud) {
 
   const char* p = data.data();
   const char* const end = p + data.size();
+  if (data.starts_with(kUtf8Bom)) p += kUtf8Bom.size();  // spreadsheet exports start with one
   std::size_t line_number = 0;
   while (p < end) {
     ++line_number;
@@ -156,7 +151,7 @@ void read_text(const std::string& path, PointCloud& cloud) {
       for (int axis = 0; axis < 3; ++axis) {
         if (column[axis] != index) continue;
         if (!parse_double(field, xyz[axis])) {
-          throw at_line("column " + std::to_string(index + 1) + ": not a number: " + quoted(field));
+          throw at_line("column " + std::to_string(index + 1) + ": not a number: " + quote(field));
         }
         ++got;
       }
@@ -183,8 +178,9 @@ PointCloud read_point_cloud(const std::string& path) {
   } else if (ext == ".xyz" || ext == ".txt" || ext == ".csv") {
     detail::read_text(path, cloud);
   } else {
-    throw InputError(path, "unsupported point-cloud format '" + ext +
-                               "' (supported: .pcd, .ply, .xyz, .txt, .csv)");
+    throw InputError(path, (ext.empty() ? std::string("file name has no extension")
+                                        : "unsupported point-cloud format " + detail::quote(ext)) +
+                               " (supported: .pcd, .ply, .xyz, .txt, .csv)");
   }
   if (cloud.height == 0) {
     cloud.width = static_cast<std::uint32_t>(cloud.total);

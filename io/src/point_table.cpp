@@ -215,6 +215,7 @@ void write_pcd(const std::string& path, const PointTable& table, PcdEncoding enc
       std::vector<char> soa(bytes);
       std::size_t offset = 0;
       for (const ColumnView& v : views) {
+        if (rows == 0) break;  // memcpy from an empty vector's null data() is undefined
         std::memcpy(soa.data() + offset, v.data, rows * v.size);
         offset += rows * v.size;
       }
@@ -300,6 +301,7 @@ PointTable read_csv_table(const std::string& path) {
   bool have_header = false;
   const char* p = data.data();
   const char* const end = p + data.size();
+  if (data.starts_with(detail::kUtf8Bom)) p += detail::kUtf8Bom.size();
   std::size_t line_number = 0;
   while (p < end) {
     ++line_number;
@@ -333,8 +335,8 @@ PointTable read_csv_table(const std::string& path) {
         }
         double value = 0.0;
         if (!detail::parse_double(token, value)) {
-          throw fail("column '" + table.columns()[k].name + "': not a number: '" +
-                     std::string(token.substr(0, 40)) + "'");
+          throw fail("column '" + table.columns()[k].name +
+                     "': not a number: " + detail::quote(token));
         }
         columns[k]->push_back(value);
       }

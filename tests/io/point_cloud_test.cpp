@@ -308,6 +308,33 @@ std::vector<Vec3> random_points(std::size_t n, std::uint64_t seed) {
   return points;
 }
 
+// PCL pads PointXYZRGB-like types with `_` fields; the coordinates after the padding must be
+// found at the right offsets (binary: interleaved rows).
+TEST(HandMadePcd, PaddingFieldsAndFieldOrder) {
+  TempDir dir;
+  const std::string path = dir.file("pad.pcd");
+  std::string bytes =
+      "# .PCD v0.7\nVERSION 0.7\nFIELDS rgb _ z x y\nSIZE 4 1 8 4 2\nTYPE U U F F I\n"
+      "COUNT 1 4 1 1 1\nWIDTH 2\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS 2\nDATA binary\n";
+  for (int i = 0; i < 2; ++i) {
+    const std::uint32_t rgb = 0xff00ffu;
+    const char pad[4] = {9, 9, 9, 9};
+    const double z = 0.5 + i;
+    const float x = -1.25f * static_cast<float>(i + 1);
+    const std::int16_t y = static_cast<std::int16_t>(-300 + i);
+    bytes.append(reinterpret_cast<const char*>(&rgb), 4);
+    bytes.append(pad, 4);
+    bytes.append(reinterpret_cast<const char*>(&z), 8);
+    bytes.append(reinterpret_cast<const char*>(&x), 4);
+    bytes.append(reinterpret_cast<const char*>(&y), 2);
+  }
+  write_bytes(path, bytes);
+  const PointCloud cloud = read_point_cloud(path);
+  ASSERT_EQ(cloud.size(), 2u);
+  EXPECT_EQ(cloud.points[0], Vec3(-1.25, -300, 0.5));
+  EXPECT_EQ(cloud.points[1], Vec3(-2.5, -299, 1.5));
+}
+
 TEST(RoundTrip, EveryPointFormatDoublePrecision) {
   TempDir dir;
   const std::vector<Vec3> points = random_points(5000, 7);
@@ -331,6 +358,19 @@ TEST(RoundTrip, EveryPointFormatDoublePrecision) {
   EXPECT_EQ(dir.entries(), 7u);  // no temporaries left behind
 }
 
+TEST(RoundTrip, EmptyClouds) {
+  TempDir dir;
+  for (const std::string name : {"a.pcd", "b.ply", "c.xyz", "d.csv"}) {
+    for (const PcdEncoding encoding :
+         {PcdEncoding::binary, PcdEncoding::ascii, PcdEncoding::binary_compressed}) {
+      write_point_cloud(dir.file(name), std::vector<Vec3>{}, {encoding, false});
+      const PointCloud back = read_point_cloud(dir.file(name));
+      EXPECT_EQ(back.total, 0u) << name;
+      EXPECT_TRUE(back.points.empty()) << name;
+    }
+  }
+}
+
 TEST(RoundTrip, SinglePrecisionGivesTheFloatValues) {
   TempDir dir;
   std::vector<Vec3> points = random_points(3000, 8);
@@ -348,6 +388,11 @@ TEST(RoundTrip, SinglePrecisionGivesTheFloatValues) {
         ASSERT_EQ(back.points[i], points[i].cast<float>().cast<double>()) << name << " " << i;
       }
     }
+  }
+  // Our binary_compressed and binary files, decoded by the independent reference decoder.
+  for (const PcdEncoding encoding : {PcdEncoding::binary_compressed, PcdEncoding::binary}) {
+    write_point_cloud(dir.file("r.pcd"), points, {encoding, false});
+    expect_matches(read_point_cloud(dir.file("r.pcd")), ref_pcd_points(dir.file("r.pcd")));
   }
   // The default PCD is binary with F4 fields (what PCL's PointXYZ expects).
   const std::string header = read_bytes(dir.file("a.pcd")).substr(0, 200);
@@ -472,6 +517,30 @@ TEST(PointTableIo, CsvRoundTripIsExact) {
   const PointCloud cloud = read_point_cloud(path);
   ASSERT_EQ(cloud.size(), 2000u);
   EXPECT_EQ(cloud.points[7].x(), (*table.values<double>("x"))[7]);
+}
+
+TEST(PointTableIo, IntegerAndDoubleCoordinatesReadAsPoints) {
+  TempDir dir;
+  PointTable table;
+  table.add_column<std::int32_t>("x", {-7, 2147483647, 0});
+  table.add_column<std::uint32_t>("y", {4294967295u, 1, 2});
+  table.add_column<double>("z", {0.1, -1e-310, 3});
+  table.add_column<float>("intensity", {1, 2, 3});
+  for (const PcdEncoding encoding :
+       {PcdEncoding::binary, PcdEncoding::ascii, PcdEncoding::binary_compressed}) {
+    const std::string path = dir.file("i.pcd");
+    write_pcd(path, table, encoding);
+    const PointCloud cloud = read_point_cloud(path);
+    ASSERT_EQ(cloud.size(), 3u);
+    EXPECT_EQ(cloud.points[0], Vec3(-7, 4294967295.0, 0.1));
+    EXPECT_EQ(cloud.points[1], Vec3(2147483647, 1, -1e-310));
+  }
+  // Text with a byte-order mark and a header naming the columns in another order.
+  const std::string csv = dir.file("bom.csv");
+  write_bytes(csv, "\xEF\xBB\xBFZ, Y, X, w\n3,2,1,0\n6,5,4,0\n");
+  const PointCloud cloud = read_point_cloud(csv);
+  ASSERT_EQ(cloud.size(), 2u);
+  EXPECT_EQ(cloud.points[1], Vec3(4, 5, 6));
 }
 
 TEST(PointTableIo, InvalidTablesAreRejected) {
@@ -781,7 +850,12 @@ TEST(MalformedInput, CorruptedBytesNeverCrash) {
         const PointCloud cloud = read_point_cloud(corrupt);
         EXPECT_EQ(cloud.size() + cloud.skipped_nonfinite, cloud.total);
         ++successes;
-      } catch (const InputError&) {
+      } catch (const InputError& e) {
+        // The CLI prints the message as one line: no control or non-ASCII bytes from the file.
+        const std::string what = e.what();
+        EXPECT_TRUE(std::all_of(what.begin(), what.end(), [](char c) {
+          return c >= 0x20 && c < 0x7f;
+        })) << what;
         ++failures;
       } catch (const std::exception& e) {
         ADD_FAILURE() << source << " trial " << trial << ": " << e.what();

@@ -15,9 +15,8 @@
 //
 // Errors: io::InputError whose message names the file and the problem, with the line number
 // (text formats) or the field/element (binary formats): `scan.xyz: line 12: expected 3 numbers`.
-// Thread safety: no shared state except PCL's console verbosity, which read_point_cloud
-// lowers for the duration of a PCD read (so do not read PCD files from several threads while
-// relying on PCL's console output elsewhere).
+// Thread safety: reads of different files may run concurrently. PCL's console verbosity (a PCL
+// global) is lowered while PCL decodes a binary PCD body, under a lock, and restored after.
 
 #include <cstddef>
 #include <cstdint>
