@@ -201,12 +201,13 @@ struct Clipper {
   double best_value = std::numeric_limits<double>::infinity();
   double best_s = 0, best_t = 0;
 
-  // Theorem 1 with an accuracy tolerance and a rounding margin: drop the box when its lower bound
-  // (even lowered by the rounding bound) cannot beat alpha by more than 2 sqrt(alpha) eps_d,
-  // i.e. by more than eps_d in distance. With round_err > tolerance this is conservative.
+  // Theorem 1 with an accuracy tolerance and a rounding margin: drop the box when its lower bound,
+  // even lowered by the rounding bound, shows that no point of the box is closer than
+  // sqrt(alpha) - eps_d. Where round_err exceeds that tolerance this is conservative.
   bool eliminated(double lower) const {
     if (!std::isfinite(alpha)) return false;
-    return lower - round_err >= alpha - 2.0 * std::sqrt(alpha) * eps_d;
+    const double target = std::max(std::sqrt(alpha) - eps_d, 0.0);
+    return lower - round_err >= target * target;
   }
   // A value known only through coefficients (corner values): its bound is value + round_err.
   void offer_coefficient(double value, double s, double t) {
@@ -260,6 +261,14 @@ void Clipper::clip_boundary(const double* coeffs, int count, bool along_t, doubl
     const auto [sb, tb] = at(iv.t1);
     offer_coefficient(c[0], sa, ta);
     offer_coefficient(c[count - 1], sb, tb);
+    const double c_max = *std::max_element(c, c + count);
+    if (c_max - iv.lower <= 4.0 * round_err) {  // below the coefficients' resolution
+      ++st.resolution_terminations;
+      const double s0 = along_t ? fixed : iv.t0, s1 = along_t ? fixed : iv.t1;
+      const double t0 = along_t ? iv.t0 : fixed, t1 = along_t ? iv.t1 : fixed;
+      newton(s0, s1, t0, t1);
+      continue;
+    }
     int changes = 0;
     int last_sign = 0;
     bool falls_first = false;
@@ -369,6 +378,14 @@ void Clipper::run() {
         }
       }
     }
+    // F is known to +-round_err only: once its whole range on the box is within a few round_err
+    // the coefficients cannot resolve the box further (a point on or within ~sqrt(round_err) of
+    // the surface, or a pole where F is flat across the box). The geometry can: Newton finishes.
+    if (f_max - b.lower <= 4.0 * round_err) {
+      ++st.resolution_terminations;
+      newton(b.s0, b.s1, b.t0, b.t1);
+      continue;
+    }
     if (convex_on_box(n, d, rows, cols, pp.rational, {b.lower, f_max})) {
       ++st.convex_terminations;
       newton(b.s0, b.s1, b.t0, b.t1);
@@ -418,6 +435,7 @@ void SurfaceProjectionStats::add(const SurfaceProjectionStats& o) {
   eliminations += o.eliminations;
   convex_terminations += o.convex_terminations;
   boundary_reductions += o.boundary_reductions;
+  resolution_terminations += o.resolution_terminations;
 }
 
 SurfaceScratch::SurfaceScratch()
@@ -502,8 +520,12 @@ double newton_on_patch(const BezierPatch& patch, const Vec3& p, double s0, doubl
     const double hst = su.dot(sv) + r.dot(d[4]);
     const double htt = sv.dot(sv) + r.dot(d[5]);
     // Projected Newton: a variable at a bound whose gradient pushes outward is held fixed.
-    const bool free_s = s1 > s0 && !((s <= s0 && gs > 0) || (s >= s1 && gs < 0));
-    const bool free_t = t1 > t0 && !((t <= t0 && gt > 0) || (t >= t1 && gt < 0));
+    // A gradient component below rounding (relative 1e-15) counts as zero: stationary.
+    const double noise = 1e-15 * r.norm() * std::max(su.norm(), sv.norm());
+    const bool free_s = s1 > s0 && std::abs(gs) > noise &&
+                        !((s <= s0 && gs > 0) || (s >= s1 && gs < 0));
+    const bool free_t = t1 > t0 && std::abs(gt) > noise &&
+                        !((t <= t0 && gt > 0) || (t >= t1 && gt < 0));
     if (!free_s && !free_t) break;
     double ds = 0, dt = 0;
     bool newton_step = false;
@@ -532,6 +554,15 @@ double newton_on_patch(const BezierPatch& patch, const Vec3& p, double s0, doubl
     if (!free_s) ds = 0;
     if (!free_t) dt = 0;
     if (!std::isfinite(ds) || !std::isfinite(dt)) break;
+    // Never try to leave the box by more than its size (gradient steps near a pole are huge).
+    const double reach = std::max(std::abs(ds) / std::max(s1 - s0, 1e-300),
+                                  std::abs(dt) / std::max(t1 - t0, 1e-300));
+    if (reach > 1.0) {
+      ds /= reach;
+      dt /= reach;
+    }
+    // Rounding in |S - p|^2: S carries ~eps |S| absolute error, so F carries ~2 |r| eps |S|.
+    const double f_noise = 1e-14 * r.norm() * (d[0].norm() + p.norm()) + 1e-300;
     double step = 1.0;
     bool accepted = false;
     double ns = s, nt = t;
@@ -544,7 +575,7 @@ double newton_on_patch(const BezierPatch& patch, const Vec3& p, double s0, doubl
       if (nf <= f + 1e-4 * predicted ||
           // In the quadratic regime the change of F drowns in rounding; a short Newton step is
           // still taken (it improves orthogonality) unless it visibly increases F.
-          (newton_step && step == 1.0 && moved < 1e-6 && nf <= f * (1.0 + 1e-14))) {
+          (newton_step && step == 1.0 && moved < 1e-6 && nf <= f + f_noise)) {
         accepted = true;
         break;
       }

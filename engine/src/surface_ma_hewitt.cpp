@@ -9,6 +9,7 @@
 // terminate: the split direction alternates (Algorithm 6 passes Dir unchanged to both halves) and
 // the recursion limit also applies to nets that never become valid.
 
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <array>
 #include <cmath>

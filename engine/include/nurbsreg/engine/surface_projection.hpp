@@ -94,6 +94,9 @@ struct SurfaceProjectionStats {
   long eliminations = 0;         // sub-patches dropped by Theorem 1
   long convex_terminations = 0;  // sub-patches finished because F is provably convex there
   long boundary_reductions = 0;  // sub-patches handed to their edge by Theorem 2
+  // Sub-patches on which F's coefficients vary less than their rounding bound (points on or
+  // very near the surface, poles): finished by Newton on the geometry.
+  long resolution_terminations = 0;
   void add(const SurfaceProjectionStats& o);
 };
 
