@@ -522,10 +522,10 @@ double newton_on_patch(const BezierPatch& patch, const Vec3& p, double s0, doubl
     // Projected Newton: a variable at a bound whose gradient pushes outward is held fixed.
     // A gradient component below rounding (relative 1e-15) counts as zero: stationary.
     const double noise = 1e-15 * r.norm() * std::max(su.norm(), sv.norm());
-    const bool free_s = s1 > s0 && std::abs(gs) > noise &&
-                        !((s <= s0 && gs > 0) || (s >= s1 && gs < 0));
-    const bool free_t = t1 > t0 && std::abs(gt) > noise &&
-                        !((t <= t0 && gt > 0) || (t >= t1 && gt < 0));
+    const bool free_s =
+        s1 > s0 && std::abs(gs) > noise && !((s <= s0 && gs > 0) || (s >= s1 && gs < 0));
+    const bool free_t =
+        t1 > t0 && std::abs(gt) > noise && !((t <= t0 && gt > 0) || (t >= t1 && gt < 0));
     if (!free_s && !free_t) break;
     double ds = 0, dt = 0;
     bool newton_step = false;

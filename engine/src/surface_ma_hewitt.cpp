@@ -277,6 +277,10 @@ void SurfaceProjector::ma_hewitt_boundaries(const Vec3& p, SurfaceHit& best,
             best.foot = foot;
           }
         };
+        // The ends of a boundary curve are points of it too: projecting onto the curve (§8)
+        // includes them, though Algorithm 5 drops pieces whose nearest point is an end.
+        newton_on(0.0, 0.0);
+        newton_on(1.0, 1.0);
         Frame stack[2 * kMaxRecursion + 4];
         int top = 0;
         stack[top++] = {curve, false, 0};

@@ -48,7 +48,8 @@ void expect_orthogonal(const NurbsSurface& s, const SurfaceHit& hit, const Vec3&
   auto on_crease = [](const std::vector<double>& knots, int degree, double x, double margin) {
     for (std::size_t k = 0; k < knots.size();) {
       std::size_t m = k;
-      while (m < knots.size() && knots[m] == knots[k]) ++m;
+      while (m < knots.size() && knots[m] == knots[k])
+        ++m;
       if (static_cast<int>(m - k) >= degree && std::abs(knots[k] - x) < margin) return true;
       k = m;
     }
@@ -457,6 +458,55 @@ TEST(SurfaceProjection, PointInversion) {
     const Vec3 off = p + 0.1 * unit_normal(s, u, v);
     const SurfaceInversion miss = projector.invert(off, 1e-6, scratch);
     EXPECT_FALSE(miss.on_surface);
+  }
+}
+
+}  // namespace
+}  // namespace nurbsreg::engine
+
+namespace nurbsreg::engine {
+namespace {
+
+// Ma & Hewitt's Theorem 1 (Algorithms 3 and 4) assumes planar control polygons; on the rational
+// quadratic patches of an exact sphere and torus it discards the patch that holds the closest
+// point (seed 001 ref. [1] for the curve case). Clipping gets the analytic answer.
+TEST(SurfaceProjection, MaHewittReturnsAWrongPointWhereClippingDoesNot) {
+  SurfaceScratch scratch;
+  {
+    const NurbsSurface s = make_sphere(Vec3::Zero(), 1.0);
+    const SurfaceProjector projector(s);
+    const Vec3 p(-0.195140, -1.454372, -1.464493);
+    const double exact = p.norm() - 1.0;
+    const SurfaceHit clip = projector.project(p, kClip, scratch);
+    const SurfaceHit mh = projector.project(p, kMaHewitt, scratch);
+    EXPECT_NEAR(std::sqrt(clip.distance_sq), exact, 1e-12);
+    EXPECT_LT((clip.foot - p.normalized()).norm(), 1e-9);
+    EXPECT_GT(std::sqrt(mh.distance_sq), exact + 0.1) << "Ma-Hewitt found the right point";
+  }
+  {
+    const NurbsSurface s = make_torus(Vec3::Zero(), 3.0, 1.0);
+    const SurfaceProjector projector(s);
+    const Vec3 p(3.010659, 1.153254, 0.388233);
+    const double exact = torus_distance(p, Vec3::Zero(), 3.0, 1.0);
+    const SurfaceHit clip = projector.project(p, kClip, scratch);
+    const SurfaceHit mh = projector.project(p, kMaHewitt, scratch);
+    EXPECT_NEAR(std::sqrt(clip.distance_sq), exact, 1e-12);
+    EXPECT_GT(std::sqrt(mh.distance_sq), exact + 0.1) << "Ma-Hewitt found the right point";
+  }
+}
+
+// On polynomial surfaces with planar-enough nets Ma & Hewitt agrees with clipping: the comparison
+// strategy is implemented, not broken.
+TEST(SurfaceProjection, MaHewittAgreesOnSeed001Surface) {
+  const NurbsSurface s = curved_bicubic();
+  const SurfaceProjector projector(s);
+  SurfaceScratch scratch;
+  std::mt19937_64 rng(12);
+  for (int k = 0; k < 100; ++k) {
+    const Vec3 p(uniform(rng, -1, 4), uniform(rng, -1, 4), uniform(rng, -3, 3));
+    const SurfaceHit clip = projector.project(p, kClip, scratch);
+    const SurfaceHit mh = projector.project(p, kMaHewitt, scratch);
+    EXPECT_NEAR(std::sqrt(mh.distance_sq), std::sqrt(clip.distance_sq), 1e-9) << "point " << k;
   }
 }
 
