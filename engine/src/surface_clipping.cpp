@@ -200,6 +200,8 @@ struct Clipper {
   double eps_d;      // accepted loss in distance when eliminating (relative to the patch size)
   double best_value = std::numeric_limits<double>::infinity();
   double best_s = 0, best_t = 0;
+  bool best_exact = false;  // the best candidate is a Newton result on the geometry
+  Vec3 best_foot = Vec3::Zero();
 
   // Theorem 1 with an accuracy tolerance and a rounding margin: drop the box when its lower bound,
   // even lowered by the rounding bound, shows that no point of the box is closer than
@@ -215,15 +217,18 @@ struct Clipper {
       best_value = value;
       best_s = s;
       best_t = t;
+      best_exact = false;
     }
     alpha = std::min(alpha, value + round_err);
   }
   // A value of the real geometry (Newton result).
-  void offer_exact(double value, double s, double t) {
+  void offer_exact(double value, double s, double t, const Vec3& foot) {
     if (value < best_value) {
       best_value = value;
       best_s = s;
       best_t = t;
+      best_exact = true;
+      best_foot = foot;
     }
     alpha = std::min(alpha, value);
   }
@@ -231,7 +236,7 @@ struct Clipper {
     double s = 0.5 * (s0 + s1), t = 0.5 * (t0 + t1);
     Vec3 foot;
     const double value = newton_on_patch(pp.patch, p, s0, s1, t0, t1, s, t, foot, &st);
-    offer_exact(value, s, t);
+    offer_exact(value, s, t, foot);
   }
 
   void clip_boundary(const double* coeffs, int count, bool along_t, double fixed, double a0,
@@ -607,10 +612,14 @@ bool project_onto_patch(const PreparedPatch& pp, const Vec3& p, SurfaceHit& best
   clip.run();
   bool improved = false;
   if (std::isfinite(clip.best_value)) {
-    // Polish on the geometry over the whole patch (descent only: it can only improve).
+    // A candidate known only through coefficients (a corner value) is polished on the geometry
+    // over the whole patch (descent only: it can only improve). Newton results already are.
     double s = clip.best_s, t = clip.best_t;
-    Vec3 foot;
-    const double value = newton_on_patch(pp.patch, p, 0.0, 1.0, 0.0, 1.0, s, t, foot, &local);
+    Vec3 foot = clip.best_foot;
+    double value = clip.best_value;
+    if (!clip.best_exact) {
+      value = newton_on_patch(pp.patch, p, 0.0, 1.0, 0.0, 1.0, s, t, foot, &local);
+    }
     if (value < best.distance_sq) {
       best.u = pp.patch.param_u.to_parent(s);
       best.v = pp.patch.param_v.to_parent(t);
