@@ -77,37 +77,66 @@ DerivativeRanges derivative_ranges(const double* a, int rows, int cols) {
   return r;
 }
 
-// Termination test (DESIGN.md): is F = N / D provably strictly convex on the sub-box?
-// For a polynomial patch D == 1 and this is the Bézier bound of the differenced coefficients of
-// F_ss, F_tt, F_st. For a rational patch it bounds the derivatives of F through those of N and D
-// by interval arithmetic on the quotient rule, N = F D:
+// Bounds on the first and second derivatives of F = N / D over a (sub-)box, from Bézier bounds
+// (differenced coefficients) of N and D. For a polynomial patch D == 1 and these are the Bézier
+// bounds of F's own differenced coefficients. For a rational patch they follow from the quotient
+// rule, N = F D, by interval arithmetic:
 //   F_s  = (N_s - F D_s) / D,                 F_t = (N_t - F D_t) / D,
 //   F_ss = (N_ss - 2 F_s D_s - F D_ss) / D,   F_tt = (N_tt - 2 F_t D_t - F D_tt) / D,
 //   F_st = (N_st - F_s D_t - F_t D_s - F D_st) / D,
 // with F in [min f_ij, max f_ij] (f_ij = N_ij / D_ij, convex hull property of the rational form).
-// Then min F_ss > 0, min F_tt > 0 and min F_ss min F_tt > max F_st^2 imply a positive definite
-// Hessian on the whole box, hence a unique minimiser on the box that a descent method finds.
-bool convex_on_box(const double* n_grid, const double* d_grid, int rows, int cols, bool rational,
-                   Iv f_range) {
-  const DerivativeRanges n = derivative_ranges(n_grid, rows, cols);
-  Iv fss, ftt, fst;
+// F and F - c have the same derivatives and F - c = (N - c D) / D; with c = min f_ij the range of
+// F - c, which multiplies D's derivatives, shrinks with the box instead of staying near
+// |p - S|^2, so the bounds tighten quickly under subdivision.
+struct FDerivatives {
+  Iv s, t, ss, tt, st;
+};
+
+FDerivatives f_derivatives(const double* n_grid, const double* d_grid, int rows, int cols,
+                           bool rational, Iv f_range) {
   if (!rational) {
-    fss = n.ss;
-    ftt = n.tt;
-    fst = n.st;
-  } else {
-    const DerivativeRanges d = derivative_ranges(d_grid, rows, cols);
-    const Iv fs = divide_positive(n.s - f_range * d.s, d.v);
-    const Iv ft = divide_positive(n.t - f_range * d.t, d.v);
-    fss = divide_positive(n.ss - 2.0 * (fs * d.s) - f_range * d.ss, d.v);
-    ftt = divide_positive(n.tt - 2.0 * (ft * d.t) - f_range * d.tt, d.v);
-    fst = divide_positive(n.st - fs * d.t - ft * d.s - f_range * d.st, d.v);
+    const DerivativeRanges n = derivative_ranges(n_grid, rows, cols);
+    return {n.s, n.t, n.ss, n.tt, n.st};
   }
+  double shifted[SurfaceScratch::kGridCapacity];
+  const double c = f_range.lo;
+  for (int k = 0; k < rows * cols; ++k)
+    shifted[k] = n_grid[k] - c * d_grid[k];
+  const DerivativeRanges n = derivative_ranges(shifted, rows, cols);
+  const Iv f = {0.0, f_range.hi - c};
+  const DerivativeRanges d = derivative_ranges(d_grid, rows, cols);
+  FDerivatives r;
+  r.s = divide_positive(n.s - f * d.s, d.v);
+  r.t = divide_positive(n.t - f * d.t, d.v);
+  r.ss = divide_positive(n.ss - 2.0 * (r.s * d.s) - f * d.ss, d.v);
+  r.tt = divide_positive(n.tt - 2.0 * (r.t * d.t) - f * d.tt, d.v);
+  r.st = divide_positive(n.st - r.s * d.t - r.t * d.s - f * d.st, d.v);
+  return r;
+}
+
+// Termination test (DESIGN.md): min F_ss > 0, min F_tt > 0 and min F_ss min F_tt > max F_st^2
+// imply a positive definite Hessian on the whole box, hence strict convexity and a unique
+// minimiser on the box that a descent method (box-constrained Newton) finds.
+bool convex(const FDerivatives& f) {
   // A relative margin keeps rounding in the differences from faking convexity.
-  const double margin = 1e-12 * (std::abs(fss.hi) + std::abs(ftt.hi) + std::abs(fst.hi));
-  const double a = fss.lo - margin, b = ftt.lo - margin;
-  const double c = std::max(std::abs(fst.lo), std::abs(fst.hi)) + margin;
+  const double margin = 1e-12 * (std::abs(f.ss.hi) + std::abs(f.tt.hi) + std::abs(f.st.hi));
+  const double a = f.ss.lo - margin, b = f.tt.lo - margin;
+  const double c = std::max(std::abs(f.st.lo), std::abs(f.st.hi)) + margin;
   return a > 0.0 && b > 0.0 && a * b > c * c;
+}
+
+// Monotonicity edge test, valid for rational patches too: if F_s > 0 on the whole box, every
+// point (s, t) has F(s, t) > F(s0, t), so the box's minimum lies on its edge s = s0 (and so on).
+// This replaces seed 001's Theorem 2 where that does not hold (rational F). Returns the edge as in
+// boundary_edge, or -1.
+int monotone_edge(const FDerivatives& f) {
+  const double margin_s = 1e-12 * std::max(std::abs(f.s.lo), std::abs(f.s.hi));
+  const double margin_t = 1e-12 * std::max(std::abs(f.t.lo), std::abs(f.t.hi));
+  if (f.s.lo > margin_s) return 0;
+  if (f.s.hi < -margin_s) return 1;
+  if (f.t.lo > margin_t) return 2;
+  if (f.t.hi < -margin_t) return 3;
+  return -1;
 }
 
 // de Casteljau at 1/2 along s (rows): `low` (in place) gets [s0, mid], `high` [mid, s1].
@@ -239,78 +268,124 @@ struct Clipper {
     offer_exact(value, s, t, foot);
   }
 
-  void clip_boundary(const double* coeffs, int count, bool along_t, double fixed, double a0,
-                     double a1);
+  // The row (stride 1) or column (stride cols) of N and D along an edge of the current box.
+  void clip_boundary(const double* n_row, const double* d_row, int stride, int count, bool along_t,
+                     double fixed, double a0, double a1);
+  void reduce_to_edge(int edge, const double* n, const double* d, const SurfaceScratch::Box& b) {
+    ++st.boundary_reductions;
+    const int rows = pp.rows, cols = pp.cols;
+    if (edge <= 1) {
+      const int offset = edge == 0 ? 0 : (rows - 1) * cols;
+      clip_boundary(n + offset, d + offset, 1, cols, true, edge == 0 ? b.s0 : b.s1, b.t0, b.t1);
+    } else {
+      const int offset = edge == 2 ? 0 : cols - 1;
+      clip_boundary(n + offset, d + offset, cols, rows, false, edge == 2 ? b.t0 : b.t1, b.s0, b.s1);
+    }
+  }
   void run();
 };
 
-// 1-D spherical clipping on a boundary row of a polynomial F (seed 002's circular clipping on the
-// boundary curve's squared distance): elimination by the minimum coefficient, termination when
-// the coefficient differences change sign at most once from - to + (then F has one minimum on the
-// interval, found by Newton on the boundary curve of the surface).
-void Clipper::clip_boundary(const double* coeffs, int count, bool along_t, double fixed, double a0,
-                            double a1) {
+// 1-D spherical clipping on a boundary row of F (seed 002's circular clipping applied to the
+// boundary curve's squared distance, whose rational Bernstein coefficients are that row of N and
+// D): elimination by the minimum coefficient ratio; termination, for a polynomial row, when the
+// coefficient differences change sign at most once from - to + (Property 2 of seed 002: one
+// minimum on the interval) and, for a rational row, when F_t is provably of one sign (the minimum
+// is an end value) or F_tt > 0 (convex: one minimum). The minimum is then found by Newton on the
+// boundary curve of the surface itself.
+void Clipper::clip_boundary(const double* n_row, const double* d_row, int stride, int count,
+                            bool along_t, double fixed, double a0, double a1) {
   constexpr int kLine = 2 * kMaxDegree + 1;
+  const bool rational = pp.rational;
+  auto ratio_min = [&](const double* n, const double* d) {
+    double lo = std::numeric_limits<double>::infinity();
+    for (int j = 0; j < count; ++j)
+      lo = std::min(lo, rational ? n[j] / d[j] : n[j]);
+    return lo;
+  };
+  auto newton_on = [&](double lo, double hi) {
+    if (along_t) {
+      newton(fixed, fixed, lo, hi);
+    } else {
+      newton(lo, hi, fixed, fixed);
+    }
+  };
   int top = 0;
-  std::memcpy(sc.rows.data(), coeffs, sizeof(double) * count);
-  sc.intervals[top++] = {a0, a1, *std::min_element(coeffs, coeffs + count), 0};
-  auto at = [&](double a) { return along_t ? std::pair{fixed, a} : std::pair{a, fixed}; };
+  double* base = sc.rows.data();
+  for (int j = 0; j < count; ++j) {
+    base[j] = n_row[j * stride];
+    base[kLine + j] = d_row[j * stride];
+  }
+  sc.intervals[top++] = {a0, a1, ratio_min(base, base + kLine), 0};
   while (top > 0) {
     const SurfaceScratch::Interval iv = sc.intervals[--top];
-    double* c = sc.rows.data() + top * kLine;
+    double* c = base + top * 2 * kLine;
+    double* w = c + kLine;
     if (eliminated(iv.lower)) {
       ++st.eliminations;
       continue;
     }
-    const auto [sa, ta] = at(iv.t0);
-    const auto [sb, tb] = at(iv.t1);
-    offer_coefficient(c[0], sa, ta);
-    offer_coefficient(c[count - 1], sb, tb);
-    const double c_max = *std::max_element(c, c + count);
+    offer_coefficient(c[0] / w[0], along_t ? fixed : iv.t0, along_t ? iv.t0 : fixed);
+    offer_coefficient(c[count - 1] / w[count - 1], along_t ? fixed : iv.t1,
+                      along_t ? iv.t1 : fixed);
+    double c_max = -std::numeric_limits<double>::infinity();
+    for (int j = 0; j < count; ++j)
+      c_max = std::max(c_max, rational ? c[j] / w[j] : c[j]);
     if (c_max - iv.lower <= 4.0 * round_err) {  // below the coefficients' resolution
       ++st.resolution_terminations;
-      const double s0 = along_t ? fixed : iv.t0, s1 = along_t ? fixed : iv.t1;
-      const double t0 = along_t ? iv.t0 : fixed, t1 = along_t ? iv.t1 : fixed;
-      newton(s0, s1, t0, t1);
+      newton_on(iv.t0, iv.t1);
       continue;
     }
-    int changes = 0;
-    int last_sign = 0;
-    bool falls_first = false;
-    for (int j = 0; j + 1 < count; ++j) {
-      const double delta = c[j + 1] - c[j];
-      const int sign = delta > 0 ? 1 : (delta < 0 ? -1 : 0);
-      if (sign == 0) continue;
-      if (last_sign == 0) falls_first = sign < 0;
-      if (last_sign != 0 && sign != last_sign) ++changes;
-      last_sign = sign;
-    }
-    if (changes == 0) continue;  // monotone: the minimum is an end value, already offered
-    if (changes == 1 && falls_first) {
-      ++st.convex_terminations;
-      const double s0 = along_t ? fixed : iv.t0, s1 = along_t ? fixed : iv.t1;
-      const double t0 = along_t ? iv.t0 : fixed, t1 = along_t ? iv.t1 : fixed;
-      newton(s0, s1, t0, t1);
-      continue;
+    if (!rational) {
+      int changes = 0;
+      int last_sign = 0;
+      bool falls_first = false;
+      for (int j = 0; j + 1 < count; ++j) {
+        const double delta = c[j + 1] - c[j];
+        const int sign = delta > 0 ? 1 : (delta < 0 ? -1 : 0);
+        if (sign == 0) continue;
+        if (last_sign == 0) falls_first = sign < 0;
+        if (last_sign != 0 && sign != last_sign) ++changes;
+        last_sign = sign;
+      }
+      if (changes == 0) continue;  // monotone: the minimum is an end value, already offered
+      if (changes == 1 && falls_first) {
+        ++st.convex_terminations;
+        newton_on(iv.t0, iv.t1);
+        continue;
+      }
+    } else {
+      // A 1 x count grid: the same derivative bounds with no s direction.
+      const FDerivatives f = f_derivatives(c, w, 1, count, true, {iv.lower, c_max});
+      const double margin = 1e-12 * std::max(std::abs(f.t.lo), std::abs(f.t.hi));
+      if (f.t.lo > margin || f.t.hi < -margin) continue;  // monotone: an end value
+      if (f.tt.lo > 1e-12 * std::abs(f.tt.hi)) {
+        ++st.convex_terminations;
+        newton_on(iv.t0, iv.t1);
+        continue;
+      }
     }
     if (iv.depth >= SurfaceScratch::kMaxDepth || top + 2 > SurfaceScratch::kStackCapacity) {
       ++st.depth_limit_hits;
-      const double s0 = along_t ? fixed : iv.t0, s1 = along_t ? fixed : iv.t1;
-      const double t0 = along_t ? iv.t0 : fixed, t1 = along_t ? iv.t1 : fixed;
-      newton(s0, s1, t0, t1);
+      newton_on(iv.t0, iv.t1);
       continue;
     }
     ++st.subdivisions;
-    double* high = c + kLine;
+    double* high = c + 2 * kLine;
+    double* high_w = high + kLine;
     split_line(c, high, count);
+    if (rational) {
+      split_line(w, high_w, count);
+    } else {
+      std::memcpy(high_w, w, sizeof(double) * count);
+    }
     const double mid = 0.5 * (iv.t0 + iv.t1);
-    const double low_lower = *std::min_element(c, c + count);
-    const double high_lower = *std::min_element(high, high + count);
+    const double low_lower = ratio_min(c, w);
+    const double high_lower = ratio_min(high, high_w);
     SurfaceScratch::Interval first{iv.t0, mid, low_lower, iv.depth + 1};  // data in slot top
     SurfaceScratch::Interval second{mid, iv.t1, high_lower, iv.depth + 1};
     // Visit the more promising half first: it goes on top of the stack.
     if (low_lower < high_lower) {
-      std::swap_ranges(c, c + count, high);
+      std::swap_ranges(c, c + 2 * kLine, high);
       std::swap(first, second);
     }
     sc.intervals[top++] = first;
@@ -352,17 +427,7 @@ void Clipper::run() {
     if (!pp.rational) {
       const int edge = boundary_edge(n, rows, cols);
       if (edge >= 0) {
-        ++st.boundary_reductions;
-        double line[kMaxGridSide];
-        if (edge <= 1) {
-          const double* row = n + (edge == 0 ? 0 : (rows - 1) * cols);
-          clip_boundary(row, cols, true, edge == 0 ? b.s0 : b.s1, b.t0, b.t1);
-        } else {
-          const int c = edge == 2 ? 0 : cols - 1;
-          for (int i = 0; i < rows; ++i)
-            line[i] = n[i * cols + c];
-          clip_boundary(line, rows, false, edge == 2 ? b.t0 : b.t1, b.s0, b.s1);
-        }
+        reduce_to_edge(edge, n, d, b);
         continue;
       }
     }
@@ -391,10 +456,18 @@ void Clipper::run() {
       newton(b.s0, b.s1, b.t0, b.t1);
       continue;
     }
-    if (convex_on_box(n, d, rows, cols, pp.rational, {b.lower, f_max})) {
+    const FDerivatives fd = f_derivatives(n, d, rows, cols, pp.rational, {b.lower, f_max});
+    if (convex(fd)) {
       ++st.convex_terminations;
       newton(b.s0, b.s1, b.t0, b.t1);
       continue;
+    }
+    if (pp.rational) {
+      const int edge = monotone_edge(fd);
+      if (edge >= 0) {
+        reduce_to_edge(edge, n, d, b);
+        continue;
+      }
     }
     if (b.depth >= SurfaceScratch::kMaxDepth || top + 2 > SurfaceScratch::kStackCapacity) {
       ++st.depth_limit_hits;
@@ -446,7 +519,7 @@ void SurfaceProjectionStats::add(const SurfaceProjectionStats& o) {
 SurfaceScratch::SurfaceScratch()
     : grids(static_cast<std::size_t>(kStackCapacity + 1) * 2 * kGridCapacity),
       boxes(kStackCapacity + 1),
-      rows(static_cast<std::size_t>(kStackCapacity + 1) * (2 * kMaxDegree + 1)),
+      rows(static_cast<std::size_t>(kStackCapacity + 2) * 2 * (2 * kMaxDegree + 1)),
       intervals(kStackCapacity + 1) {
   order.reserve(kDefaultPatchCapacity);
 }

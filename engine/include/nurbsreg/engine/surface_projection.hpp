@@ -77,7 +77,7 @@ struct SurfaceScratch {
   };
   std::vector<double> grids;  // kStackCapacity entries of 2 * kGridCapacity doubles (N then D)
   std::vector<Box> boxes;
-  std::vector<double> rows;  // 1-D stack: kStackCapacity entries of (2 * kMaxDegree + 1)
+  std::vector<double> rows;  // 1-D stack: entries of N and D rows, 2 (2 kMaxDegree + 1) each
   struct Interval {
     double t0, t1, lower;
     int depth;
