@@ -154,4 +154,9 @@ SurfaceInversion SurfaceProjector::invert(const Vec3& p, double tolerance,
   return result;
 }
 
+SurfaceInversion SurfaceProjector::invert(const Vec3& p, double tolerance) const {
+  SurfaceScratch scratch;
+  return invert(p, tolerance, scratch);
+}
+
 }  // namespace nurbsreg::engine

@@ -456,7 +456,7 @@ TEST(SurfaceProjection, PointInversion) {
     EXPECT_LT(inv.distance, 1e-12 * projector.box().diagonal());
     EXPECT_LT((s.evaluate(inv.u, inv.v) - p).norm(), 1e-12 * projector.box().diagonal());
     const Vec3 off = p + 0.1 * unit_normal(s, u, v);
-    const SurfaceInversion miss = projector.invert(off, 1e-6, scratch);
+    const SurfaceInversion miss = projector.invert(off, 1e-6);
     EXPECT_FALSE(miss.on_surface);
   }
 }

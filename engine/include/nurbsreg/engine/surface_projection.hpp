@@ -166,6 +166,8 @@ class SurfaceProjector {
   // Point inversion: the parameters of p if p lies on the surface within `tolerance` (distance).
   // Patches farther than the tolerance are pruned at once (seed 000 §11, convex hull property).
   SurfaceInversion invert(const Vec3& p, double tolerance, SurfaceScratch& scratch) const;
+  // The same with a scratch of its own (allocates it: for occasional calls, not hot loops).
+  SurfaceInversion invert(const Vec3& p, double tolerance) const;
 
  private:
   SurfaceHit run(const Vec3& p, SurfaceHit best, SurfaceStrategy strategy, SurfaceScratch& scratch,
