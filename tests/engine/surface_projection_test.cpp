@@ -6,8 +6,11 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
+#include <atomic>
 #include <cmath>
+#include <cstdlib>
 #include <fstream>
+#include <new>
 #include <nlohmann/json.hpp>
 #include <random>
 #include <string>
@@ -16,6 +19,25 @@
 #include "nurbsreg/engine/surface_projection.hpp"
 #include "support/random_entities.hpp"
 #include "support/surface_reference.hpp"
+
+// Counts heap allocations so a test can check that the per-point path allocates nothing.
+// Replacing the global operator new is allowed by the standard; it only counts and forwards.
+// GCC pairs the inlined malloc with free and flags it as mismatched; the pair is consistent here.
+#pragma GCC diagnostic ignored "-Wmismatched-new-delete"
+namespace {
+std::atomic<long> g_allocations{0};
+}  // namespace
+void* operator new(std::size_t size) {
+  g_allocations.fetch_add(1, std::memory_order_relaxed);
+  if (void* p = std::malloc(size == 0 ? 1 : size)) return p;
+  throw std::bad_alloc();
+}
+void operator delete(void* p) noexcept {
+  std::free(p);
+}
+void operator delete(void* p, std::size_t) noexcept {
+  std::free(p);
+}
 
 namespace nurbsreg::engine {
 namespace {
@@ -507,6 +529,40 @@ TEST(SurfaceProjection, MaHewittAgreesOnSeed001Surface) {
     const SurfaceHit clip = projector.project(p, kClip, scratch);
     const SurfaceHit mh = projector.project(p, kMaHewitt, scratch);
     EXPECT_NEAR(std::sqrt(mh.distance_sq), std::sqrt(clip.distance_sq), 1e-9) << "point " << k;
+  }
+}
+
+}  // namespace
+}  // namespace nurbsreg::engine
+
+namespace nurbsreg::engine {
+namespace {
+
+// STYLE.md rule 7: with a warmed-up scratch, projecting points allocates nothing (both
+// strategies, rational and polynomial, including the warm-start path).
+TEST(SurfaceProjection, NoHeapAllocationPerPoint) {
+  const NurbsSurface rational = test::random_surface(88, 3, 3, 8, 8, true);
+  const NurbsSurface sphere = make_sphere(Vec3(0, 0, 1), 2.0);
+  for (const NurbsSurface* s : {&rational, &sphere}) {
+    const long at_start = g_allocations.load();
+    const SurfaceProjector projector(*s);
+    EXPECT_GT(g_allocations.load(), at_start) << "the counter must see preparation allocate";
+    const std::vector<Vec3> points = hard_points(*s, 4, 100);
+    SurfaceScratch scratch;
+    SurfaceProjectionStats stats;
+    double sink = 0;
+    const long before = g_allocations.load();
+    for (const Vec3& p : points) {
+      sink += projector.project(p, kClip, scratch, &stats).distance_sq;
+      sink += projector.project(p, kMaHewitt, scratch, &stats).distance_sq;
+      sink += projector.project(p, 0.3, 0.6, kClip, scratch, &stats).distance_sq;
+      SurfaceHit best;
+      project_onto_patch(projector.patches()[0], p, best, scratch, &stats);
+      sink += best.distance_sq;
+    }
+    EXPECT_EQ(g_allocations.load(), before);
+    EXPECT_GT(sink, 0.0);
+    EXPECT_GT(stats.subdivisions, 0);
   }
 }
 
