@@ -675,6 +675,7 @@ double newton_on_patch(const BezierPatch& patch, const Vec3& p, double s0, doubl
 
 bool project_onto_patch(const PreparedPatch& pp, const Vec3& p, SurfaceHit& best,
                         SurfaceScratch& scratch, SurfaceProjectionStats* stats) {
+  if (!p.allFinite()) return false;  // NaN would defeat every elimination test
   SurfaceProjectionStats local;
   const double reach = pp.sphere.radius + (p - pp.origin).norm();
   Clipper clip{pp, p, scratch, local, best.distance_sq,

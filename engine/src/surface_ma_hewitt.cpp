@@ -213,6 +213,7 @@ struct MaHewitt {
 
 bool project_onto_patch_ma_hewitt(const PreparedPatch& pp, const Vec3& p, SurfaceHit& best,
                                   SurfaceProjectionStats* stats) {
+  if (!p.allFinite()) return false;
   SurfaceProjectionStats local;
   ++local.patches_visited;
   MaHewitt mh{pp, p, local};

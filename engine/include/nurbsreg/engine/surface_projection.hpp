@@ -103,9 +103,14 @@ struct SurfaceProjectionStats {
 enum class SurfaceStrategy { spherical_clipping, ma_hewitt };
 
 // Exact projection onto one patch (spherical clipping): if the patch holds a point with squared
-// distance < best.distance_sq (up to a relative 1e-11 of the patch size in distance), replaces
-// best by the patch's closest point ((u, v) in the parent surface) and returns true; otherwise
-// leaves best unchanged and returns false. const inputs; thread-safe with one scratch per thread.
+// distance < best.distance_sq, replaces best by the patch's closest point ((u, v) in the parent
+// surface) and returns true; otherwise leaves best unchanged and returns false. const inputs;
+// thread-safe with one scratch per thread; no heap allocation. A p with a NaN/inf coordinate
+// returns false.
+// Accuracy: a sub-patch is dropped only when its Bézier lower bound, lowered by a bound on the
+// rounding of the coefficients (1e-14 (R + |p - c|)^2, R and c the bounding sphere), shows it
+// cannot be closer than the best so far minus 1e-11 R in distance; the answer is a Newton
+// stationary point on the geometry. Improvements below 1e-11 R are not pursued.
 bool project_onto_patch(const PreparedPatch& patch, const Vec3& p, SurfaceHit& best,
                         SurfaceScratch& scratch, SurfaceProjectionStats* stats = nullptr);
 
@@ -122,7 +127,10 @@ double newton_on_patch(const BezierPatch& patch, const Vec3& p, double s0, doubl
                        double t1, double& s, double& t, Vec3& foot,
                        SurfaceProjectionStats* stats = nullptr);
 
-enum class SurfaceProjectionStatus : std::uint8_t { converged, skipped_nan };
+// converged: the closest point was found; skipped_nan: the point has a NaN or infinite
+// coordinate; no_candidate: the strategy produced no point at all (only ma_hewitt can: its
+// Theorem 1 may discard every patch of a closed surface).
+enum class SurfaceProjectionStatus : std::uint8_t { converged, skipped_nan, no_candidate };
 
 // One batch result (written by index).
 struct SurfaceProjectionResult {
