@@ -5,10 +5,11 @@
 //  - spherical_clipping (default): seed paper 001 (Chen et al. 2009) extended to rational patches.
 //    The squared distance F(s, t) = |S(s, t) - p|^2 of a rational Bézier patch of degree (p, q)
 //    is a rational Bézier function of degree (2p, 2q) (DESIGN.md "Projection: surfaces"); its
-//    coefficients are subdivided by de Casteljau, sub-patches are eliminated by Theorem 1, the
-//    boundary criterion Theorem 2 hands edges to a 1-D clipping (polynomial patches only), and a
-//    sub-patch on which F is provably strictly convex is finished by a box-constrained Newton on
-//    the surface geometry.
+//    coefficients are subdivided by de Casteljau, sub-patches are eliminated by Theorem 1, an edge
+//    criterion (Theorem 2 for polynomial patches; for rational ones, a proven sign of F_s or F_t)
+//    hands a sub-patch to a 1-D clipping of its edge, and a sub-patch on which F is provably
+//    strictly convex is finished by a box-constrained Newton on the surface geometry. Minima on
+//    edges, corners, seams and poles are found; a depth limit is only a counted safety net.
 //  - ma_hewitt: seed paper 000 (Ma & Hewitt 2003), Algorithms 2, 4, 6 and §8, as a comparison.
 //    Its Theorem 1 is not valid in 3-D (seed 001 ref. [1]); it can return a wrong point.
 //
