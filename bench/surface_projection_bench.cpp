@@ -12,6 +12,7 @@
 #include <cmath>
 #include <random>
 
+#include "nurbsreg/engine/shapes.hpp"
 #include "nurbsreg/engine/surface_projection.hpp"
 #include "support/random_entities.hpp"
 
@@ -49,6 +50,16 @@ NurbsSurface panel() {
     for (int j = 0; j < 10; ++j) {
       s.control_points.emplace_back(i, j, 1.5 * std::sin(0.9 * i) * std::cos(0.7 * j));
     }
+  }
+  return s;
+}
+
+// The panel with weights in [0.5, 2]: a rational (NURBS) panel of the same shape class.
+NurbsSurface rational_panel() {
+  NurbsSurface s = panel();
+  for (int i = 0; i < 10; ++i) {
+    for (int j = 0; j < 10; ++j)
+      s.weights.push_back(std::pow(2.0, std::sin(1.3 * i + 0.7 * j)));
   }
   return s;
 }
@@ -202,6 +213,12 @@ void BM_panel49_ma_hewitt(benchmark::State& s) {
 void BM_panel49_clipping_recompute(benchmark::State& s) {
   run_recompute(s, panel());
 }
+void BM_rational_panel49_clipping(benchmark::State& s) {
+  run(s, rational_panel(), SurfaceStrategy::spherical_clipping);
+}
+void BM_sphere_clipping(benchmark::State& s) {
+  run(s, make_sphere(Vec3(0, 0, 0), 1.0), SurfaceStrategy::spherical_clipping);
+}
 void BM_coefficients_cached(benchmark::State& s) {
   coefficients_cached(s);
 }
@@ -215,6 +232,8 @@ BENCHMARK(BM_patch_clipping_recompute);
 BENCHMARK(BM_panel49_clipping);
 BENCHMARK(BM_panel49_ma_hewitt);
 BENCHMARK(BM_panel49_clipping_recompute);
+BENCHMARK(BM_rational_panel49_clipping);
+BENCHMARK(BM_sphere_clipping);
 BENCHMARK(BM_coefficients_cached);
 BENCHMARK(BM_coefficients_from_control_points);
 
