@@ -21,25 +21,10 @@ double binomial(int n, int k) {
   return r;
 }
 
-// Closed interval arithmetic (outward rounding is not needed: the tests built on it carry a
-// relative margin, see convex_on_box).
+// A closed range [lo, hi]. Rounding is covered by the relative margins of the tests using it.
 struct Iv {
   double lo, hi;
 };
-Iv operator-(Iv a, Iv b) {
-  return {a.lo - b.hi, a.hi - b.lo};
-}
-Iv operator*(Iv a, Iv b) {
-  const double p1 = a.lo * b.lo, p2 = a.lo * b.hi, p3 = a.hi * b.lo, p4 = a.hi * b.hi;
-  return {std::min({p1, p2, p3, p4}), std::max({p1, p2, p3, p4})};
-}
-Iv operator*(double c, Iv a) {
-  return c >= 0 ? Iv{c * a.lo, c * a.hi} : Iv{c * a.hi, c * a.lo};
-}
-// a / d for d > 0.
-Iv divide_positive(Iv a, Iv d) {
-  return a * Iv{1.0 / d.hi, 1.0 / d.lo};
-}
 
 // Ranges of the Bernstein coefficients of the first and second partial derivatives of a scalar
 // tensor Bernstein polynomial of degree (rows - 1, cols - 1) on the local box (differenced
@@ -77,20 +62,27 @@ DerivativeRanges derivative_ranges(const double* a, int rows, int cols) {
   return r;
 }
 
-// Bounds on the first and second derivatives of F = N / D over a (sub-)box, from Bézier bounds
-// (differenced coefficients) of N and D. For a polynomial patch D == 1 and these are the Bézier
-// bounds of F's own differenced coefficients. For a rational patch they follow from the quotient
-// rule, N = F D, by interval arithmetic:
-//   F_s  = (N_s - F D_s) / D,                 F_t = (N_t - F D_t) / D,
-//   F_ss = (N_ss - 2 F_s D_s - F D_ss) / D,   F_tt = (N_tt - 2 F_t D_t - F D_tt) / D,
-//   F_st = (N_st - F_s D_t - F_t D_s - F D_st) / D,
-// with F in [min f_ij, max f_ij] (f_ij = N_ij / D_ij, convex hull property of the rational form).
-// F and F - c have the same derivatives and F - c = (N - c D) / D; with c = min f_ij the range of
-// F - c, which multiplies D's derivatives, shrinks with the box instead of staying near
-// |p - S|^2, so the bounds tighten quickly under subdivision.
+// Bounds used by the termination and edge tests, from Bézier bounds (differenced coefficients).
+// Polynomial patch (D == 1): the ranges of F's own first and second derivatives.
+// Rational patch, F = N / D: bounding F's derivatives through the quotient rule by interval
+// arithmetic works but is loose (F_s D_s and F D_ss terms). We use instead the polynomials
+//   G_c = N - c D,   c in [c_lo, c_hi] = [min f_ij, max f_ij] (contains F's range on the box),
+// whose coefficients are affine in c, so the union of the ranges at c_lo and c_hi bounds them for
+// every c. The returned ranges are those of G_c's derivatives over all such c. Why they suffice:
+//  - sign of F_s: at any x, F_s(x) = (G_c)_s(x) / D(x) with c = F(x); so (G_c)_s > 0 for all c
+//    proves F_s > 0 on the box (the edge test).
+//  - convexity: if every G_c is strictly convex on the box, F is strictly quasi-convex there and a
+//    KKT point x* of F on the box is its global minimiser: grad F(x*) = grad G_m(x*) / D with
+//    m = F(x*), so x* is a KKT point of the convex G_m, hence G_m >= G_m(x*) = 0 on the box,
+//    i.e. F >= m. A box-constrained Newton (descent to a KKT point) therefore finds the minimum.
+// For D == 1 both readings coincide.
 struct FDerivatives {
   Iv s, t, ss, tt, st;
 };
+
+Iv hull(Iv a, Iv b) {
+  return {std::min(a.lo, b.lo), std::max(a.hi, b.hi)};
+}
 
 FDerivatives f_derivatives(const double* n_grid, const double* d_grid, int rows, int cols,
                            bool rational, Iv f_range) {
@@ -99,24 +91,24 @@ FDerivatives f_derivatives(const double* n_grid, const double* d_grid, int rows,
     return {n.s, n.t, n.ss, n.tt, n.st};
   }
   double shifted[SurfaceScratch::kGridCapacity];
-  const double c = f_range.lo;
-  for (int k = 0; k < rows * cols; ++k)
-    shifted[k] = n_grid[k] - c * d_grid[k];
-  const DerivativeRanges n = derivative_ranges(shifted, rows, cols);
-  const Iv f = {0.0, f_range.hi - c};
-  const DerivativeRanges d = derivative_ranges(d_grid, rows, cols);
-  FDerivatives r;
-  r.s = divide_positive(n.s - f * d.s, d.v);
-  r.t = divide_positive(n.t - f * d.t, d.v);
-  r.ss = divide_positive(n.ss - 2.0 * (r.s * d.s) - f * d.ss, d.v);
-  r.tt = divide_positive(n.tt - 2.0 * (r.t * d.t) - f * d.tt, d.v);
-  r.st = divide_positive(n.st - r.s * d.t - r.t * d.s - f * d.st, d.v);
+  FDerivatives r{};
+  for (int end = 0; end < 2; ++end) {
+    const double c = end == 0 ? f_range.lo : f_range.hi;
+    for (int k = 0; k < rows * cols; ++k)
+      shifted[k] = n_grid[k] - c * d_grid[k];
+    const DerivativeRanges g = derivative_ranges(shifted, rows, cols);
+    if (end == 0) {
+      r = {g.s, g.t, g.ss, g.tt, g.st};
+    } else {
+      r = {hull(r.s, g.s), hull(r.t, g.t), hull(r.ss, g.ss), hull(r.tt, g.tt), hull(r.st, g.st)};
+    }
+  }
   return r;
 }
 
 // Termination test (DESIGN.md): min F_ss > 0, min F_tt > 0 and min F_ss min F_tt > max F_st^2
-// imply a positive definite Hessian on the whole box, hence strict convexity and a unique
-// minimiser on the box that a descent method (box-constrained Newton) finds.
+// imply a positive definite Hessian on the whole box (of F, or of every G_c for a rational patch),
+// hence a unique minimiser on the box that a descent method (box-constrained Newton) finds.
 bool convex(const FDerivatives& f) {
   // A relative margin keeps rounding in the differences from faking convexity.
   const double margin = 1e-12 * (std::abs(f.ss.hi) + std::abs(f.tt.hi) + std::abs(f.st.hi));
@@ -125,7 +117,8 @@ bool convex(const FDerivatives& f) {
   return a > 0.0 && b > 0.0 && a * b > c * c;
 }
 
-// Monotonicity edge test, valid for rational patches too: if F_s > 0 on the whole box, every
+// Monotonicity edge test, valid for rational patches too (see f_derivatives for the sign of F_s
+// through G_c): if F_s > 0 on the whole box, every
 // point (s, t) has F(s, t) > F(s0, t), so the box's minimum lies on its edge s = s0 (and so on).
 // This replaces seed 001's Theorem 2 where that does not hold (rational F). Returns the edge as in
 // boundary_edge, or -1.
