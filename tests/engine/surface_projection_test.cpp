@@ -186,6 +186,12 @@ TEST(SurfaceProjection, SpherePolesAxisAndCentre) {
   for (int k = 0; k < 150; ++k) {
     points.push_back(c + Vec3(uniform(rng, -4, 4), uniform(rng, -4, 4), uniform(rng, -4, 4)));
   }
+  for (double delta : {1e-3, 1e-6, 1e-10}) {  // nearly equidistant: just off the centre
+    for (int k = 0; k < 5; ++k) {
+      points.push_back(c +
+                       delta * Vec3(uniform(rng, -1, 1), uniform(rng, -1, 1), uniform(rng, -1, 1)));
+    }
+  }
   for (std::size_t k = 0; k < points.size(); ++k) {
     const Vec3& p = points[k];
     const std::string label = "sphere point " + std::to_string(k);
