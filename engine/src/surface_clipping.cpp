@@ -256,6 +256,12 @@ struct Clipper {
   }
   void newton(double s0, double s1, double t0, double t1) {
     double s = 0.5 * (s0 + s1), t = 0.5 * (t0 + t1);
+    // Neighbouring boxes often share the minimiser: start from the best point so far when it lies
+    // in this box (it is then usually already the answer and Newton stops at once).
+    if (best_exact && best_s >= s0 && best_s <= s1 && best_t >= t0 && best_t <= t1) {
+      s = best_s;
+      t = best_t;
+    }
     Vec3 foot;
     const double value = newton_on_patch(pp.patch, p, s0, s1, t0, t1, s, t, foot, &st);
     offer_exact(value, s, t, foot);
