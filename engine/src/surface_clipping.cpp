@@ -21,25 +21,10 @@ double binomial(int n, int k) {
   return r;
 }
 
-// Closed interval arithmetic (outward rounding is not needed: the tests built on it carry a
-// relative margin, see convex_on_box).
+// A closed range [lo, hi]. Rounding is covered by the relative margins of the tests using it.
 struct Iv {
   double lo, hi;
 };
-Iv operator-(Iv a, Iv b) {
-  return {a.lo - b.hi, a.hi - b.lo};
-}
-Iv operator*(Iv a, Iv b) {
-  const double p1 = a.lo * b.lo, p2 = a.lo * b.hi, p3 = a.hi * b.lo, p4 = a.hi * b.hi;
-  return {std::min({p1, p2, p3, p4}), std::max({p1, p2, p3, p4})};
-}
-Iv operator*(double c, Iv a) {
-  return c >= 0 ? Iv{c * a.lo, c * a.hi} : Iv{c * a.hi, c * a.lo};
-}
-// a / d for d > 0.
-Iv divide_positive(Iv a, Iv d) {
-  return a * Iv{1.0 / d.hi, 1.0 / d.lo};
-}
 
 // Ranges of the Bernstein coefficients of the first and second partial derivatives of a scalar
 // tensor Bernstein polynomial of degree (rows - 1, cols - 1) on the local box (differenced
@@ -77,37 +62,74 @@ DerivativeRanges derivative_ranges(const double* a, int rows, int cols) {
   return r;
 }
 
-// Termination test (DESIGN.md): is F = N / D provably strictly convex on the sub-box?
-// For a polynomial patch D == 1 and this is the Bézier bound of the differenced coefficients of
-// F_ss, F_tt, F_st. For a rational patch it bounds the derivatives of F through those of N and D
-// by interval arithmetic on the quotient rule, N = F D:
-//   F_s  = (N_s - F D_s) / D,                 F_t = (N_t - F D_t) / D,
-//   F_ss = (N_ss - 2 F_s D_s - F D_ss) / D,   F_tt = (N_tt - 2 F_t D_t - F D_tt) / D,
-//   F_st = (N_st - F_s D_t - F_t D_s - F D_st) / D,
-// with F in [min f_ij, max f_ij] (f_ij = N_ij / D_ij, convex hull property of the rational form).
-// Then min F_ss > 0, min F_tt > 0 and min F_ss min F_tt > max F_st^2 imply a positive definite
-// Hessian on the whole box, hence a unique minimiser on the box that a descent method finds.
-bool convex_on_box(const double* n_grid, const double* d_grid, int rows, int cols, bool rational,
-                   Iv f_range) {
-  const DerivativeRanges n = derivative_ranges(n_grid, rows, cols);
-  Iv fss, ftt, fst;
+// Bounds used by the termination and edge tests, from Bézier bounds (differenced coefficients).
+// Polynomial patch (D == 1): the ranges of F's own first and second derivatives.
+// Rational patch, F = N / D: bounding F's derivatives through the quotient rule by interval
+// arithmetic works but is loose (F_s D_s and F D_ss terms). We use instead the polynomials
+//   G_c = N - c D,   c in [c_lo, c_hi] = [min f_ij, max f_ij] (contains F's range on the box),
+// whose coefficients are affine in c, so the union of the ranges at c_lo and c_hi bounds them for
+// every c. The returned ranges are those of G_c's derivatives over all such c. Why they suffice:
+//  - sign of F_s: at any x, F_s(x) = (G_c)_s(x) / D(x) with c = F(x); so (G_c)_s > 0 for all c
+//    proves F_s > 0 on the box (the edge test).
+//  - convexity: if every G_c is strictly convex on the box, F is strictly quasi-convex there and a
+//    KKT point x* of F on the box is its global minimiser: grad F(x*) = grad G_m(x*) / D with
+//    m = F(x*), so x* is a KKT point of the convex G_m, hence G_m >= G_m(x*) = 0 on the box,
+//    i.e. F >= m. A box-constrained Newton (descent to a KKT point) therefore finds the minimum.
+// For D == 1 both readings coincide.
+struct FDerivatives {
+  Iv s, t, ss, tt, st;
+};
+
+Iv hull(Iv a, Iv b) {
+  return {std::min(a.lo, b.lo), std::max(a.hi, b.hi)};
+}
+
+FDerivatives f_derivatives(const double* n_grid, const double* d_grid, int rows, int cols,
+                           bool rational, Iv f_range) {
   if (!rational) {
-    fss = n.ss;
-    ftt = n.tt;
-    fst = n.st;
-  } else {
-    const DerivativeRanges d = derivative_ranges(d_grid, rows, cols);
-    const Iv fs = divide_positive(n.s - f_range * d.s, d.v);
-    const Iv ft = divide_positive(n.t - f_range * d.t, d.v);
-    fss = divide_positive(n.ss - 2.0 * (fs * d.s) - f_range * d.ss, d.v);
-    ftt = divide_positive(n.tt - 2.0 * (ft * d.t) - f_range * d.tt, d.v);
-    fst = divide_positive(n.st - fs * d.t - ft * d.s - f_range * d.st, d.v);
+    const DerivativeRanges n = derivative_ranges(n_grid, rows, cols);
+    return {n.s, n.t, n.ss, n.tt, n.st};
   }
+  double shifted[SurfaceScratch::kGridCapacity];
+  FDerivatives r{};
+  for (int end = 0; end < 2; ++end) {
+    const double c = end == 0 ? f_range.lo : f_range.hi;
+    for (int k = 0; k < rows * cols; ++k)
+      shifted[k] = n_grid[k] - c * d_grid[k];
+    const DerivativeRanges g = derivative_ranges(shifted, rows, cols);
+    if (end == 0) {
+      r = {g.s, g.t, g.ss, g.tt, g.st};
+    } else {
+      r = {hull(r.s, g.s), hull(r.t, g.t), hull(r.ss, g.ss), hull(r.tt, g.tt), hull(r.st, g.st)};
+    }
+  }
+  return r;
+}
+
+// Termination test (DESIGN.md): min F_ss > 0, min F_tt > 0 and min F_ss min F_tt > max F_st^2
+// imply a positive definite Hessian on the whole box (of F, or of every G_c for a rational patch),
+// hence a unique minimiser on the box that a descent method (box-constrained Newton) finds.
+bool convex(const FDerivatives& f) {
   // A relative margin keeps rounding in the differences from faking convexity.
-  const double margin = 1e-12 * (std::abs(fss.hi) + std::abs(ftt.hi) + std::abs(fst.hi));
-  const double a = fss.lo - margin, b = ftt.lo - margin;
-  const double c = std::max(std::abs(fst.lo), std::abs(fst.hi)) + margin;
+  const double margin = 1e-12 * (std::abs(f.ss.hi) + std::abs(f.tt.hi) + std::abs(f.st.hi));
+  const double a = f.ss.lo - margin, b = f.tt.lo - margin;
+  const double c = std::max(std::abs(f.st.lo), std::abs(f.st.hi)) + margin;
   return a > 0.0 && b > 0.0 && a * b > c * c;
+}
+
+// Monotonicity edge test, valid for rational patches too (see f_derivatives for the sign of F_s
+// through G_c): if F_s > 0 on the whole box, every
+// point (s, t) has F(s, t) > F(s0, t), so the box's minimum lies on its edge s = s0 (and so on).
+// This replaces seed 001's Theorem 2 where that does not hold (rational F). Returns the edge as in
+// boundary_edge, or -1.
+int monotone_edge(const FDerivatives& f) {
+  const double margin_s = 1e-12 * std::max(std::abs(f.s.lo), std::abs(f.s.hi));
+  const double margin_t = 1e-12 * std::max(std::abs(f.t.lo), std::abs(f.t.hi));
+  if (f.s.lo > margin_s) return 0;
+  if (f.s.hi < -margin_s) return 1;
+  if (f.t.lo > margin_t) return 2;
+  if (f.t.hi < -margin_t) return 3;
+  return -1;
 }
 
 // de Casteljau at 1/2 along s (rows): `low` (in place) gets [s0, mid], `high` [mid, s1].
@@ -200,13 +222,16 @@ struct Clipper {
   double eps_d;      // accepted loss in distance when eliminating (relative to the patch size)
   double best_value = std::numeric_limits<double>::infinity();
   double best_s = 0, best_t = 0;
+  bool best_exact = false;  // the best candidate is a Newton result on the geometry
+  Vec3 best_foot = Vec3::Zero();
 
-  // Theorem 1 with an accuracy tolerance and a rounding margin: drop the box when its lower bound
-  // (even lowered by the rounding bound) cannot beat alpha by more than 2 sqrt(alpha) eps_d,
-  // i.e. by more than eps_d in distance. With round_err > tolerance this is conservative.
+  // Theorem 1 with an accuracy tolerance and a rounding margin: drop the box when its lower bound,
+  // even lowered by the rounding bound, shows that no point of the box is closer than
+  // sqrt(alpha) - eps_d. Where round_err exceeds that tolerance this is conservative.
   bool eliminated(double lower) const {
     if (!std::isfinite(alpha)) return false;
-    return lower - round_err >= alpha - 2.0 * std::sqrt(alpha) * eps_d;
+    const double target = std::max(std::sqrt(alpha) - eps_d, 0.0);
+    return lower - round_err >= target * target;
   }
   // A value known only through coefficients (corner values): its bound is value + round_err.
   void offer_coefficient(double value, double s, double t) {
@@ -214,89 +239,152 @@ struct Clipper {
       best_value = value;
       best_s = s;
       best_t = t;
+      best_exact = false;
     }
     alpha = std::min(alpha, value + round_err);
   }
   // A value of the real geometry (Newton result).
-  void offer_exact(double value, double s, double t) {
+  void offer_exact(double value, double s, double t, const Vec3& foot) {
     if (value < best_value) {
       best_value = value;
       best_s = s;
       best_t = t;
+      best_exact = true;
+      best_foot = foot;
     }
     alpha = std::min(alpha, value);
   }
   void newton(double s0, double s1, double t0, double t1) {
     double s = 0.5 * (s0 + s1), t = 0.5 * (t0 + t1);
+    // Neighbouring boxes often share the minimiser: start from the best point so far when it lies
+    // in this box (it is then usually already the answer and Newton stops at once).
+    if (best_exact && best_s >= s0 && best_s <= s1 && best_t >= t0 && best_t <= t1) {
+      s = best_s;
+      t = best_t;
+    }
     Vec3 foot;
     const double value = newton_on_patch(pp.patch, p, s0, s1, t0, t1, s, t, foot, &st);
-    offer_exact(value, s, t);
+    offer_exact(value, s, t, foot);
   }
 
-  void clip_boundary(const double* coeffs, int count, bool along_t, double fixed, double a0,
-                     double a1);
+  // The row (stride 1) or column (stride cols) of N and D along an edge of the current box.
+  void clip_boundary(const double* n_row, const double* d_row, int stride, int count, bool along_t,
+                     double fixed, double a0, double a1);
+  void reduce_to_edge(int edge, const double* n, const double* d, const SurfaceScratch::Box& b) {
+    ++st.boundary_reductions;
+    const int rows = pp.rows, cols = pp.cols;
+    if (edge <= 1) {
+      const int offset = edge == 0 ? 0 : (rows - 1) * cols;
+      clip_boundary(n + offset, d + offset, 1, cols, true, edge == 0 ? b.s0 : b.s1, b.t0, b.t1);
+    } else {
+      const int offset = edge == 2 ? 0 : cols - 1;
+      clip_boundary(n + offset, d + offset, cols, rows, false, edge == 2 ? b.t0 : b.t1, b.s0, b.s1);
+    }
+  }
   void run();
 };
 
-// 1-D spherical clipping on a boundary row of a polynomial F (seed 002's circular clipping on the
-// boundary curve's squared distance): elimination by the minimum coefficient, termination when
-// the coefficient differences change sign at most once from - to + (then F has one minimum on the
-// interval, found by Newton on the boundary curve of the surface).
-void Clipper::clip_boundary(const double* coeffs, int count, bool along_t, double fixed, double a0,
-                            double a1) {
+// 1-D spherical clipping on a boundary row of F (seed 002's circular clipping applied to the
+// boundary curve's squared distance, whose rational Bernstein coefficients are that row of N and
+// D): elimination by the minimum coefficient ratio; termination, for a polynomial row, when the
+// coefficient differences change sign at most once from - to + (Property 2 of seed 002: one
+// minimum on the interval) and, for a rational row, when F_t is provably of one sign (the minimum
+// is an end value) or F_tt > 0 (convex: one minimum). The minimum is then found by Newton on the
+// boundary curve of the surface itself.
+void Clipper::clip_boundary(const double* n_row, const double* d_row, int stride, int count,
+                            bool along_t, double fixed, double a0, double a1) {
   constexpr int kLine = 2 * kMaxDegree + 1;
+  const bool rational = pp.rational;
+  auto ratio_min = [&](const double* n, const double* d) {
+    double lo = std::numeric_limits<double>::infinity();
+    for (int j = 0; j < count; ++j)
+      lo = std::min(lo, rational ? n[j] / d[j] : n[j]);
+    return lo;
+  };
+  auto newton_on = [&](double lo, double hi) {
+    if (along_t) {
+      newton(fixed, fixed, lo, hi);
+    } else {
+      newton(lo, hi, fixed, fixed);
+    }
+  };
   int top = 0;
-  std::memcpy(sc.rows.data(), coeffs, sizeof(double) * count);
-  sc.intervals[top++] = {a0, a1, *std::min_element(coeffs, coeffs + count), 0};
-  auto at = [&](double a) { return along_t ? std::pair{fixed, a} : std::pair{a, fixed}; };
+  double* base = sc.rows.data();
+  for (int j = 0; j < count; ++j) {
+    base[j] = n_row[j * stride];
+    base[kLine + j] = d_row[j * stride];
+  }
+  sc.intervals[top++] = {a0, a1, ratio_min(base, base + kLine), 0};
   while (top > 0) {
     const SurfaceScratch::Interval iv = sc.intervals[--top];
-    double* c = sc.rows.data() + top * kLine;
+    double* c = base + top * 2 * kLine;
+    double* w = c + kLine;
     if (eliminated(iv.lower)) {
       ++st.eliminations;
       continue;
     }
-    const auto [sa, ta] = at(iv.t0);
-    const auto [sb, tb] = at(iv.t1);
-    offer_coefficient(c[0], sa, ta);
-    offer_coefficient(c[count - 1], sb, tb);
-    int changes = 0;
-    int last_sign = 0;
-    bool falls_first = false;
-    for (int j = 0; j + 1 < count; ++j) {
-      const double delta = c[j + 1] - c[j];
-      const int sign = delta > 0 ? 1 : (delta < 0 ? -1 : 0);
-      if (sign == 0) continue;
-      if (last_sign == 0) falls_first = sign < 0;
-      if (last_sign != 0 && sign != last_sign) ++changes;
-      last_sign = sign;
-    }
-    if (changes == 0) continue;  // monotone: the minimum is an end value, already offered
-    if (changes == 1 && falls_first) {
-      ++st.convex_terminations;
-      const double s0 = along_t ? fixed : iv.t0, s1 = along_t ? fixed : iv.t1;
-      const double t0 = along_t ? iv.t0 : fixed, t1 = along_t ? iv.t1 : fixed;
-      newton(s0, s1, t0, t1);
+    offer_coefficient(c[0] / w[0], along_t ? fixed : iv.t0, along_t ? iv.t0 : fixed);
+    offer_coefficient(c[count - 1] / w[count - 1], along_t ? fixed : iv.t1,
+                      along_t ? iv.t1 : fixed);
+    double c_max = -std::numeric_limits<double>::infinity();
+    for (int j = 0; j < count; ++j)
+      c_max = std::max(c_max, rational ? c[j] / w[j] : c[j]);
+    if (c_max - iv.lower <= 4.0 * round_err) {  // below the coefficients' resolution
+      ++st.resolution_terminations;
+      newton_on(iv.t0, iv.t1);
       continue;
+    }
+    if (!rational) {
+      int changes = 0;
+      int last_sign = 0;
+      bool falls_first = false;
+      for (int j = 0; j + 1 < count; ++j) {
+        const double delta = c[j + 1] - c[j];
+        const int sign = delta > 0 ? 1 : (delta < 0 ? -1 : 0);
+        if (sign == 0) continue;
+        if (last_sign == 0) falls_first = sign < 0;
+        if (last_sign != 0 && sign != last_sign) ++changes;
+        last_sign = sign;
+      }
+      if (changes == 0) continue;  // monotone: the minimum is an end value, already offered
+      if (changes == 1 && falls_first) {
+        ++st.convex_terminations;
+        newton_on(iv.t0, iv.t1);
+        continue;
+      }
+    } else {
+      // A 1 x count grid: the same derivative bounds with no s direction.
+      const FDerivatives f = f_derivatives(c, w, 1, count, true, {iv.lower, c_max});
+      const double margin = 1e-12 * std::max(std::abs(f.t.lo), std::abs(f.t.hi));
+      if (f.t.lo > margin || f.t.hi < -margin) continue;  // monotone: an end value
+      if (f.tt.lo > 1e-12 * std::abs(f.tt.hi)) {
+        ++st.convex_terminations;
+        newton_on(iv.t0, iv.t1);
+        continue;
+      }
     }
     if (iv.depth >= SurfaceScratch::kMaxDepth || top + 2 > SurfaceScratch::kStackCapacity) {
       ++st.depth_limit_hits;
-      const double s0 = along_t ? fixed : iv.t0, s1 = along_t ? fixed : iv.t1;
-      const double t0 = along_t ? iv.t0 : fixed, t1 = along_t ? iv.t1 : fixed;
-      newton(s0, s1, t0, t1);
+      newton_on(iv.t0, iv.t1);
       continue;
     }
     ++st.subdivisions;
-    double* high = c + kLine;
+    double* high = c + 2 * kLine;
+    double* high_w = high + kLine;
     split_line(c, high, count);
+    if (rational) {
+      split_line(w, high_w, count);
+    } else {
+      std::memcpy(high_w, w, sizeof(double) * count);
+    }
     const double mid = 0.5 * (iv.t0 + iv.t1);
-    const double low_lower = *std::min_element(c, c + count);
-    const double high_lower = *std::min_element(high, high + count);
+    const double low_lower = ratio_min(c, w);
+    const double high_lower = ratio_min(high, high_w);
     SurfaceScratch::Interval first{iv.t0, mid, low_lower, iv.depth + 1};  // data in slot top
     SurfaceScratch::Interval second{mid, iv.t1, high_lower, iv.depth + 1};
     // Visit the more promising half first: it goes on top of the stack.
     if (low_lower < high_lower) {
-      std::swap_ranges(c, c + count, high);
+      std::swap_ranges(c, c + 2 * kLine, high);
       std::swap(first, second);
     }
     sc.intervals[top++] = first;
@@ -338,17 +426,7 @@ void Clipper::run() {
     if (!pp.rational) {
       const int edge = boundary_edge(n, rows, cols);
       if (edge >= 0) {
-        ++st.boundary_reductions;
-        double line[kMaxGridSide];
-        if (edge <= 1) {
-          const double* row = n + (edge == 0 ? 0 : (rows - 1) * cols);
-          clip_boundary(row, cols, true, edge == 0 ? b.s0 : b.s1, b.t0, b.t1);
-        } else {
-          const int c = edge == 2 ? 0 : cols - 1;
-          for (int i = 0; i < rows; ++i)
-            line[i] = n[i * cols + c];
-          clip_boundary(line, rows, false, edge == 2 ? b.t0 : b.t1, b.s0, b.s1);
-        }
+        reduce_to_edge(edge, n, d, b);
         continue;
       }
     }
@@ -369,10 +447,26 @@ void Clipper::run() {
         }
       }
     }
-    if (convex_on_box(n, d, rows, cols, pp.rational, {b.lower, f_max})) {
+    // F is known to +-round_err only: once its whole range on the box is within a few round_err
+    // the coefficients cannot resolve the box further (a point on or within ~sqrt(round_err) of
+    // the surface, or a pole where F is flat across the box). The geometry can: Newton finishes.
+    if (f_max - b.lower <= 4.0 * round_err) {
+      ++st.resolution_terminations;
+      newton(b.s0, b.s1, b.t0, b.t1);
+      continue;
+    }
+    const FDerivatives fd = f_derivatives(n, d, rows, cols, pp.rational, {b.lower, f_max});
+    if (convex(fd)) {
       ++st.convex_terminations;
       newton(b.s0, b.s1, b.t0, b.t1);
       continue;
+    }
+    if (pp.rational) {
+      const int edge = monotone_edge(fd);
+      if (edge >= 0) {
+        reduce_to_edge(edge, n, d, b);
+        continue;
+      }
     }
     if (b.depth >= SurfaceScratch::kMaxDepth || top + 2 > SurfaceScratch::kStackCapacity) {
       ++st.depth_limit_hits;
@@ -418,12 +512,13 @@ void SurfaceProjectionStats::add(const SurfaceProjectionStats& o) {
   eliminations += o.eliminations;
   convex_terminations += o.convex_terminations;
   boundary_reductions += o.boundary_reductions;
+  resolution_terminations += o.resolution_terminations;
 }
 
 SurfaceScratch::SurfaceScratch()
     : grids(static_cast<std::size_t>(kStackCapacity + 1) * 2 * kGridCapacity),
       boxes(kStackCapacity + 1),
-      rows(static_cast<std::size_t>(kStackCapacity + 1) * (2 * kMaxDegree + 1)),
+      rows(static_cast<std::size_t>(kStackCapacity + 2) * 2 * (2 * kMaxDegree + 1)),
       intervals(kStackCapacity + 1) {
   order.reserve(kDefaultPatchCapacity);
 }
@@ -502,8 +597,12 @@ double newton_on_patch(const BezierPatch& patch, const Vec3& p, double s0, doubl
     const double hst = su.dot(sv) + r.dot(d[4]);
     const double htt = sv.dot(sv) + r.dot(d[5]);
     // Projected Newton: a variable at a bound whose gradient pushes outward is held fixed.
-    const bool free_s = s1 > s0 && !((s <= s0 && gs > 0) || (s >= s1 && gs < 0));
-    const bool free_t = t1 > t0 && !((t <= t0 && gt > 0) || (t >= t1 && gt < 0));
+    // A gradient component below rounding (relative 1e-15) counts as zero: stationary.
+    const double noise = 1e-15 * r.norm() * std::max(su.norm(), sv.norm());
+    const bool free_s =
+        s1 > s0 && std::abs(gs) > noise && !((s <= s0 && gs > 0) || (s >= s1 && gs < 0));
+    const bool free_t =
+        t1 > t0 && std::abs(gt) > noise && !((t <= t0 && gt > 0) || (t >= t1 && gt < 0));
     if (!free_s && !free_t) break;
     double ds = 0, dt = 0;
     bool newton_step = false;
@@ -532,6 +631,15 @@ double newton_on_patch(const BezierPatch& patch, const Vec3& p, double s0, doubl
     if (!free_s) ds = 0;
     if (!free_t) dt = 0;
     if (!std::isfinite(ds) || !std::isfinite(dt)) break;
+    // Never try to leave the box by more than its size (gradient steps near a pole are huge).
+    const double reach = std::max(std::abs(ds) / std::max(s1 - s0, 1e-300),
+                                  std::abs(dt) / std::max(t1 - t0, 1e-300));
+    if (reach > 1.0) {
+      ds /= reach;
+      dt /= reach;
+    }
+    // Rounding in |S - p|^2: S carries ~eps |S| absolute error, so F carries ~2 |r| eps |S|.
+    const double f_noise = 1e-14 * r.norm() * (d[0].norm() + p.norm()) + 1e-300;
     double step = 1.0;
     bool accepted = false;
     double ns = s, nt = t;
@@ -544,7 +652,7 @@ double newton_on_patch(const BezierPatch& patch, const Vec3& p, double s0, doubl
       if (nf <= f + 1e-4 * predicted ||
           // In the quadratic regime the change of F drowns in rounding; a short Newton step is
           // still taken (it improves orthogonality) unless it visibly increases F.
-          (newton_step && step == 1.0 && moved < 1e-6 && nf <= f * (1.0 + 1e-14))) {
+          (newton_step && step == 1.0 && moved < 1e-6 && nf <= f + f_noise)) {
         accepted = true;
         break;
       }
@@ -566,6 +674,7 @@ double newton_on_patch(const BezierPatch& patch, const Vec3& p, double s0, doubl
 
 bool project_onto_patch(const PreparedPatch& pp, const Vec3& p, SurfaceHit& best,
                         SurfaceScratch& scratch, SurfaceProjectionStats* stats) {
+  if (!p.allFinite()) return false;  // NaN would defeat every elimination test
   SurfaceProjectionStats local;
   const double reach = pp.sphere.radius + (p - pp.origin).norm();
   Clipper clip{pp, p, scratch, local, best.distance_sq,
@@ -576,10 +685,14 @@ bool project_onto_patch(const PreparedPatch& pp, const Vec3& p, SurfaceHit& best
   clip.run();
   bool improved = false;
   if (std::isfinite(clip.best_value)) {
-    // Polish on the geometry over the whole patch (descent only: it can only improve).
+    // A candidate known only through coefficients (a corner value) is polished on the geometry
+    // over the whole patch (descent only: it can only improve). Newton results already are.
     double s = clip.best_s, t = clip.best_t;
-    Vec3 foot;
-    const double value = newton_on_patch(pp.patch, p, 0.0, 1.0, 0.0, 1.0, s, t, foot, &local);
+    Vec3 foot = clip.best_foot;
+    double value = clip.best_value;
+    if (!clip.best_exact) {
+      value = newton_on_patch(pp.patch, p, 0.0, 1.0, 0.0, 1.0, s, t, foot, &local);
+    }
     if (value < best.distance_sq) {
       best.u = pp.patch.param_u.to_parent(s);
       best.v = pp.patch.param_v.to_parent(t);

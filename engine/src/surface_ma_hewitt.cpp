@@ -9,6 +9,7 @@
 // terminate: the split direction alternates (Algorithm 6 passes Dir unchanged to both halves) and
 // the recursion limit also applies to nets that never become valid.
 
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -212,6 +213,7 @@ struct MaHewitt {
 
 bool project_onto_patch_ma_hewitt(const PreparedPatch& pp, const Vec3& p, SurfaceHit& best,
                                   SurfaceProjectionStats* stats) {
+  if (!p.allFinite()) return false;
   SurfaceProjectionStats local;
   ++local.patches_visited;
   MaHewitt mh{pp, p, local};
@@ -276,6 +278,10 @@ void SurfaceProjector::ma_hewitt_boundaries(const Vec3& p, SurfaceHit& best,
             best.foot = foot;
           }
         };
+        // The ends of a boundary curve are points of it too: projecting onto the curve (§8)
+        // includes them, though Algorithm 5 drops pieces whose nearest point is an end.
+        newton_on(0.0, 0.0);
+        newton_on(1.0, 1.0);
         Frame stack[2 * kMaxRecursion + 4];
         int top = 0;
         stack[top++] = {curve, false, 0};

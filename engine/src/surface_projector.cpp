@@ -47,6 +47,7 @@ SurfaceProjector::SurfaceProjector(const NurbsSurface& surface) : surface_(surfa
 
 SurfaceHit SurfaceProjector::run(const Vec3& p, SurfaceHit best, SurfaceStrategy strategy,
                                  SurfaceScratch& scratch, SurfaceProjectionStats* stats) const {
+  if (!p.allFinite()) return best;  // no closest point: distance_sq stays as given (inf)
   if (strategy == SurfaceStrategy::ma_hewitt) ma_hewitt_boundaries(p, best, stats);
   auto& order = scratch.order;
   order.clear();
@@ -121,7 +122,8 @@ void SurfaceProjector::project(std::span<const Vec3> points, SurfaceStrategy str
       out.u = hit.u;
       out.v = hit.v;
       out.distance = std::sqrt(hit.distance_sq);
-      out.status = SurfaceProjectionStatus::converged;
+      out.status = std::isfinite(hit.distance_sq) ? SurfaceProjectionStatus::converged
+                                                  : SurfaceProjectionStatus::no_candidate;
     }
   };
   const tbb::blocked_range<std::size_t> all(0, points.size(), 64);
@@ -152,6 +154,11 @@ SurfaceInversion SurfaceProjector::invert(const Vec3& p, double tolerance,
     result.distance = std::sqrt(hit.distance_sq);
   }
   return result;
+}
+
+SurfaceInversion SurfaceProjector::invert(const Vec3& p, double tolerance) const {
+  SurfaceScratch scratch;
+  return invert(p, tolerance, scratch);
 }
 
 }  // namespace nurbsreg::engine

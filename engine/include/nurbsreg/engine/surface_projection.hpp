@@ -5,10 +5,11 @@
 //  - spherical_clipping (default): seed paper 001 (Chen et al. 2009) extended to rational patches.
 //    The squared distance F(s, t) = |S(s, t) - p|^2 of a rational Bézier patch of degree (p, q)
 //    is a rational Bézier function of degree (2p, 2q) (DESIGN.md "Projection: surfaces"); its
-//    coefficients are subdivided by de Casteljau, sub-patches are eliminated by Theorem 1, the
-//    boundary criterion Theorem 2 hands edges to a 1-D clipping (polynomial patches only), and a
-//    sub-patch on which F is provably strictly convex is finished by a box-constrained Newton on
-//    the surface geometry.
+//    coefficients are subdivided by de Casteljau, sub-patches are eliminated by Theorem 1, an edge
+//    criterion (Theorem 2 for polynomial patches; for rational ones, a proven sign of F_s or F_t)
+//    hands a sub-patch to a 1-D clipping of its edge, and a sub-patch on which F is provably
+//    strictly convex is finished by a box-constrained Newton on the surface geometry. Minima on
+//    edges, corners, seams and poles are found; a depth limit is only a counted safety net.
 //  - ma_hewitt: seed paper 000 (Ma & Hewitt 2003), Algorithms 2, 4, 6 and §8, as a comparison.
 //    Its Theorem 1 is not valid in 3-D (seed 001 ref. [1]); it can return a wrong point.
 //
@@ -77,7 +78,7 @@ struct SurfaceScratch {
   };
   std::vector<double> grids;  // kStackCapacity entries of 2 * kGridCapacity doubles (N then D)
   std::vector<Box> boxes;
-  std::vector<double> rows;  // 1-D stack: kStackCapacity entries of (2 * kMaxDegree + 1)
+  std::vector<double> rows;  // 1-D stack: entries of N and D rows, 2 (2 kMaxDegree + 1) each
   struct Interval {
     double t0, t1, lower;
     int depth;
@@ -94,15 +95,23 @@ struct SurfaceProjectionStats {
   long eliminations = 0;         // sub-patches dropped by Theorem 1
   long convex_terminations = 0;  // sub-patches finished because F is provably convex there
   long boundary_reductions = 0;  // sub-patches handed to their edge by Theorem 2
+  // Sub-patches on which F's coefficients vary less than their rounding bound (points on or
+  // very near the surface, poles): finished by Newton on the geometry.
+  long resolution_terminations = 0;
   void add(const SurfaceProjectionStats& o);
 };
 
 enum class SurfaceStrategy { spherical_clipping, ma_hewitt };
 
 // Exact projection onto one patch (spherical clipping): if the patch holds a point with squared
-// distance < best.distance_sq (up to a relative 1e-11 of the patch size in distance), replaces
-// best by the patch's closest point ((u, v) in the parent surface) and returns true; otherwise
-// leaves best unchanged and returns false. const inputs; thread-safe with one scratch per thread.
+// distance < best.distance_sq, replaces best by the patch's closest point ((u, v) in the parent
+// surface) and returns true; otherwise leaves best unchanged and returns false. const inputs;
+// thread-safe with one scratch per thread; no heap allocation. A p with a NaN/inf coordinate
+// returns false.
+// Accuracy: a sub-patch is dropped only when its Bézier lower bound, lowered by a bound on the
+// rounding of the coefficients (1e-14 (R + |p - c|)^2, R and c the bounding sphere), shows it
+// cannot be closer than the best so far minus 1e-11 R in distance; the answer is a Newton
+// stationary point on the geometry. Improvements below 1e-11 R are not pursued.
 bool project_onto_patch(const PreparedPatch& patch, const Vec3& p, SurfaceHit& best,
                         SurfaceScratch& scratch, SurfaceProjectionStats* stats = nullptr);
 
@@ -119,7 +128,10 @@ double newton_on_patch(const BezierPatch& patch, const Vec3& p, double s0, doubl
                        double t1, double& s, double& t, Vec3& foot,
                        SurfaceProjectionStats* stats = nullptr);
 
-enum class SurfaceProjectionStatus : std::uint8_t { converged, skipped_nan };
+// converged: the closest point was found; skipped_nan: the point has a NaN or infinite
+// coordinate; no_candidate: the strategy produced no point at all (only ma_hewitt can: its
+// Theorem 1 may discard every patch of a closed surface).
+enum class SurfaceProjectionStatus : std::uint8_t { converged, skipped_nan, no_candidate };
 
 // One batch result (written by index).
 struct SurfaceProjectionResult {
@@ -163,6 +175,8 @@ class SurfaceProjector {
   // Point inversion: the parameters of p if p lies on the surface within `tolerance` (distance).
   // Patches farther than the tolerance are pruned at once (seed 000 §11, convex hull property).
   SurfaceInversion invert(const Vec3& p, double tolerance, SurfaceScratch& scratch) const;
+  // The same with a scratch of its own (allocates it: for occasional calls, not hot loops).
+  SurfaceInversion invert(const Vec3& p, double tolerance) const;
 
  private:
   SurfaceHit run(const Vec3& p, SurfaceHit best, SurfaceStrategy strategy, SurfaceScratch& scratch,
