@@ -48,7 +48,7 @@ double round_significant(double x, int digits) {
 }
 
 // Clamped knot vector on [0, 1] for `count` control points of degree `degree` whose interior
-// knots are deliberately non-uniform: span widths vary smoothly by a factor of about 3 (wide at
+// knots are deliberately non-uniform: span widths vary smoothly by a factor of 2.5 to 5 (wide at
 // one end, narrow in the middle-right), so the Bézier patches differ in size and the
 // parametrisation is not arc-length-like. Interior knots rounded to 1e-4.
 std::vector<double> nonuniform_knots(int degree, int count) {
@@ -57,7 +57,7 @@ std::vector<double> nonuniform_knots(int degree, int count) {
   double total = 0.0;
   for (int k = 0; k < spans; ++k) {
     const double s = (k + 0.5) / spans;
-    widths[k] = 1.0 + 0.9 * std::cos(2.5 * kPi * s) * std::cos(2.5 * kPi * s) - 0.35 * s;
+    widths[k] = 0.45 + std::cos(2.5 * kPi * s) * std::cos(2.5 * kPi * s) - 0.2 * s;
     total += widths[k];
   }
   std::vector<double> knots(degree + 1, 0.0);
