@@ -9,6 +9,10 @@ packages=(
   libpcl-dev libflann-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   libcli11-dev nlohmann-json3-dev
+  # Peers measured side by side in bench/ (SISL is AGPL: bench only, never linked into the
+  # library); OpenCASCADE also reads STEP/IGES.
+  libocct-foundation-dev libocct-modeling-data-dev libocct-modeling-algorithms-dev
+  libocct-data-exchange-dev libsisl-dev
 )
 
 missing=()
