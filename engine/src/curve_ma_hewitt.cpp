@@ -140,7 +140,8 @@ LocalMinimum ma_hewitt_newton(const PreparedCurvePiece& pc, const Vec3& q, doubl
     const double gp = d[1].squaredNorm() + r.dot(d[2]);
     if (!(gp > 0.0)) break;
     const double next = std::clamp(t - g / gp, 0.0, 1.0);
-    const bool done = std::abs(next - t) <= 1e-13;
+    // Converged when the step moves the point by a negligible fraction of the extent.
+    const bool done = std::abs(next - t) * d[1].norm() <= 1e-10 * (pc.radius + r.norm());
     t = next;
     if (done) break;
   }

@@ -164,6 +164,10 @@ LocalMinimum safeguarded_newton(const PreparedCurvePiece& pc, const Vec3& q, dou
     } else {
       return {t, r.squaredNorm(), d[0]};
     }
+    // Steps are judged by how far they move the point (|dx| |C'|), not by |dx|: with extreme
+    // weights the speed |C'| varies by many orders of magnitude along a piece.
+    const double speed = d[1].norm();
+    const double scale = pc.radius + r.norm();
     const bool newton_ok = gp > 0.0 && ((t - hi) * gp - g) * ((t - lo) * gp - g) < 0.0 &&
                            std::abs(2.0 * g) <= std::abs(dx_old * gp);
     dx_old = dx;
@@ -171,15 +175,16 @@ LocalMinimum safeguarded_newton(const PreparedCurvePiece& pc, const Vec3& q, dou
     if (newton_ok) {
       dx = g / gp;
       next = t - dx;
-      // Quadratic convergence: after a step this small the error is ~dx^2, below rounding.
-      if (std::abs(dx) <= 1e-11) {
+      // Quadratic convergence: after a step this small the remaining error is ~dx^2.
+      if (std::abs(dx) * speed <= 1e-13 * scale) {
         t = std::clamp(next, lo, hi);
         break;
       }
     } else {
       dx = 0.5 * (hi - lo);
       next = lo + dx;
-      if (dx <= 4.0 * kEps) {
+      // Stop when the bracket cannot shrink any more or is below the rounding of g.
+      if (next <= lo || next >= hi || dx * speed <= 4.0 * kEps * scale) {
         t = next;
         break;
       }
