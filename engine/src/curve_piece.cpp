@@ -150,6 +150,8 @@ LocalMinimum safeguarded_newton(const PreparedCurvePiece& pc, const Vec3& q, dou
   t = std::clamp(t, lo, hi);
   double dx_old = hi - lo;
   double dx = dx_old;
+  double last_newton = 0.0;  // previous Newton step, 0 after a bisection
+  const double r2 = pc.radius * pc.radius;
   Vec3 d[3];
   for (int it = 0; it < 200; ++it) {
     pc.evaluate_local(t, 2, d);
@@ -164,10 +166,14 @@ LocalMinimum safeguarded_newton(const PreparedCurvePiece& pc, const Vec3& q, dou
     } else {
       return {t, r.squaredNorm(), d[0]};
     }
-    // Steps are judged by how far they move the point (|dx| |C'|), not by |dx|: with extreme
-    // weights the speed |C'| varies by many orders of magnitude along a piece.
-    const double speed = d[1].norm();
-    const double scale = pc.radius + r.norm();
+    // Convergence is judged on the geometry, not on |dx|: with extreme weights the speed |C'|
+    // varies by orders of magnitude along a piece. Target: the cosine between C' and the
+    // residual r, |g| / (|C'| |r|), below 1e-12 (seed 000's "zero-cosine"); floor: a step that
+    // moves the point by less than the rounding of the extent (radius + |r|)^2 <=
+    // 2 (radius^2 + |r|^2). Squared forms avoid square roots.
+    const double speed2 = d[1].squaredNorm();
+    const double rr = r.squaredNorm();
+    const double scale2 = 2.0 * (r2 + rr);
     const bool newton_ok = gp > 0.0 && ((t - hi) * gp - g) * ((t - lo) * gp - g) < 0.0 &&
                            std::abs(2.0 * g) <= std::abs(dx_old * gp);
     dx_old = dx;
@@ -175,16 +181,26 @@ LocalMinimum safeguarded_newton(const PreparedCurvePiece& pc, const Vec3& q, dou
     if (newton_ok) {
       dx = g / gp;
       next = t - dx;
-      // Quadratic convergence: after a step this small the remaining error is ~dx^2.
-      if (std::abs(dx) * speed <= 1e-13 * scale) {
+      const double move2 = dx * dx * speed2;
+      bool done = g * g <= 1e-24 * speed2 * rr || move2 <= 4096.0 * kEps * kEps * scale2;
+      if (!done && last_newton != 0.0 && move2 <= 1e-12 * scale2) {
+        // Quadratic convergence: the error after this step is about K dx^2, K estimated from
+        // the last two steps (K = |dx| / last^2); predict the cosine after the step.
+        const double predicted = std::abs(dx) / (last_newton * last_newton) * dx * dx;
+        const double g_next = predicted * gp;
+        done = g_next * g_next <= 1e-24 * speed2 * rr;
+      }
+      if (done) {
         t = std::clamp(next, lo, hi);
         break;
       }
+      last_newton = dx;
     } else {
       dx = 0.5 * (hi - lo);
       next = lo + dx;
+      last_newton = 0.0;
       // Stop when the bracket cannot shrink any more or is below the rounding of g.
-      if (next <= lo || next >= hi || dx * speed <= 4.0 * kEps * scale) {
+      if (next <= lo || next >= hi || dx * dx * speed2 <= 16.0 * kEps * kEps * scale2) {
         t = next;
         break;
       }
@@ -215,12 +231,10 @@ struct ClippingTerminal {
     return d2;
   }
 
-  double operator()(const RationalBernstein& node, TerminalReason why) {
+  double operator()(const RationalBernstein& node, const double* f, TerminalReason why) {
     const int m = node.degree;
-    double f[kMaxBernsteinDegree + 1];
     int kmin = 0;
-    for (int k = 0; k <= m; ++k) {
-      f[k] = node.control_value(k);
+    for (int k = 1; k <= m; ++k) {
       if (f[k] < f[kmin]) kmin = k;
     }
     // Starting guess: the vertex of the parabola through the control values around the
@@ -294,6 +308,9 @@ bool project_onto_piece(const PreparedCurvePiece& pc, const Vec3& p, CurveHit& b
 
   RationalBernstein root;
   root.degree = 2 * n;
+  root.depth = 0;
+  root.a = 0.0;
+  root.b = 1.0;
   const double qq = q.squaredNorm();
   for (int k = 0; k <= 2 * n; ++k) {
     root.num[k] = pc.G[k] - 2.0 * q.dot(pc.E[k]) + qq * pc.W[k];
