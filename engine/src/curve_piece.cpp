@@ -128,7 +128,9 @@ double piece_parameter(const PreparedCurvePiece& pc, double t) {
 
 bool offer(const PreparedCurvePiece& pc, double t, double d2, const Vec3& local_point,
            CurveHit& best) {
-  if (!(d2 < best.distance_sq)) return false;
+  // Strictly better by more than rounding: a second run over the same piece (or a piece that
+  // shares the end point) keeps the answer it already has.
+  if (!(d2 < best.distance_sq * (1.0 - 8.0 * kEps))) return false;
   best.u = piece_parameter(pc, t);
   best.distance_sq = d2;
   // End points are exact control points of the piece; elsewhere undo the local frame.
@@ -309,6 +311,7 @@ bool project_onto_piece(const PreparedCurvePiece& pc, const Vec3& p, CurveHit& b
   RationalBernstein root;
   root.degree = 2 * n;
   root.depth = 0;
+  root.speculative = false;
   root.a = 0.0;
   root.b = 1.0;
   const double qq = q.squaredNorm();

@@ -31,6 +31,9 @@ inline constexpr int kMaxClippingDepth = 52;
 struct RationalBernstein {
   int degree;
   int depth;  // number of halvings from the piece
+  // Set on the halves of a unimodal sub-interval that was split rather than solved (see
+  // circular_clip): such halves are solved directly.
+  bool speculative;
   double a;   // the sub-interval of the piece's local [0, 1] this function covers
   double b;
   std::array<double, kMaxBernsteinDegree + 1> num;
@@ -41,6 +44,7 @@ struct RationalBernstein {
   void assign(const RationalBernstein& o) {
     degree = o.degree;
     depth = o.depth;
+    speculative = o.speculative;
     a = o.a;
     b = o.b;
     std::copy(o.num.begin(), o.num.begin() + o.degree + 1, num.begin());
@@ -63,6 +67,7 @@ inline void split_half(const RationalBernstein& from, RationalBernstein& left,
   const double b = from.b;
   const double mid = 0.5 * (a + b);
   const int depth = from.depth + 1;
+  const bool speculative = from.speculative;
   right.num[m] = wn[m];
   right.den[m] = wd[m];
   left.num[0] = wn[0];
@@ -83,6 +88,7 @@ inline void split_half(const RationalBernstein& from, RationalBernstein& left,
   right.a = mid;
   right.b = b;
   left.depth = right.depth = depth;
+  left.speculative = right.speculative = speculative;
 }
 
 // Seed 002, Property 2, in its non-strict form: the control values first do not increase,
@@ -152,8 +158,17 @@ void circular_clip(const RationalBernstein& root, double noise, double& alpha, T
       continue;
     }
     const bool flat = fmax - fmin <= noise;
-    const bool unimodal = !flat && is_unimodal(f, m);
-    if (flat || unimodal || node.depth >= kMaxClippingDepth) {
+    bool unimodal = !flat && is_unimodal(f, m);
+    // A unimodal sub-interval whose end values are both above alpha holds a better point only
+    // if f dips below alpha inside; its control values overestimate that dip. Halving once
+    // (cheap) often eliminates both halves, which saves a local solve (expensive).
+    bool speculate = false;
+    if (unimodal && !node.speculative && f[0] > alpha && f[m] > alpha &&
+        node.depth < kMaxClippingDepth) {
+      unimodal = false;
+      speculate = true;
+    }
+    if (flat || unimodal || (!speculate && node.depth >= kMaxClippingDepth)) {
       const TerminalReason why = flat       ? TerminalReason::flat
                                  : unimodal ? TerminalReason::unimodal
                                             : TerminalReason::depth_limit;
@@ -172,6 +187,7 @@ void circular_clip(const RationalBernstein& root, double noise, double& alpha, T
     for (int k = 1; k <= m; ++k) {
       if (f[k] < f[kmin]) kmin = k;
     }
+    if (speculate) node.speculative = true;
     if (2 * kmin <= m) {
       split_half(node, stack[top], node);
     } else {
