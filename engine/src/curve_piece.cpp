@@ -79,15 +79,21 @@ PreparedCurvePiece prepare_curve_piece(const BezierCurve& piece) {
   return out;
 }
 
-void PreparedCurvePiece::evaluate_local(double t, int order, Vec3* derivs) const {
-  const int n = degree;
+namespace {
+
+// C, C', C'' of the piece in its local frame at t. N > 0 is the degree when known at compile
+// time (the loops unroll: this is the innermost call of every Newton step), 0 for any degree.
+template <int N>
+void evaluate_piece(const PreparedCurvePiece& pc, double t, int order, Vec3* derivs) {
+  const int n = N > 0 ? N : pc.degree;
   // Bernstein rows n, n-1, n-2 from one triangular pass (The NURBS Book A1.3).
   double b[kMaxDegree + 1];
   double b1[kMaxDegree + 1];
   double b2[kMaxDegree + 1];
   const double s = 1.0 - t;
   b[0] = 1.0;
-  if (n == 1) b1[0] = 1.0;
+  b1[0] = 1.0;
+  b2[0] = 1.0;
   for (int j = 1; j <= n; ++j) {
     double saved = 0.0;
     for (int k = 0; k < j; ++k) {
@@ -99,23 +105,43 @@ void PreparedCurvePiece::evaluate_local(double t, int order, Vec3* derivs) const
     if (j == n - 2) std::copy(b, b + j + 1, b2);
     if (j == n - 1) std::copy(b, b + j + 1, b1);
   }
-  if (n == 2) b2[0] = 1.0;
   Vec4 a0 = Vec4::Zero();
   for (int i = 0; i <= n; ++i)
-    a0 += b[i] * local[i];
+    a0 += b[i] * pc.local[i];
   const double inv_w = 1.0 / a0[3];
   derivs[0] = a0.head<3>() * inv_w;
   if (order < 1) return;
   Vec4 a1 = Vec4::Zero();
   for (int i = 0; i < n; ++i)
-    a1 += b1[i] * d1[i];
+    a1 += b1[i] * pc.d1[i];
   derivs[1] = (a1.head<3>() - a1[3] * derivs[0]) * inv_w;
   if (order < 2) return;
   Vec4 a2 = Vec4::Zero();
   for (int i = 0; i + 1 < n; ++i)
-    a2 += b2[i] * d2[i];
+    a2 += b2[i] * pc.d2[i];
   // Quotient rule for rational curves (The NURBS Book eq. 4.8).
   derivs[2] = (a2.head<3>() - 2.0 * a1[3] * derivs[1] - a2[3] * derivs[0]) * inv_w;
+}
+
+}  // namespace
+
+void PreparedCurvePiece::evaluate_local(double t, int order, Vec3* derivs) const {
+  switch (degree) {
+    case 1:
+      return evaluate_piece<1>(*this, t, order, derivs);
+    case 2:
+      return evaluate_piece<2>(*this, t, order, derivs);
+    case 3:
+      return evaluate_piece<3>(*this, t, order, derivs);
+    case 4:
+      return evaluate_piece<4>(*this, t, order, derivs);
+    case 5:
+      return evaluate_piece<5>(*this, t, order, derivs);
+    case 6:
+      return evaluate_piece<6>(*this, t, order, derivs);
+    default:
+      return evaluate_piece<0>(*this, t, order, derivs);
+  }
 }
 
 namespace detail {

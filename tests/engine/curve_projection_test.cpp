@@ -252,21 +252,24 @@ INSTANTIATE_TEST_SUITE_P(
 TEST(CurveProjection, WeightsFrom1em3To1e3) {
   for (int dimension : {2, 3}) {
     for (int degree : {2, 3, 5}) {
-      NurbsCurve curve = test::random_curve(700 + degree + dimension, degree, 3 * degree + 2,
-                                            true, true, dimension);
+      NurbsCurve curve = test::random_curve(700 + degree + dimension, degree, 3 * degree + 2, true,
+                                            true, dimension);
       std::mt19937_64 rng(degree * 31 + dimension);
-      for (double& w : curve.weights) w = std::pow(10.0, uniform(rng, -3.0, 3.0));
+      for (double& w : curve.weights)
+        w = std::pow(10.0, uniform(rng, -3.0, 3.0));
       curve.weights.front() = 1e-3;
       curve.weights.back() = 1e3;
-      const Accuracy acc = check_against_reference(
-          curve, points_near(curve, 150, 17 + degree), CurveStrategy::circular_clipping, 256);
+      const Accuracy acc = check_against_reference(curve, points_near(curve, 150, 17 + degree),
+                                                   CurveStrategy::circular_clipping, 256);
       expect_exact(acc, "weights 1e-3..1e3, degree " + std::to_string(degree));
     }
   }
 }
 
 // A planar cubic with a loop: C(t0) == C(1 - t0) by symmetry about x = 0.
-NurbsCurve loop_cubic() { return bezier({{-1, 0, 0}, {2, 2, 0}, {-2, 2, 0}, {1, 0, 0}}); }
+NurbsCurve loop_cubic() {
+  return bezier({{-1, 0, 0}, {2, 2, 0}, {-2, 2, 0}, {1, 0, 0}});
+}
 
 TEST(CurveProjection, SelfIntersectionPointsNearTheCrossing) {
   const NurbsCurve curve = loop_cubic();
@@ -298,7 +301,8 @@ TEST(CurveProjection, PointsEquidistantFromTwoArcs) {
   // of curvature) has two mirror-image feet; either is right.
   const NurbsCurve parabola = bezier({{-1, 1, 0}, {0, -1, 0}, {1, 1, 0}});
   std::vector<Vec3> points;
-  for (int i = 0; i <= 40; ++i) points.emplace_back(0.0, 0.55 + 0.05 * i, 0.0);
+  for (int i = 0; i <= 40; ++i)
+    points.emplace_back(0.0, 0.55 + 0.05 * i, 0.0);
   expect_exact(check_against_reference(parabola, points, CurveStrategy::circular_clipping, 4096),
                "parabola axis");
   const CurveProjector projector(parabola);
@@ -318,7 +322,8 @@ TEST(CurveProjection, PointsEquidistantFromTwoArcs) {
   // equidistant from its two mirror-image arcs.
   const NurbsCurve loop = loop_cubic();
   points.clear();
-  for (int i = 0; i <= 40; ++i) points.emplace_back(0.0, -0.5 + 0.1 * i, 0.0);
+  for (int i = 0; i <= 40; ++i)
+    points.emplace_back(0.0, -0.5 + 0.1 * i, 0.0);
   expect_exact(check_against_reference(loop, points, CurveStrategy::circular_clipping, 8192),
                "loop axis");
 }
@@ -390,7 +395,8 @@ NurbsCurve helix(int count, bool rational) {
   c.name = "helix";
   c.degree = 3;
   c.knots.assign(4, 0.0);
-  for (int i = 1; i <= count - 4; ++i) c.knots.push_back(static_cast<double>(i) / (count - 3));
+  for (int i = 1; i <= count - 4; ++i)
+    c.knots.push_back(static_cast<double>(i) / (count - 3));
   c.knots.insert(c.knots.end(), 4, 1.0);
   std::mt19937_64 rng(5);
   for (int i = 0; i < count; ++i) {
@@ -406,7 +412,8 @@ TEST(CurveProjection, TwistedSpaceCurves) {
     const NurbsCurve curve = helix(30, rational);
     std::vector<Vec3> points = points_near(curve, 200, 3);
     // On the axis every turn is at about the same distance: many near-ties.
-    for (int i = 0; i <= 40; ++i) points.emplace_back(0.0, 0.0, -0.5 + 0.05 * i);
+    for (int i = 0; i <= 40; ++i)
+      points.emplace_back(0.0, 0.0, -0.5 + 0.05 * i);
     expect_exact(check_against_reference(curve, points, CurveStrategy::circular_clipping, 256),
                  rational ? "rational helix" : "helix");
   }
@@ -441,7 +448,8 @@ NurbsCurve curve_of(const nlohmann::json& c) {
   curve.degree = c["degree"].get<int>();
   curve.knots = c["knots"].get<std::vector<double>>();
   curve.dimension = c["ctrlpts"][0].size() == 2 ? 2 : 3;
-  for (const auto& p : c["ctrlpts"]) curve.control_points.push_back(vec3_of(p));
+  for (const auto& p : c["ctrlpts"])
+    curve.control_points.push_back(vec3_of(p));
   if (c.contains("weights")) curve.weights = c["weights"].get<std::vector<double>>();
   return curve;
 }
@@ -650,7 +658,8 @@ TEST(CurveProjection, FewSubdivisionsAndNoDepthLimit) {
   const CurveProjector projector(curve);
   CurveProjectionStats stats;
   const std::vector<Vec3> points = points_near(curve, 2000, 7, 0.05);
-  for (const Vec3& p : points) projector.project(p, CurveStrategy::circular_clipping, &stats);
+  for (const Vec3& p : points)
+    projector.project(p, CurveStrategy::circular_clipping, &stats);
   EXPECT_EQ(stats.depth_limit_hits, 0u);
   const double per_point = static_cast<double>(stats.subdivisions) / points.size();
   const double per_piece =

@@ -34,7 +34,7 @@ struct RationalBernstein {
   // Set on the halves of a unimodal sub-interval that was split rather than solved (see
   // circular_clip): such halves are solved directly.
   bool speculative;
-  double a;   // the sub-interval of the piece's local [0, 1] this function covers
+  double a;  // the sub-interval of the piece's local [0, 1] this function covers
   double b;
   std::array<double, kMaxBernsteinDegree + 1> num;
   std::array<double, kMaxBernsteinDegree + 1> den;
@@ -174,8 +174,8 @@ void circular_clip(const RationalBernstein& root, double noise, double& alpha, T
                                             : TerminalReason::depth_limit;
       ++counters.terminals;
       if (why == TerminalReason::depth_limit) ++counters.depth_limit_hits;
-      const double found = terminal(static_cast<const RationalBernstein&>(node),
-                                    static_cast<const double*>(f), why);
+      const double found =
+          terminal(static_cast<const RationalBernstein&>(node), static_cast<const double*>(f), why);
       --top;
       alpha = std::min(alpha, found);
       continue;

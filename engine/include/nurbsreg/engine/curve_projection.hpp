@@ -123,7 +123,8 @@ class CurveProjector {
   CurveHit project(const Vec3& p, CurveStrategy strategy = CurveStrategy::circular_clipping,
                    CurveProjectionStats* stats = nullptr) const;
   // Warm start: C(hint_u) gives the first elimination radius at once (e.g. the previous ICP
-  // iteration's answer). The answer stays exact: the hint only bounds the distance.
+  // iteration's answer), so most pieces are pruned by their boxes. The answer stays exact:
+  // the hint only bounds the distance. Circular clipping only; Ma & Hewitt ignores the hint.
   CurveHit project(const Vec3& p, double hint_u,
                    CurveStrategy strategy = CurveStrategy::circular_clipping,
                    CurveProjectionStats* stats = nullptr) const;
