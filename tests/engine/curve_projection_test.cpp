@@ -128,8 +128,10 @@ Accuracy check_against_reference(const NurbsCurve& curve, const std::vector<Vec3
     const double excess = (distance - ref.distance) / diag;
     acc.worst_excess = std::max(acc.worst_excess, excess);
     if (excess > kDistanceTolerance) ++acc.worse;
-    if ((curve.evaluate(hit.u) - hit.foot).norm() > 1e-9 * diag ||
-        std::abs((p - hit.foot).norm() - distance) > 1e-12 * diag) {
+    // Up to the rounding of the coordinates themselves (which matters far from the origin).
+    const double ulp = 64.0 * std::numeric_limits<double>::epsilon() * (p.norm() + diag);
+    if ((curve.evaluate(hit.u) - hit.foot).norm() > 1e-9 * diag + ulp ||
+        std::abs((p - hit.foot).norm() - distance) > 1e-12 * diag + ulp) {
       ++acc.inconsistent;
     }
     if (check_orthogonality && distance > 1e-6 * diag && !near_kink(curve, hit.u)) {
@@ -417,6 +419,38 @@ TEST(CurveProjection, TwistedSpaceCurves) {
     expect_exact(check_against_reference(curve, points, CurveStrategy::circular_clipping, 256),
                  rational ? "rational helix" : "helix");
   }
+}
+
+TEST(CurveProjection, FarFromTheOrigin) {
+  // G and E are cached relative to each piece's own centre: small distances must survive a
+  // translation by 10^6 (relative to the world origin they would cancel to ~1e-4).
+  NurbsCurve curve = test::random_curve(905, 4, 10, true, false, 3);
+  for (Vec3& p : curve.control_points)
+    p += Vec3(1e6, -2e6, 3e5);
+  std::vector<Vec3> points = points_near(curve, 200, 9, 0.01);
+  // No orthogonality check here: a foot stored in world coordinates near 1e6 is only
+  // representable to ~1e-10, which limits the cosine to ~1e-10 / distance whatever the solver.
+  expect_exact(check_against_reference(curve, points, CurveStrategy::circular_clipping, 256,
+                                       /*check_orthogonality=*/false),
+               "translated by 1e6");
+}
+
+TEST(CurveProjection, DegenerateControlPolygons) {
+  // Repeated control points: a piece collapsed to a point, a cusp (C' = 0 inside), and a
+  // rational piece whose weights put almost all of it at one control point.
+  NurbsCurve curve;
+  curve.name = "degenerate";
+  curve.degree = 3;
+  curve.control_points = {{0, 0, 0}, {1, 1, 0}, {2, 0, 0}, {2, 0, 0}, {2, 0, 0},
+                          {2, 0, 0}, {3, 1, 1}, {1, 1, 1}, {3, 0, 1}, {4, 2, 0}};
+  curve.knots = {0, 0, 0, 0, 1, 2, 3, 4, 5, 6, 7, 7, 7, 7};
+  curve.weights = {1, 1, 1, 1, 1, 1, 1, 1e3, 1, 1};
+  ASSERT_FALSE(curve.validate()) << *curve.validate();
+  std::vector<Vec3> points = points_near(curve, 300, 10);
+  points.emplace_back(2, 0, 0);
+  points.emplace_back(2, 0.5, 0.5);
+  expect_exact(check_against_reference(curve, points, CurveStrategy::circular_clipping, 512),
+               "degenerate polygon");
 }
 
 // ---------------------------------------------------------------------------------------------
