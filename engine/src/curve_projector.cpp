@@ -147,7 +147,7 @@ CurveHit CurveProjector::project(const Vec3& p, double hint_u, CurveStrategy str
 
 void CurveProjector::project(std::span<const Vec3> points, std::span<CurveProjectionResult> results,
                              CurveStrategy strategy, CurveProjectionStats* stats,
-                             Execution execution) const {
+                             CurveExecution execution) const {
   if (points.size() != results.size()) {
     throw std::invalid_argument("CurveProjector::project: " + std::to_string(points.size()) +
                                 " points but " + std::to_string(results.size()) + " results");
@@ -168,7 +168,7 @@ void CurveProjector::project(std::span<const Vec3> points, std::span<CurveProjec
                                             : CurveProjectionStatus::converged;
     acc += local;
   };
-  if (execution == Execution::serial) {
+  if (execution == CurveExecution::serial) {
     CurveProjectionStats acc;
     for (std::size_t i = 0; i < points.size(); ++i)
       one(i, acc);

@@ -107,7 +107,7 @@ struct CurveProjectionResult {
   CurveProjectionStatus status = CurveProjectionStatus::skipped_non_finite;
 };
 
-enum class Execution : std::uint8_t { serial, parallel };
+enum class CurveExecution : std::uint8_t { serial, parallel };
 
 // A NURBS curve prepared for projection: Bézier decomposition, one PreparedCurvePiece per
 // non-empty knot span, and a balanced bounding-box tree over the pieces (in parameter order).
@@ -134,7 +134,7 @@ class CurveProjector {
   void project(std::span<const Vec3> points, std::span<CurveProjectionResult> results,
                CurveStrategy strategy = CurveStrategy::circular_clipping,
                CurveProjectionStats* stats = nullptr,
-               Execution execution = Execution::parallel) const;
+               CurveExecution execution = CurveExecution::parallel) const;
 
   // Point inversion (seed 000 §11): the parameter u of p when p lies on the curve, i.e. when
   // its distance to the curve is <= tolerance (then C(u) is the closest point to p); nullopt
