@@ -17,6 +17,7 @@
 // Preparation (prepare_curve_piece, CurveProjector's constructor) allocates; every query is
 // const, allocation-free and thread-safe. Results are in the PARENT curve's parameter u.
 
+#include <array>
 #include <cstdint>
 #include <limits>
 #include <optional>
@@ -85,7 +86,8 @@ PreparedCurvePiece prepare_curve_piece(const BezierCurve& piece);
 // p is below best.distance_sq, replaces `best` by the closest point of the piece and returns
 // true; otherwise leaves `best` alone and returns false ("below" up to rounding: a point better
 // by less than ~1e-13 of the squared extent may be ignored). The piece's end points are always
-// candidates. Allocation-free, const, thread-safe. `stats` may be null.
+// candidates. Allocation-free (about 25 KB of stack for the subdivision stack), const,
+// thread-safe. `stats` may be null. A non-finite p finds nothing (best unchanged).
 bool project_onto_piece(const PreparedCurvePiece& piece, const Vec3& p, CurveHit& best,
                         CurveProjectionStats* stats = nullptr);
 
@@ -138,8 +140,9 @@ class CurveProjector {
 
   // Point inversion (seed 000 §11): the parameter u of p when p lies on the curve, i.e. when
   // its distance to the curve is <= tolerance (then C(u) is the closest point to p); nullopt
-  // when p is farther than `tolerance` from the curve. On a self-intersection either
-  // parameter may be returned.
+  // when p is farther than `tolerance` from the curve (or tolerance < 0, or p not finite). The
+  // tolerance is the first elimination radius, so pieces farther away are never clipped. On a
+  // self-intersection either parameter may be returned.
   std::optional<double> invert(const Vec3& p, double tolerance) const;
 
   ParamInterval domain() const { return domain_; }
