@@ -319,6 +319,8 @@ bool project_onto_piece(const PreparedCurvePiece& pc, const Vec3& p, CurveHit& b
                         CurveProjectionStats* stats) {
   const Vec3 q = p - pc.origin;
   const double qn = q.norm();
+  // NaN would defeat every comparison below (nothing eliminated, nothing terminal).
+  if (!std::isfinite(qn)) return false;
   // Bounding sphere: every point of the piece is at least |q| - radius away (rounding of that
   // difference absorbed by the 4 eps term).
   const double lower = qn - pc.radius - 4.0 * kEps * (qn + pc.radius);
@@ -350,6 +352,8 @@ bool project_onto_piece(const PreparedCurvePiece& pc, const Vec3& p, CurveHit& b
   // the error of each f_k below this bound up to the maximal depth.
   const double extent = pc.radius + qn;
   const double noise = 256.0 * kEps * extent * extent;
+  // Beyond ~1e150 the squared distances overflow: only the end points can be compared.
+  if (!std::isfinite(noise)) return improved;
   double alpha = best.distance_sq;
   ClippingTerminal terminal{pc, q, best};
   ClippingCounters counters;

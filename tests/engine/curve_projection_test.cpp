@@ -609,6 +609,9 @@ TEST(CurveProjection, BatchEqualsSinglePoint) {
     EXPECT_EQ(parallel_stats.subdivisions, serial_stats.subdivisions);
     EXPECT_EQ(parallel_stats.queries, points.size() - 2);
   }
+  // Single-point calls with a non-finite point find nothing (and return at once).
+  EXPECT_FALSE(projector.project(points[17]).found());
+  EXPECT_FALSE(projector.project(Vec3(1e300, 1e300, 1e300) * 1e10).found());
   std::vector<CurveProjectionResult> too_few(3);
   EXPECT_THROW(projector.project(points, too_few), std::invalid_argument);
 }
