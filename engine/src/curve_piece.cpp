@@ -251,12 +251,15 @@ struct ClippingTerminal {
   bool improved = false;
   std::uint64_t newton_iterations = 0;
 
-  double candidate(double t) {
-    Vec3 c;
-    pc.evaluate_local(t, 0, &c);
+  double candidate(double t, const Vec3& c) {
     const double d2 = (c - q).squaredNorm();
     improved |= detail::offer(pc, t, d2, c, best);
     return d2;
+  }
+  double candidate(double t) {
+    Vec3 c;
+    pc.evaluate_local(t, 0, &c);
+    return candidate(t, c);
   }
 
   double operator()(const RationalBernstein& node, const double* f, TerminalReason why) {
@@ -273,8 +276,6 @@ struct ClippingTerminal {
       if (curvature > 0.0) s += 0.5 * (f[kmin - 1] - f[kmin + 1]) / curvature / m;
     }
     const double guess = node.a + s * (node.b - node.a);
-    // The end slopes of f have the signs of f_1 - f_0 and f_m - f_{m-1} (hodograph of a
-    // rational Bézier function), so an interior minimum is bracketed without evaluating.
     if (why == TerminalReason::unimodal) {
       bool rising = true;
       bool falling = true;
@@ -298,7 +299,7 @@ struct ClippingTerminal {
     Vec3 db[2];
     pc.evaluate_local(node.a, 1, da);
     pc.evaluate_local(node.b, 1, db);
-    double found = std::min(candidate(node.a), candidate(node.b));
+    double found = std::min(candidate(node.a, da[0]), candidate(node.b, db[0]));
     const double ga = (da[0] - q).dot(da[1]);
     const double gb = (db[0] - q).dot(db[1]);
     if (ga < 0.0 && gb > 0.0) {
