@@ -179,8 +179,14 @@ TEST(CurveProjection, Figure5MaHewittForTheRecord) {
 }
 
 // Cases found by a seeded random search (control points rounded to 4 decimals) where Ma &
-// Hewitt's Theorem 1 discards the sub-curve holding the closest point: a planar cubic and a
-// twisted 3-D quartic (the 3-D failure Chen et al. 2007 point out; seeds 001/002 cite it).
+// Hewitt return a local, not the global, minimum:
+//  - a planar cubic with a sharp turn: a sub-curve whose control polygon folds back along its
+//    chord counts as "flat enough" (§6), its chord projection is a poor candidate (0.0198 away
+//    while the curve comes within 0.0084), and choosing the nearest candidate BEFORE Newton
+//    (§6) sends Newton to the other branch (0.0178);
+//  - a twisted 3-D quartic where Theorem 1 (Algorithm 3) discards the sub-curve that holds the
+//    closest point: the 3-D failure Chen et al. 2007 point out (cited by seeds 001 and 002).
+//    With Algorithm 3 disabled this implementation finds the closest point there.
 struct Counterexample {
   NurbsCurve curve;
   Vec3 point;
