@@ -2,8 +2,10 @@
 // Newton-Raphson), implemented as published so that it can be compared with circular clipping.
 // Its Theorem 1 (Algorithm 3) is not a theorem: the 3-D argument (projection onto the plane
 // of the first two edges, Figs. 11-12) and the mixed case "behind P_0 but beyond the chord's
-// far end" are unproven, and Chen et al. 2007 give a counterexample; seed 002 Fig. 5 shows
-// wrong answers on a planar quartic. The tests exhibit this rather than hide it.
+// far end" are unproven, and Chen et al. 2007 give a counterexample. A second weakness: a
+// control polygon folded back along its chord is "flat enough" (§6), its chord projection is a
+// poor candidate, and the nearest candidate is chosen before Newton runs. The tests exhibit
+// both rather than hide them.
 #include <algorithm>
 #include <cmath>
 

@@ -12,7 +12,9 @@
 //  - ma_hewitt: seed paper 000 (Ma & Hewitt 2003), Algorithms 1, 3 and 5 (valid control
 //    polygon, Theorem 1 end-point test, candidate extraction on flat sub-curves) followed by
 //    Newton-Raphson. Kept for comparison. NOT exact: its Theorem 1 fails in 3-D (Chen et al.
-//    2007 counterexample) and on seed 002's Fig. 5; the tests show both.
+//    2007 counterexample), and "flat enough" candidates chosen before Newton can pick the wrong
+//    branch; the tests show a 3-D and a planar case. (Seed 002 reports wrong answers on its
+//    Fig. 5; this implementation happens to be right on those points.)
 //
 // Preparation (prepare_curve_piece, CurveProjector's constructor) allocates; every query is
 // const, allocation-free and thread-safe. Results are in the PARENT curve's parameter u.
