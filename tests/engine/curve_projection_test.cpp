@@ -252,6 +252,7 @@ INSTANTIATE_TEST_SUITE_P(
                       RandomCase{6, 10, false, false, 2, 200},
                       RandomCase{7, 15, true, true, 3, 200}, RandomCase{8, 12, true, false, 3, 200},
                       RandomCase{9, 20, true, true, 3, 200},
+                      RandomCase{12, 20, true, false, 3, 100},
                       RandomCase{3, 1000, true, true, 3, 40}));
 
 // ---------------------------------------------------------------------------------------------
