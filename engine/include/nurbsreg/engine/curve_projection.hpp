@@ -122,8 +122,9 @@ class CurveProjector {
   explicit CurveProjector(const NurbsCurve& curve);
 
   // The closest point on the curve. Circular clipping walks the box tree nearest-first and
-  // prunes subtrees whose box is farther than the best distance so far; Ma & Hewitt visits
-  // every piece (as in the paper).
+  // prunes subtrees whose box is farther than the best distance so far; the elimination
+  // radius starts from the end points of the first (nearest) piece and shrinks with every
+  // piece solved. Ma & Hewitt visits every piece (as in the paper).
   CurveHit project(const Vec3& p, CurveStrategy strategy = CurveStrategy::circular_clipping,
                    CurveProjectionStats* stats = nullptr) const;
   // Warm start: C(hint_u) gives the first elimination radius at once (e.g. the previous ICP
@@ -134,7 +135,9 @@ class CurveProjector {
                    CurveProjectionStats* stats = nullptr) const;
   // Batch: results[i] for points[i] (sizes must match), written by index, so results are the
   // same for any thread count and identical to single-point calls. Parallel over blocks with
-  // TBB unless `execution` is serial. Non-finite points get status skipped_non_finite.
+  // TBB unless `execution` is serial (the thread count is the caller's: tbb::global_control
+  // or a task_arena). Non-finite points get status skipped_non_finite. Allocates only the
+  // per-thread counters, once per call; `stats` receives their (order-independent) sum.
   void project(std::span<const Vec3> points, std::span<CurveProjectionResult> results,
                CurveStrategy strategy = CurveStrategy::circular_clipping,
                CurveProjectionStats* stats = nullptr,
