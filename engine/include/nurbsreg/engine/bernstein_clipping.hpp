@@ -68,10 +68,10 @@ inline void split_half(const RationalBernstein& from, RationalBernstein& left,
   const double mid = 0.5 * (a + b);
   const int depth = from.depth + 1;
   const bool speculative = from.speculative;
-  right.num[m] = wn[m];
-  right.den[m] = wd[m];
-  left.num[0] = wn[0];
-  left.den[0] = wd[0];
+  right.num[m] = from.num[m];  // end values are shared (safe when right or left is `from`)
+  right.den[m] = from.den[m];
+  left.num[0] = from.num[0];
+  left.den[0] = from.den[0];
   for (int r = 1; r <= m; ++r) {
     for (int k = 0; k <= m - r; ++k) {
       wn[k] = 0.5 * (wn[k] + wn[k + 1]);
