@@ -672,8 +672,15 @@ TEST(CurveProjection, PieceLevelContract) {
       EXPECT_FALSE(project_onto_piece(prepared, p, best));
       EXPECT_EQ(best.u, again.u);
       EXPECT_EQ(best.distance_sq, again.distance_sq);
+      // Ma & Hewitt on the same piece: never closer than the exact answer, and the same
+      // contract for a better answer from elsewhere.
+      CurveHit mh;
+      EXPECT_TRUE(project_onto_piece_ma_hewitt(prepared, p, mh));
+      EXPECT_GE(std::sqrt(mh.distance_sq), ref.distance - 1e-12);
+      EXPECT_LT((alone.evaluate(mh.u) - mh.foot).norm(), 1e-12);
       // A better answer from elsewhere is kept.
       CurveHit closer{-7.0, 0.25 * ref.distance * ref.distance, Vec3(1, 2, 3)};
+      EXPECT_FALSE(project_onto_piece_ma_hewitt(prepared, p, closer));
       EXPECT_FALSE(project_onto_piece(prepared, p, closer));
       EXPECT_EQ(closer.u, -7.0);
       EXPECT_EQ(closer.foot, Vec3(1, 2, 3));
