@@ -30,10 +30,12 @@ using test::uniform;
 constexpr double kDistanceTolerance = 1e-9;  // x bounding-box diagonal
 constexpr double kCosineTolerance = 1e-10;
 
+// Diagonal of the curve's own bounding box (from dense samples, not the control polygon,
+// which can be much larger with extreme weights): the scale of the accuracy criterion.
 double diagonal_of(const NurbsCurve& curve) {
   Aabb box;
-  for (const Vec3& p : curve.control_points)
-    box.extend(p);
+  for (double u : reference_samples(curve, 64))
+    box.extend(curve.evaluate(u));
   return box.diagonal();
 }
 
@@ -134,7 +136,9 @@ Accuracy check_against_reference(const NurbsCurve& curve, const std::vector<Vec3
         std::abs((p - hit.foot).norm() - distance) > 1e-12 * diag + ulp) {
       ++acc.inconsistent;
     }
-    if (check_orthogonality && distance > 1e-6 * diag && !near_kink(curve, hit.u)) {
+    // The cosine is only measurable to ~eps x diagonal / distance in double precision: points
+    // closer than 1e-4 of the diagonal (e.g. on the curve) are checked by distance alone.
+    if (check_orthogonality && distance > 1e-4 * diag && !near_kink(curve, hit.u)) {
       Vec3 d[2];
       curve.derivatives(hit.u, 1, d);
       const double cosine = std::abs(d[1].dot(p - hit.foot)) / (d[1].norm() * distance);
