@@ -2,8 +2,10 @@
 // Newton-Raphson), implemented as published so that it can be compared with circular clipping.
 // Its Theorem 1 (Algorithm 3) is not a theorem: the 3-D argument (projection onto the plane
 // of the first two edges, Figs. 11-12) and the mixed case "behind P_0 but beyond the chord's
-// far end" are unproven, and Chen et al. 2007 give a counterexample; seed 002 Fig. 5 shows
-// wrong answers on a planar quartic. The tests exhibit this rather than hide it.
+// far end" are unproven, and Chen et al. 2007 give a counterexample. A second weakness: a
+// control polygon folded back along its chord is "flat enough" (§6), its chord projection is a
+// poor candidate, and the nearest candidate is chosen before Newton runs. The tests exhibit
+// both rather than hide them.
 #include <algorithm>
 #include <cmath>
 
@@ -140,7 +142,8 @@ LocalMinimum ma_hewitt_newton(const PreparedCurvePiece& pc, const Vec3& q, doubl
     const double gp = d[1].squaredNorm() + r.dot(d[2]);
     if (!(gp > 0.0)) break;
     const double next = std::clamp(t - g / gp, 0.0, 1.0);
-    const bool done = std::abs(next - t) <= 1e-13;
+    // Converged when the step moves the point by a negligible fraction of the extent.
+    const bool done = std::abs(next - t) * d[1].norm() <= 1e-10 * (pc.radius + r.norm());
     t = next;
     if (done) break;
   }

@@ -79,15 +79,21 @@ PreparedCurvePiece prepare_curve_piece(const BezierCurve& piece) {
   return out;
 }
 
-void PreparedCurvePiece::evaluate_local(double t, int order, Vec3* derivs) const {
-  const int n = degree;
+namespace {
+
+// C, C', C'' of the piece in its local frame at t. N > 0 is the degree when known at compile
+// time (the loops unroll: this is the innermost call of every Newton step), 0 for any degree.
+template <int N>
+void evaluate_piece(const PreparedCurvePiece& pc, double t, int order, Vec3* derivs) {
+  const int n = N > 0 ? N : pc.degree;
   // Bernstein rows n, n-1, n-2 from one triangular pass (The NURBS Book A1.3).
   double b[kMaxDegree + 1];
   double b1[kMaxDegree + 1];
   double b2[kMaxDegree + 1];
   const double s = 1.0 - t;
   b[0] = 1.0;
-  if (n == 1) b1[0] = 1.0;
+  b1[0] = 1.0;
+  b2[0] = 1.0;
   for (int j = 1; j <= n; ++j) {
     double saved = 0.0;
     for (int k = 0; k < j; ++k) {
@@ -99,23 +105,43 @@ void PreparedCurvePiece::evaluate_local(double t, int order, Vec3* derivs) const
     if (j == n - 2) std::copy(b, b + j + 1, b2);
     if (j == n - 1) std::copy(b, b + j + 1, b1);
   }
-  if (n == 2) b2[0] = 1.0;
   Vec4 a0 = Vec4::Zero();
   for (int i = 0; i <= n; ++i)
-    a0 += b[i] * local[i];
+    a0 += b[i] * pc.local[i];
   const double inv_w = 1.0 / a0[3];
   derivs[0] = a0.head<3>() * inv_w;
   if (order < 1) return;
   Vec4 a1 = Vec4::Zero();
   for (int i = 0; i < n; ++i)
-    a1 += b1[i] * d1[i];
+    a1 += b1[i] * pc.d1[i];
   derivs[1] = (a1.head<3>() - a1[3] * derivs[0]) * inv_w;
   if (order < 2) return;
   Vec4 a2 = Vec4::Zero();
   for (int i = 0; i + 1 < n; ++i)
-    a2 += b2[i] * d2[i];
+    a2 += b2[i] * pc.d2[i];
   // Quotient rule for rational curves (The NURBS Book eq. 4.8).
   derivs[2] = (a2.head<3>() - 2.0 * a1[3] * derivs[1] - a2[3] * derivs[0]) * inv_w;
+}
+
+}  // namespace
+
+void PreparedCurvePiece::evaluate_local(double t, int order, Vec3* derivs) const {
+  switch (degree) {
+    case 1:
+      return evaluate_piece<1>(*this, t, order, derivs);
+    case 2:
+      return evaluate_piece<2>(*this, t, order, derivs);
+    case 3:
+      return evaluate_piece<3>(*this, t, order, derivs);
+    case 4:
+      return evaluate_piece<4>(*this, t, order, derivs);
+    case 5:
+      return evaluate_piece<5>(*this, t, order, derivs);
+    case 6:
+      return evaluate_piece<6>(*this, t, order, derivs);
+    default:
+      return evaluate_piece<0>(*this, t, order, derivs);
+  }
 }
 
 namespace detail {
@@ -128,7 +154,9 @@ double piece_parameter(const PreparedCurvePiece& pc, double t) {
 
 bool offer(const PreparedCurvePiece& pc, double t, double d2, const Vec3& local_point,
            CurveHit& best) {
-  if (!(d2 < best.distance_sq)) return false;
+  // Strictly better by more than rounding: a second run over the same piece (or a piece that
+  // shares the end point) keeps the answer it already has.
+  if (!(d2 < best.distance_sq * (1.0 - 8.0 * kEps))) return false;
   best.u = piece_parameter(pc, t);
   best.distance_sq = d2;
   // End points are exact control points of the piece; elsewhere undo the local frame.
@@ -150,6 +178,8 @@ LocalMinimum safeguarded_newton(const PreparedCurvePiece& pc, const Vec3& q, dou
   t = std::clamp(t, lo, hi);
   double dx_old = hi - lo;
   double dx = dx_old;
+  double last_newton = 0.0;  // previous Newton step, 0 after a bisection
+  const double r2 = pc.radius * pc.radius;
   Vec3 d[3];
   for (int it = 0; it < 200; ++it) {
     pc.evaluate_local(t, 2, d);
@@ -164,6 +194,14 @@ LocalMinimum safeguarded_newton(const PreparedCurvePiece& pc, const Vec3& q, dou
     } else {
       return {t, r.squaredNorm(), d[0]};
     }
+    // Convergence is judged on the geometry, not on |dx|: with extreme weights the speed |C'|
+    // varies by orders of magnitude along a piece. Target: the cosine between C' and the
+    // residual r, |g| / (|C'| |r|), below 1e-12 (seed 000's "zero-cosine"); floor: a step that
+    // moves the point by less than the rounding of the extent (radius + |r|)^2 <=
+    // 2 (radius^2 + |r|^2). Squared forms avoid square roots.
+    const double speed2 = d[1].squaredNorm();
+    const double rr = r.squaredNorm();
+    const double scale2 = 2.0 * (r2 + rr);
     const bool newton_ok = gp > 0.0 && ((t - hi) * gp - g) * ((t - lo) * gp - g) < 0.0 &&
                            std::abs(2.0 * g) <= std::abs(dx_old * gp);
     dx_old = dx;
@@ -171,15 +209,26 @@ LocalMinimum safeguarded_newton(const PreparedCurvePiece& pc, const Vec3& q, dou
     if (newton_ok) {
       dx = g / gp;
       next = t - dx;
-      // Quadratic convergence: after a step this small the error is ~dx^2, below rounding.
-      if (std::abs(dx) <= 1e-11) {
+      const double move2 = dx * dx * speed2;
+      bool done = g * g <= 1e-24 * speed2 * rr || move2 <= 4096.0 * kEps * kEps * scale2;
+      if (!done && last_newton != 0.0 && move2 <= 1e-12 * scale2) {
+        // Quadratic convergence: the error after this step is about K dx^2, K estimated from
+        // the last two steps (K = |dx| / last^2); predict the cosine after the step.
+        const double predicted = std::abs(dx) / (last_newton * last_newton) * dx * dx;
+        const double g_next = predicted * gp;
+        done = g_next * g_next <= 1e-24 * speed2 * rr;
+      }
+      if (done) {
         t = std::clamp(next, lo, hi);
         break;
       }
+      last_newton = dx;
     } else {
       dx = 0.5 * (hi - lo);
       next = lo + dx;
-      if (dx <= 4.0 * kEps) {
+      last_newton = 0.0;
+      // Stop when the bracket cannot shrink any more or is below the rounding of g.
+      if (next <= lo || next >= hi || dx * dx * speed2 <= 16.0 * kEps * kEps * scale2) {
         t = next;
         break;
       }
@@ -202,20 +251,21 @@ struct ClippingTerminal {
   bool improved = false;
   std::uint64_t newton_iterations = 0;
 
-  double candidate(double t) {
-    Vec3 c;
-    pc.evaluate_local(t, 0, &c);
+  double candidate(double t, const Vec3& c) {
     const double d2 = (c - q).squaredNorm();
     improved |= detail::offer(pc, t, d2, c, best);
     return d2;
   }
+  double candidate(double t) {
+    Vec3 c;
+    pc.evaluate_local(t, 0, &c);
+    return candidate(t, c);
+  }
 
-  double operator()(const RationalBernstein& node, TerminalReason why) {
+  double operator()(const RationalBernstein& node, const double* f, TerminalReason why) {
     const int m = node.degree;
-    double f[kMaxBernsteinDegree + 1];
     int kmin = 0;
-    for (int k = 0; k <= m; ++k) {
-      f[k] = node.control_value(k);
+    for (int k = 1; k <= m; ++k) {
       if (f[k] < f[kmin]) kmin = k;
     }
     // Starting guess: the vertex of the parabola through the control values around the
@@ -226,8 +276,6 @@ struct ClippingTerminal {
       if (curvature > 0.0) s += 0.5 * (f[kmin - 1] - f[kmin + 1]) / curvature / m;
     }
     const double guess = node.a + s * (node.b - node.a);
-    // The end slopes of f have the signs of f_1 - f_0 and f_m - f_{m-1} (hodograph of a
-    // rational Bézier function), so an interior minimum is bracketed without evaluating.
     if (why == TerminalReason::unimodal) {
       bool rising = true;
       bool falling = true;
@@ -251,7 +299,7 @@ struct ClippingTerminal {
     Vec3 db[2];
     pc.evaluate_local(node.a, 1, da);
     pc.evaluate_local(node.b, 1, db);
-    double found = std::min(candidate(node.a), candidate(node.b));
+    double found = std::min(candidate(node.a, da[0]), candidate(node.b, db[0]));
     const double ga = (da[0] - q).dot(da[1]);
     const double gb = (db[0] - q).dot(db[1]);
     if (ga < 0.0 && gb > 0.0) {
@@ -272,6 +320,8 @@ bool project_onto_piece(const PreparedCurvePiece& pc, const Vec3& p, CurveHit& b
                         CurveProjectionStats* stats) {
   const Vec3 q = p - pc.origin;
   const double qn = q.norm();
+  // NaN would defeat every comparison below (nothing eliminated, nothing terminal).
+  if (!std::isfinite(qn)) return false;
   // Bounding sphere: every point of the piece is at least |q| - radius away (rounding of that
   // difference absorbed by the 4 eps term).
   const double lower = qn - pc.radius - 4.0 * kEps * (qn + pc.radius);
@@ -289,6 +339,10 @@ bool project_onto_piece(const PreparedCurvePiece& pc, const Vec3& p, CurveHit& b
 
   RationalBernstein root;
   root.degree = 2 * n;
+  root.depth = 0;
+  root.speculative = false;
+  root.a = 0.0;
+  root.b = 1.0;
   const double qq = q.squaredNorm();
   for (int k = 0; k <= 2 * n; ++k) {
     root.num[k] = pc.G[k] - 2.0 * q.dot(pc.E[k]) + qq * pc.W[k];
@@ -299,6 +353,8 @@ bool project_onto_piece(const PreparedCurvePiece& pc, const Vec3& p, CurveHit& b
   // the error of each f_k below this bound up to the maximal depth.
   const double extent = pc.radius + qn;
   const double noise = 256.0 * kEps * extent * extent;
+  // Beyond ~1e150 the squared distances overflow: only the end points can be compared.
+  if (!std::isfinite(noise)) return improved;
   double alpha = best.distance_sq;
   ClippingTerminal terminal{pc, q, best};
   ClippingCounters counters;

@@ -2,6 +2,7 @@
 // circular clipping on the leaves (seed paper 002), or Ma & Hewitt over every piece (seed 000).
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 
 #include <tbb/blocked_range.h>
@@ -147,7 +148,7 @@ CurveHit CurveProjector::project(const Vec3& p, double hint_u, CurveStrategy str
 
 void CurveProjector::project(std::span<const Vec3> points, std::span<CurveProjectionResult> results,
                              CurveStrategy strategy, CurveProjectionStats* stats,
-                             Execution execution) const {
+                             CurveExecution execution) const {
   if (points.size() != results.size()) {
     throw std::invalid_argument("CurveProjector::project: " + std::to_string(points.size()) +
                                 " points but " + std::to_string(results.size()) + " results");
@@ -168,7 +169,7 @@ void CurveProjector::project(std::span<const Vec3> points, std::span<CurveProjec
                                             : CurveProjectionStatus::converged;
     acc += local;
   };
-  if (execution == Execution::serial) {
+  if (execution == CurveExecution::serial) {
     CurveProjectionStats acc;
     for (std::size_t i = 0; i < points.size(); ++i)
       one(i, acc);
@@ -190,9 +191,14 @@ void CurveProjector::project(std::span<const Vec3> points, std::span<CurveProjec
 }
 
 std::optional<double> CurveProjector::invert(const Vec3& p, double tolerance) const {
-  if (!p.allFinite()) return std::nullopt;
-  const CurveHit hit = project(p);
-  if (!(hit.distance_sq <= tolerance * tolerance)) return std::nullopt;
+  if (!p.allFinite() || !(tolerance >= 0.0)) return std::nullopt;
+  // Seed 000 §11: only pieces whose convex hull comes within the tolerance can hold p, so the
+  // search starts with the tolerance as its elimination radius; everything farther is pruned.
+  CurveHit seed;
+  seed.distance_sq = std::nextafter(tolerance * tolerance, std::numeric_limits<double>::max());
+  CurveProjectionStats stats;
+  const CurveHit hit = run(p, seed, CurveStrategy::circular_clipping, stats);
+  if (!(hit.distance_sq < seed.distance_sq)) return std::nullopt;
   return hit.u;
 }
 

@@ -25,19 +25,35 @@ inline constexpr int kMaxBernsteinDegree = 2 * kMaxDegree;
 // subdivision cannot separate anything. Reaching it is counted (ClippingCounters).
 inline constexpr int kMaxClippingDepth = 52;
 
+// No default member initialisers on purpose: circular_clip keeps a stack of these per call
+// and initialising it would cost more than the clipping itself. Set every field (num and den
+// for [0, degree]) before use.
 struct RationalBernstein {
-  int degree = 0;
-  double a = 0.0;  // the sub-interval of the piece's local [0, 1] this function covers
-  double b = 1.0;
-  int depth = 0;  // number of halvings from the piece
-  std::array<double, kMaxBernsteinDegree + 1> num{};
-  std::array<double, kMaxBernsteinDegree + 1> den{};
+  int degree;
+  int depth;  // number of halvings from the piece
+  // Set on the halves of a unimodal sub-interval that was split rather than solved (see
+  // circular_clip): such halves are solved directly.
+  bool speculative;
+  double a;  // the sub-interval of the piece's local [0, 1] this function covers
+  double b;
+  std::array<double, kMaxBernsteinDegree + 1> num;
+  std::array<double, kMaxBernsteinDegree + 1> den;
 
   double control_value(int k) const { return num[k] / den[k]; }
+  // Copies the used part only.
+  void assign(const RationalBernstein& o) {
+    degree = o.degree;
+    depth = o.depth;
+    speculative = o.speculative;
+    a = o.a;
+    b = o.b;
+    std::copy(o.num.begin(), o.num.begin() + o.degree + 1, num.begin());
+    std::copy(o.den.begin(), o.den.begin() + o.degree + 1, den.begin());
+  }
 };
 
 // de Casteljau at s = 1/2 on the homogeneous scalars (num, den) together: both halves are
-// again rational Bernstein functions of the same degree. `left` may alias `from`.
+// again rational Bernstein functions of the same degree. `left` or `right` may alias `from`.
 inline void split_half(const RationalBernstein& from, RationalBernstein& left,
                        RationalBernstein& right) {
   const int m = from.degree;
@@ -51,10 +67,11 @@ inline void split_half(const RationalBernstein& from, RationalBernstein& left,
   const double b = from.b;
   const double mid = 0.5 * (a + b);
   const int depth = from.depth + 1;
-  right.num[m] = wn[m];
-  right.den[m] = wd[m];
-  left.num[0] = wn[0];
-  left.den[0] = wd[0];
+  const bool speculative = from.speculative;
+  right.num[m] = from.num[m];  // end values are shared (safe when right or left is `from`)
+  right.den[m] = from.den[m];
+  left.num[0] = from.num[0];
+  left.den[0] = from.den[0];
   for (int r = 1; r <= m; ++r) {
     for (int k = 0; k <= m - r; ++k) {
       wn[k] = 0.5 * (wn[k] + wn[k + 1]);
@@ -71,6 +88,7 @@ inline void split_half(const RationalBernstein& from, RationalBernstein& left,
   right.a = mid;
   right.b = b;
   left.depth = right.depth = depth;
+  left.speculative = right.speculative = speculative;
 }
 
 // Seed 002, Property 2, in its non-strict form: the control values first do not increase,
@@ -109,7 +127,8 @@ struct ClippingCounters {
 // the true minimum. The exact end values f_0 = f(a) and f_m = f(b) shrink alpha on the way
 // (plus `noise`, so alpha stays an upper bound).
 //
-// `terminal(const RationalBernstein& node, TerminalReason why)` must minimise f on
+// `terminal(const RationalBernstein& node, const double* f, TerminalReason why)`, with
+// f[k] = node's control values, must minimise f on
 // [node.a, node.b] on the underlying geometry and return the smallest value it found (it is
 // where the caller records its answer); alpha shrinks to it. Sub-intervals are visited
 // depth-first, the one with the smaller control minimum first, so alpha shrinks early.
@@ -120,7 +139,7 @@ void circular_clip(const RationalBernstein& root, double noise, double& alpha, T
   // level, so kMaxClippingDepth + 2 slots suffice.
   RationalBernstein stack[kMaxClippingDepth + 2];
   int top = 0;
-  stack[top++] = root;
+  stack[top++].assign(root);
   const int m = root.degree;
   double f[kMaxBernsteinDegree + 1];
   while (top > 0) {
@@ -139,33 +158,40 @@ void circular_clip(const RationalBernstein& root, double noise, double& alpha, T
       continue;
     }
     const bool flat = fmax - fmin <= noise;
-    const bool unimodal = !flat && is_unimodal(f, m);
-    if (flat || unimodal || node.depth >= kMaxClippingDepth) {
+    bool unimodal = !flat && is_unimodal(f, m);
+    // A unimodal sub-interval whose end values are both above alpha holds a better point only
+    // if f dips below alpha inside; its control values overestimate that dip. Halving once
+    // (cheap) often eliminates both halves, which saves a local solve (expensive).
+    bool speculate = false;
+    if (unimodal && !node.speculative && f[0] > alpha && f[m] > alpha &&
+        node.depth < kMaxClippingDepth) {
+      unimodal = false;
+      speculate = true;
+    }
+    if (flat || unimodal || (!speculate && node.depth >= kMaxClippingDepth)) {
       const TerminalReason why = flat       ? TerminalReason::flat
                                  : unimodal ? TerminalReason::unimodal
                                             : TerminalReason::depth_limit;
       ++counters.terminals;
       if (why == TerminalReason::depth_limit) ++counters.depth_limit_hits;
-      const double found = terminal(static_cast<const RationalBernstein&>(node), why);
+      const double found =
+          terminal(static_cast<const RationalBernstein&>(node), static_cast<const double*>(f), why);
       --top;
       alpha = std::min(alpha, found);
       continue;
     }
     ++counters.subdivisions;
-    RationalBernstein right;
-    split_half(node, node, right);  // node becomes the left half in place
-    double left_min = node.control_value(0);
-    double right_min = right.control_value(0);
+    // The half holding the smallest control value is the more promising one: it goes on top
+    // of the stack, to be processed next (split_half writes both halves in place, no copies).
+    int kmin = 0;
     for (int k = 1; k <= m; ++k) {
-      left_min = std::min(left_min, node.control_value(k));
-      right_min = std::min(right_min, right.control_value(k));
+      if (f[k] < f[kmin]) kmin = k;
     }
-    // The more promising half goes on top of the stack (`node` is stack[top - 1]).
-    if (right_min < left_min) {
-      stack[top] = right;
+    if (speculate) node.speculative = true;
+    if (2 * kmin <= m) {
+      split_half(node, stack[top], node);
     } else {
-      stack[top] = node;
-      stack[top - 1] = right;
+      split_half(node, node, stack[top]);
     }
     ++top;
   }

@@ -12,11 +12,14 @@
 //  - ma_hewitt: seed paper 000 (Ma & Hewitt 2003), Algorithms 1, 3 and 5 (valid control
 //    polygon, Theorem 1 end-point test, candidate extraction on flat sub-curves) followed by
 //    Newton-Raphson. Kept for comparison. NOT exact: its Theorem 1 fails in 3-D (Chen et al.
-//    2007 counterexample) and on seed 002's Fig. 5; the tests show both.
+//    2007 counterexample), and "flat enough" candidates chosen before Newton can pick the wrong
+//    branch; the tests show a 3-D and a planar case. (Seed 002 reports wrong answers on its
+//    Fig. 5; this implementation happens to be right on those points.)
 //
 // Preparation (prepare_curve_piece, CurveProjector's constructor) allocates; every query is
 // const, allocation-free and thread-safe. Results are in the PARENT curve's parameter u.
 
+#include <array>
 #include <cstdint>
 #include <limits>
 #include <optional>
@@ -85,7 +88,8 @@ PreparedCurvePiece prepare_curve_piece(const BezierCurve& piece);
 // p is below best.distance_sq, replaces `best` by the closest point of the piece and returns
 // true; otherwise leaves `best` alone and returns false ("below" up to rounding: a point better
 // by less than ~1e-13 of the squared extent may be ignored). The piece's end points are always
-// candidates. Allocation-free, const, thread-safe. `stats` may be null.
+// candidates. Allocation-free (about 25 KB of stack for the subdivision stack), const,
+// thread-safe. `stats` may be null. A non-finite p finds nothing (best unchanged).
 bool project_onto_piece(const PreparedCurvePiece& piece, const Vec3& p, CurveHit& best,
                         CurveProjectionStats* stats = nullptr);
 
@@ -107,7 +111,7 @@ struct CurveProjectionResult {
   CurveProjectionStatus status = CurveProjectionStatus::skipped_non_finite;
 };
 
-enum class Execution : std::uint8_t { serial, parallel };
+enum class CurveExecution : std::uint8_t { serial, parallel };
 
 // A NURBS curve prepared for projection: Bézier decomposition, one PreparedCurvePiece per
 // non-empty knot span, and a balanced bounding-box tree over the pieces (in parameter order).
@@ -118,27 +122,32 @@ class CurveProjector {
   explicit CurveProjector(const NurbsCurve& curve);
 
   // The closest point on the curve. Circular clipping walks the box tree nearest-first and
-  // prunes subtrees whose box is farther than the best distance so far; Ma & Hewitt visits
-  // every piece (as in the paper).
+  // prunes subtrees whose box is farther than the best distance so far; the elimination
+  // radius starts from the end points of the first (nearest) piece and shrinks with every
+  // piece solved. Ma & Hewitt visits every piece (as in the paper).
   CurveHit project(const Vec3& p, CurveStrategy strategy = CurveStrategy::circular_clipping,
                    CurveProjectionStats* stats = nullptr) const;
   // Warm start: C(hint_u) gives the first elimination radius at once (e.g. the previous ICP
-  // iteration's answer). The answer stays exact: the hint only bounds the distance.
+  // iteration's answer), so most pieces are pruned by their boxes. The answer stays exact:
+  // the hint only bounds the distance. Circular clipping only; Ma & Hewitt ignores the hint.
   CurveHit project(const Vec3& p, double hint_u,
                    CurveStrategy strategy = CurveStrategy::circular_clipping,
                    CurveProjectionStats* stats = nullptr) const;
   // Batch: results[i] for points[i] (sizes must match), written by index, so results are the
   // same for any thread count and identical to single-point calls. Parallel over blocks with
-  // TBB unless `execution` is serial. Non-finite points get status skipped_non_finite.
+  // TBB unless `execution` is serial (the thread count is the caller's: tbb::global_control
+  // or a task_arena). Non-finite points get status skipped_non_finite. Allocates only the
+  // per-thread counters, once per call; `stats` receives their (order-independent) sum.
   void project(std::span<const Vec3> points, std::span<CurveProjectionResult> results,
                CurveStrategy strategy = CurveStrategy::circular_clipping,
                CurveProjectionStats* stats = nullptr,
-               Execution execution = Execution::parallel) const;
+               CurveExecution execution = CurveExecution::parallel) const;
 
   // Point inversion (seed 000 §11): the parameter u of p when p lies on the curve, i.e. when
   // its distance to the curve is <= tolerance (then C(u) is the closest point to p); nullopt
-  // when p is farther than `tolerance` from the curve. On a self-intersection either
-  // parameter may be returned.
+  // when p is farther than `tolerance` from the curve (or tolerance < 0, or p not finite). The
+  // tolerance is the first elimination radius, so pieces farther away are never clipped. On a
+  // self-intersection either parameter may be returned.
   std::optional<double> invert(const Vec3& p, double tolerance) const;
 
   ParamInterval domain() const { return domain_; }
