@@ -159,15 +159,19 @@ void find_correspondences(CorrespondenceFinder& finder, double max_distance, boo
   finder.find(query, b.matches);
 }
 
-// Step 3, reject: d_i <= max distance, then Trimmed ICP (Chetverikov et al. 2002): keep the
+// Step 3, reject: valid, d_i <= max distance, foot not beyond a free boundary (if asked), then
+// Trimmed ICP (Chetverikov et al. 2002): keep the
 // ceil(keep_fraction * m) smallest distances (all ties of the cut value, so the set depends
 // on the values only).
-void reject_outliers(double max_distance, double keep_fraction, Buffers& b) {
+void reject_outliers(const IcpOptions& o, Buffers& b) {
+  const double max_distance = o.max_correspondence_distance;
+  const double keep_fraction = o.keep_fraction;
   const std::size_t n = b.ids.size();
   b.scratch.clear();
   for (std::size_t k = 0; k < n; ++k) {
     const Correspondence& c = b.matches[k];
-    const bool ok = c.valid && std::isfinite(c.distance) && c.distance <= max_distance;
+    const bool ok = c.valid && std::isfinite(c.distance) && c.distance <= max_distance &&
+                    !(o.reject_boundary && c.on_boundary);
     b.inlier[k] = ok ? 1 : 0;
     if (ok) b.scratch.push_back(c.distance);
   }
@@ -541,7 +545,7 @@ IcpResult IcpSolver::align(CorrespondenceFinder& finder, std::span<const Vec3> s
       const auto t0 = Clock::now();
       transform_points(T, scan, b, o.parallel);
       find_correspondences(finder, o.max_correspondence_distance, o.parallel, b);
-      reject_outliers(o.max_correspondence_distance, o.keep_fraction, b);
+      reject_outliers(o, b);
       IcpIteration it;
       it.kernel_scale = compute_weights(o, L, b);
       const Rejection kept = inlier_statistics(b);
@@ -592,7 +596,7 @@ IcpResult IcpSolver::align(CorrespondenceFinder& finder, std::span<const Vec3> s
   b.resize(b.ids.size());
   transform_points(T, scan, b, o.parallel);
   find_correspondences(finder, o.max_correspondence_distance, o.parallel, b);
-  reject_outliers(o.max_correspondence_distance, o.keep_fraction, b);
+  reject_outliers(o, b);
   compute_weights(o, L, b);
   const Rejection kept = inlier_statistics(b);
   result.inliers = kept.inliers;

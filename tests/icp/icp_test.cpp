@@ -233,6 +233,36 @@ TEST(Icp, PartialViewConverges) {
   EXPECT_LT(translation_error(r.T_model_scan, true_pose()), 1e-9 * kSize);
 }
 
+TEST(Icp, ScanBeyondTheModelEdgeIsRejectedAtTheBoundary) {
+  // The scan saw more floor than the model has: the model floor is 80 x 80, the scanned one
+  // 100 x 100. Points beyond the edge have feet clamped to it, which pull the scan sideways
+  // unless such boundary pairs are rejected. (The model edge keeps clear of the spheres so
+  // that the extra floor's nearest model surface is that edge, not a sphere.)
+  const std::vector<Primitive> scanned = scene();
+  std::vector<Primitive> model = scanned;
+  std::get<Rectangle>(model[0]).half_u = std::get<Rectangle>(model[0]).half_v = 40.0;
+  UnionFinder finder(model);
+  const std::vector<Vec3> scan = to_scan(sample_uniform(scanned, 4000, 24), true_pose());
+  const IcpResult r = align(finder, scan, Isometry3d::Identity(), exact_options());
+  ASSERT_EQ(r.termination, IcpTermination::converged) << r.brief_report();
+  EXPECT_LT(rotation_error(r.T_model_scan, true_pose()), 1e-9);
+  EXPECT_LT(translation_error(r.T_model_scan, true_pose()), 1e-9 * kSize);
+  EXPECT_LT(r.inliers, scan.size());
+  // Point-to-plane hardly notices the boundary pairs here (the extra floor is coplanar with
+  // the model's, so their residual n . (q - f) is 0); point-to-point is pulled by them.
+  IcpOptions p2p = exact_options();
+  p2p.method = IcpMethod::point_to_point;
+  p2p.max_iterations = 400;
+  p2p.rotation_tolerance = 1e-12;
+  p2p.translation_tolerance = 1e-12 * kSize;
+  p2p.relative_rms_tolerance = 0.0;
+  const IcpResult clean = align(finder, scan, Isometry3d::Identity(), p2p);
+  EXPECT_LT(translation_error(clean.T_model_scan, true_pose()), 1e-7 * kSize);
+  p2p.reject_boundary = false;
+  const IcpResult biased = align(finder, scan, Isometry3d::Identity(), p2p);
+  EXPECT_GT(translation_error(biased.T_model_scan, true_pose()), 1e-3 * kSize);
+}
+
 bool mentions(const DegeneracyReport& d, FreeDirection::Kind kind, const Vec3& direction) {
   for (const FreeDirection& f : d.free_directions) {
     if (f.kind == kind && std::abs(std::abs(f.direction.dot(direction)) - 1.0) < 1e-9) return true;

@@ -61,6 +61,8 @@ struct IcpOptions {
   int max_iterations = 50;
   // Correspondences farther apart are rejected (model units, > 0; infinity: none).
   double max_correspondence_distance = std::numeric_limits<double>::infinity();
+  // Drop pairs whose foot the finder flags as on_boundary (see correspondence.hpp).
+  bool reject_boundary = true;
   // Trimmed ICP (Chetverikov et al., ICPR 2002): keep this fraction of the remaining
   // correspondences with the smallest distances, in (0, 1].
   double keep_fraction = 1.0;
