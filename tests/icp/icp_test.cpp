@@ -8,6 +8,8 @@
 #include <numbers>
 #include <random>
 
+#include <Eigen/SVD>
+
 #include "nurbsreg/icp/analytic.hpp"
 #include "nurbsreg/icp/icp.hpp"
 
@@ -405,6 +407,83 @@ TEST(IcpCoarseToFine, ReachesTheSameAnswer) {
   for (const IcpIteration& it : staged.log)
     full_iterations += it.points == scan.size();
   EXPECT_LT(full_iterations, direct.iterations);
+}
+
+// Wraps a finder and checks the query contract the engine's warm start relies on: reset()
+// once per alignment with the scan size, and scan_indices naming the scan point that each
+// query point is (all query points are one rigid motion of the indexed scan points).
+class CheckingFinder : public CorrespondenceFinder {
+ public:
+  CheckingFinder(CorrespondenceFinder& inner, std::span<const Vec3> scan)
+      : inner_(inner), scan_(scan) {}
+  void reset(std::size_t scan_size) override {
+    ++resets;
+    EXPECT_LE(scan_size, scan_.size());  // frames here are prefixes of scan_
+    inner_.reset(scan_size);
+  }
+  void find(const CorrespondenceQuery& query, std::span<Correspondence> out) override {
+    ++calls;
+    EXPECT_EQ(query.points.size(), query.scan_indices.size());
+    EXPECT_EQ(out.size(), query.points.size());
+    sizes.push_back(query.points.size());
+    // Rigid fit (Kabsch) from the indexed scan points to the query points: residual ~ 0.
+    Vec3 mean_scan = Vec3::Zero(), mean_query = Vec3::Zero();
+    for (std::size_t k = 0; k < query.points.size(); ++k) {
+      EXPECT_LT(query.scan_indices[k], scan_.size());
+      if (k > 0) {
+        EXPECT_LT(query.scan_indices[k - 1], query.scan_indices[k]);
+      }
+      mean_scan += scan_[query.scan_indices[k]];
+      mean_query += query.points[k];
+    }
+    mean_scan /= static_cast<double>(query.points.size());
+    mean_query /= static_cast<double>(query.points.size());
+    Eigen::Matrix3d M = Eigen::Matrix3d::Zero();
+    for (std::size_t k = 0; k < query.points.size(); ++k) {
+      M += (query.points[k] - mean_query) * (scan_[query.scan_indices[k]] - mean_scan).transpose();
+    }
+    Eigen::JacobiSVD<Eigen::Matrix3d> svd(M, Eigen::ComputeFullU | Eigen::ComputeFullV);
+    const Eigen::Matrix3d R = svd.matrixU() * svd.matrixV().transpose();
+    double worst = 0.0;
+    for (std::size_t k = 0; k < query.points.size(); ++k) {
+      const Vec3 fitted = mean_query + R * (scan_[query.scan_indices[k]] - mean_scan);
+      worst = std::max(worst, (fitted - query.points[k]).norm());
+    }
+    EXPECT_LT(worst, 1e-9 * kSize);
+    inner_.find(query, out);
+  }
+  int resets = 0;
+  int calls = 0;
+  std::vector<std::size_t> sizes;
+
+ private:
+  CorrespondenceFinder& inner_;
+  std::span<const Vec3> scan_;
+};
+
+TEST(IcpFinderContract, StableScanIndicesAcrossStagesAndOneResetPerAlignment) {
+  UnionFinder inner(scene());
+  const std::vector<Vec3> scan = to_scan(sample_uniform(scene(), 3000, 25), true_pose());
+  CheckingFinder finder(inner, scan);
+  IcpOptions o = exact_options();
+  o.coarse_sizes = {200};
+  IcpSolver solver(o);
+  const IcpResult first = solver.align(finder, scan, Isometry3d::Identity());
+  ASSERT_EQ(first.termination, IcpTermination::converged) << first.brief_report();
+  EXPECT_EQ(finder.resets, 1);
+  // One call per iteration plus the final evaluation on all points.
+  EXPECT_EQ(finder.calls, first.iterations + 1);
+  EXPECT_EQ(finder.sizes.front(), 200u);
+  EXPECT_EQ(finder.sizes.back(), scan.size());
+  // The solver reuses its buffers: a second, smaller frame and then the first one again
+  // give exactly what fresh solvers give.
+  const std::vector<Vec3> small(scan.begin(), scan.begin() + 700);
+  const IcpResult second = solver.align(finder, small, Isometry3d::Identity());
+  const IcpResult third = solver.align(finder, scan, Isometry3d::Identity());
+  EXPECT_EQ(finder.resets, 3);
+  EXPECT_TRUE(second.T_model_scan.matrix() ==
+              align(inner, small, Isometry3d::Identity(), o).T_model_scan.matrix());
+  EXPECT_TRUE(third.T_model_scan.matrix() == first.T_model_scan.matrix());
 }
 
 TEST(IcpOptionsValidation, ErrorsNameTheField) {
