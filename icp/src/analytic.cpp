@@ -49,12 +49,13 @@ Vec3 any_orthogonal(const Vec3& n) {
   return n.cross(helper).normalized();
 }
 
-Correspondence make(const Vec3& p, const Vec3& foot, const Vec3& normal) {
+Correspondence make(const Vec3& p, const Vec3& foot, const Vec3& normal, bool on_boundary = false) {
   Correspondence c;
   c.foot = foot;
   c.normal = normal;
   c.distance = (p - foot).norm();
   c.valid = true;
+  c.on_boundary = on_boundary;
   return c;
 }
 
@@ -126,9 +127,12 @@ Correspondence closest_point(const Primitive& primitive, const Vec3& p) {
                    // Clamping the in-plane coordinates is exact: the rectangle is convex and
                    // the squared distance splits into in-plane and normal parts.
                    const Vec3 d = p - s.origin;
-                   const double x = std::clamp(s.axis_u.dot(d), -s.half_u, s.half_u);
-                   const double y = std::clamp(s.axis_v.dot(d), -s.half_v, s.half_v);
-                   return make(p, s.origin + x * s.axis_u + y * s.axis_v, s.axis_u.cross(s.axis_v));
+                   const double u = s.axis_u.dot(d);
+                   const double v = s.axis_v.dot(d);
+                   const double x = std::clamp(u, -s.half_u, s.half_u);
+                   const double y = std::clamp(v, -s.half_v, s.half_v);
+                   return make(p, s.origin + x * s.axis_u + y * s.axis_v, s.axis_u.cross(s.axis_v),
+                               x != u || y != v);
                  },
                  [&](const Sphere& s) {
                    const Vec3 d = p - s.center;
@@ -145,7 +149,7 @@ Correspondence closest_point(const Primitive& primitive, const Vec3& p) {
                    const double r = radial.norm();
                    const Vec3 n = r > 0.0 ? Vec3(radial / r) : any_orthogonal(s.axis);
                    const double z = std::clamp(along, -s.half_length, s.half_length);
-                   return make(p, s.origin + z * s.axis + s.radius * n, n);
+                   return make(p, s.origin + z * s.axis + s.radius * n, n, z != along);
                  }},
       primitive);
 }

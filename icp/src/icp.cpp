@@ -1,6 +1,8 @@
 // The ICP loop. Notation: scan point p_i, current pose T (model <- scan), moved point
 // q_i = T p_i, foot f_i and unit normal n_i on the model, weight w_i, inlier centroid c,
-// length scale L (RMS radius of the scan about its centroid).
+// linearisation centre c' (see decouple()), length scale L (RMS radius of the scan about its
+// centroid). Allocation: only the buffers in detail::IcpBuffers (grown, never shrunk), the
+// per-stage index list and the iteration log; nothing per point.
 #include "nurbsreg/icp/icp.hpp"
 
 #include <spdlog/spdlog.h>
@@ -88,7 +90,7 @@ struct Rejection {
   double rms = 0.0;
 };
 
-// Increment about the centroid c: q -> c + exp(omega) (q - c) + v (see update_pose).
+// Increment (omega, v) about the centre c': q -> c' + exp(omega) (q - c') + v (update_pose).
 struct Step {
   Vec6 xi = Vec6::Zero();
   bool finite = true;
@@ -159,15 +161,19 @@ void find_correspondences(CorrespondenceFinder& finder, double max_distance, boo
   finder.find(query, b.matches);
 }
 
-// Step 3, reject: d_i <= max distance, then Trimmed ICP (Chetverikov et al. 2002): keep the
+// Step 3, reject: valid, d_i <= max distance, foot not beyond a free boundary (if asked), then
+// Trimmed ICP (Chetverikov et al. 2002): keep the
 // ceil(keep_fraction * m) smallest distances (all ties of the cut value, so the set depends
 // on the values only).
-void reject_outliers(double max_distance, double keep_fraction, Buffers& b) {
+void reject_outliers(const IcpOptions& o, Buffers& b) {
+  const double max_distance = o.max_correspondence_distance;
+  const double keep_fraction = o.keep_fraction;
   const std::size_t n = b.ids.size();
   b.scratch.clear();
   for (std::size_t k = 0; k < n; ++k) {
     const Correspondence& c = b.matches[k];
-    const bool ok = c.valid && std::isfinite(c.distance) && c.distance <= max_distance;
+    const bool ok = c.valid && std::isfinite(c.distance) && c.distance <= max_distance &&
+                    !(o.reject_boundary && c.on_boundary);
     b.inlier[k] = ok ? 1 : 0;
     if (ok) b.scratch.push_back(c.distance);
   }
@@ -197,7 +203,7 @@ Rejection inlier_statistics(const Buffers& b) {
   return r;
 }
 
-// IRLS weight for residual r and scale s (Zhang 1997, table 1).
+// IRLS weight for residual r and scale s (Zhang 1997, M-estimators).
 double kernel_weight(RobustKernel kernel, double r, double s) {
   const double a = std::abs(r);
   switch (kernel) {
@@ -293,10 +299,11 @@ void decouple(LinearSystem& sys) {
 
 // Step 5, linearize. A left increment about the inlier centroid c moves q to
 // q + omega x (q - c) + v, so the point-to-plane residual becomes (Chen & Medioni 1992;
-// Low 2004, eq. 6)
+// small-angle linearisation as in Low, UNC TR04-004, 2004)
 //   r_i(xi) = n_i . (q_i - f_i) + ((q_i - c) x n_i) . omega + n_i . v = r_i + J_i^T xi,
 // and in scaled coordinates xi_s = (L omega, v): J_s,i = [(q_i - c) x n_i / L ; n_i].
-// Normal equations H_s = sum w J_s J_s^T, g_s = sum w J_s r (eq. GN), reduced by blocks.
+// Weighted Gauss-Newton normal equations H_s = sum w J_s J_s^T, g_s = sum w J_s r (IRLS),
+// reduced by blocks.
 // The point-to-point moments about c are collected in the same pass; then the centre moves
 // to c' (decouple()).
 LinearSystem linearize(double length_scale, bool parallel, Buffers& b) {
@@ -366,7 +373,8 @@ int constrained_count(const Eigen::SelfAdjointEigenSolver<Mat6>& eigen, double t
 // subspace only (truncated eigen pseudo-inverse), so the step has no component along free
 // directions (Gelfand et al. 2003; Zhang, Kaess & Singh, "On degeneracy of optimization-based
 // state estimation problems", ICRA 2016, who also project the update). Point-to-point: the
-// weighted closed form of Umeyama (1991, eqs. 34-43) on pairs (q_i - c, f_i - c), converted
+// weighted closed form of Umeyama (IEEE PAMI 1991; R = U S V^T from the SVD of the
+// cross-covariance, S fixing a reflection) on pairs (q_i - c, f_i - c), converted
 // to (omega, v) and projected onto the same subspace.
 Step solve(IcpMethod method, const LinearSystem& sys, double threshold) {
   Step step;
@@ -377,11 +385,13 @@ Step solve(IcpMethod method, const LinearSystem& sys, double threshold) {
     return step;
   }
   const int k = constrained_count(eigen, threshold);
-  const auto U = eigen.eigenvectors().rightCols(k);
   Vec6 xi_s;
   if (method == IcpMethod::point_to_plane) {
-    const Eigen::VectorXd lambda = eigen.eigenvalues().tail(k);
-    xi_s = -U * ((U.transpose() * sys.m.g).cwiseQuotient(lambda));
+    xi_s.setZero();
+    for (int i = 6 - k; i < 6; ++i) {
+      const Vec6 u = eigen.eigenvectors().col(i);
+      xi_s -= (u.dot(sys.m.g) / eigen.eigenvalues()(i)) * u;
+    }
   } else {
     const double W = sys.m.sum_w;
     const Vec3 mean_a = sys.m.sum_wa / W;
@@ -396,15 +406,20 @@ Step solve(IcpMethod method, const LinearSystem& sys, double threshold) {
     // About the update centre c' = c + d: t' = t + (R - I) d.
     const Vec3 d = sys.center - sys.centroid;
     xi_s << L * log_so3(R), mean_b - R * mean_a + (R - Matrix3d::Identity()) * d;
-    xi_s = U * (U.transpose() * xi_s);
+    Vec6 projected = Vec6::Zero();
+    for (int i = 6 - k; i < 6; ++i) {
+      const Vec6 u = eigen.eigenvectors().col(i);
+      projected += u.dot(xi_s) * u;
+    }
+    xi_s = projected;
   }
   step.xi << xi_s.head<3>() / L, xi_s.tail<3>();
   step.finite = step.xi.allFinite();
   return step;
 }
 
-// Step 7, update: q -> c + exp(omega) (q - c) + v, i.e. T <- Tr(c + v) R(omega) Tr(-c) T.
-// To first order this is the linearised motion q + omega x (q - c) + v of step 5. Rotation
+// Step 7, update: q -> c' + exp(omega) (q - c') + v, i.e. T <- Tr(c' + v) R(omega) Tr(-c') T.
+// To first order this is the linearised motion q + omega x (q - c') + v of step 5. Rotation
 // about c and translation are kept apart on purpose (an SO(3) x R^3 update rather than the
 // SE(3) exponential, whose V(omega) v term would turn a translation along a constrained
 // normal into a drift along a free in-plane direction); rotation re-orthonormalised.
@@ -541,7 +556,7 @@ IcpResult IcpSolver::align(CorrespondenceFinder& finder, std::span<const Vec3> s
       const auto t0 = Clock::now();
       transform_points(T, scan, b, o.parallel);
       find_correspondences(finder, o.max_correspondence_distance, o.parallel, b);
-      reject_outliers(o.max_correspondence_distance, o.keep_fraction, b);
+      reject_outliers(o, b);
       IcpIteration it;
       it.kernel_scale = compute_weights(o, L, b);
       const Rejection kept = inlier_statistics(b);
@@ -592,7 +607,7 @@ IcpResult IcpSolver::align(CorrespondenceFinder& finder, std::span<const Vec3> s
   b.resize(b.ids.size());
   transform_points(T, scan, b, o.parallel);
   find_correspondences(finder, o.max_correspondence_distance, o.parallel, b);
-  reject_outliers(o.max_correspondence_distance, o.keep_fraction, b);
+  reject_outliers(o, b);
   compute_weights(o, L, b);
   const Rejection kept = inlier_statistics(b);
   result.inliers = kept.inliers;

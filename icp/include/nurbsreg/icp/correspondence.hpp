@@ -20,6 +20,11 @@ struct Correspondence {
   engine::Vec3 foot = engine::Vec3::Zero();     // closest point on the model (model frame)
   engine::Vec3 normal = engine::Vec3::UnitZ();  // unit surface normal at the foot; sign free
   double distance = std::numeric_limits<double>::infinity();  // |point - foot| >= 0
+  // The foot is on a free (open) boundary of the model and the point lies beyond it, so
+  // point - foot is not along the normal. Such pairs pull the scan towards the model's edge
+  // (Turk & Levoy 1994; Rusinkiewicz & Levoy 2001, section 5): the solver drops them when
+  // IcpOptions::reject_boundary. Finders that cannot tell leave it false.
+  bool on_boundary = false;
   // false: no foot within query.max_distance, or the finder could not answer for this point.
   // The solver ignores foot/normal/distance of invalid entries.
   bool valid = false;

@@ -10,6 +10,12 @@
 // Per iteration (IcpSolver::align): transform -> correspond -> reject -> weight -> linearize
 // -> solve -> update -> check convergence. See icp.cpp for the equations.
 //
+// Degenerate scans (a plane, a sphere, a cylinder, ...): the solver works in the subspace of
+// rigid motions the scan constrains (eigen-decomposition of the scaled point-to-plane
+// Hessian, see degeneracy.hpp) and never moves along the free directions; a run that
+// converges there ends with IcpTermination::degenerate and names the free directions
+// ("translation along (1, 0, 0)", "rotation about axis (0, 0, 1) through (x, y, z)").
+//
 // Determinism: every sum over points is taken as fixed blocks of kReductionBlock points whose
 // partial sums are added in block order, and selections (trimming, median) depend on values
 // only, so for a deterministic finder the result is bit-identical for any number of TBB
@@ -40,8 +46,9 @@ enum class IcpMethod {
   point_to_point,  // closed form per iteration (weighted Kabsch / Umeyama 1991)
 };
 
-// IRLS weights w(r) for residual r and scale s (Zhang, "Parameter estimation techniques",
-// IVC 1997, table 1; tuning constants give 95% efficiency on Gaussian noise).
+// IRLS weights w(r) for residual r and scale s (Zhang, "Parameter estimation techniques: a
+// tutorial with application to conic fitting", IVC 1997, section on M-estimators; the tuning
+// constants give 95% asymptotic efficiency on Gaussian noise).
 enum class RobustKernel {
   none,           // w = 1
   huber,          // w = 1 if |r| <= 1.345 s, else 1.345 s / |r|
@@ -61,6 +68,8 @@ struct IcpOptions {
   int max_iterations = 50;
   // Correspondences farther apart are rejected (model units, > 0; infinity: none).
   double max_correspondence_distance = std::numeric_limits<double>::infinity();
+  // Drop pairs whose foot the finder flags as on_boundary (see correspondence.hpp).
+  bool reject_boundary = true;
   // Trimmed ICP (Chetverikov et al., ICPR 2002): keep this fraction of the remaining
   // correspondences with the smallest distances, in (0, 1].
   double keep_fraction = 1.0;
@@ -155,7 +164,8 @@ class IcpSolver {
 
   // Aligns `scan` (scan frame, finite coordinates) to the model behind `finder`, starting
   // from T_model_scan_init. Never throws for bad options or input: they give
-  // IcpTermination::invalid_input with a message naming the field or point.
+  // IcpTermination::invalid_input with a message naming the field or point. Exceptions from
+  // the finder propagate.
   IcpResult align(CorrespondenceFinder& finder, std::span<const engine::Vec3> scan,
                   const Eigen::Isometry3d& T_model_scan_init);
 

@@ -1,7 +1,8 @@
 #pragma once
 // Rigid motions as twists. A twist xi = (omega, v) stacks a rotation vector omega [rad] and a
 // translation v [model units]; exp_se3 / log_se3 are the exact exponential and logarithm of
-// SE(3) (Barfoot, "State Estimation for Robotics", 2017, eqs. 7.83-7.86 and 7.95).
+// SE(3) (Barfoot, "State Estimation for Robotics", 2017, section 7.1: Rodrigues' formula
+// and the left Jacobian V).
 // All functions are pure and allocation-free.
 
 #include <Eigen/Geometry>
