@@ -9,7 +9,6 @@
 #include <vector>
 
 #include "nurbsreg/io/errors.hpp"
-#include "nurbsreg/io/model_json.hpp"
 #include "text_io.hpp"
 
 namespace nurbsreg::io {
@@ -596,15 +595,6 @@ engine::Model parse_step(std::string_view text, const std::string& file_label,
 engine::Model read_step(const std::string& path, StepImportReport* report) {
   const std::string text = text_detail::read_text_file(path);
   return parse_step(text, path, report);
-}
-
-engine::Model read_model_file(const std::string& path) {
-  std::string ext = std::filesystem::path(path).extension().string();
-  std::transform(ext.begin(), ext.end(), ext.begin(),
-                 [](unsigned char ch) { return static_cast<char>(std::tolower(ch)); });
-  if (ext == ".json") return read_model(path);
-  if (ext == ".step" || ext == ".stp") return read_step(path);
-  throw InputError(path, "unknown model format: expected a .json, .step or .stp file");
 }
 
 }  // namespace nurbsreg::io

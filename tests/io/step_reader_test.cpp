@@ -12,17 +12,18 @@
 #include <fstream>
 #include <map>
 
-#include <Eigen/Cholesky>
-
 #include "nurbsreg/engine/bounds.hpp"
 #include "nurbsreg/io/errors.hpp"
 #include "nurbsreg/io/step_reader.hpp"
+#include "support/io_surface_distance.hpp"
 
 namespace nurbsreg::io {
 namespace {
 
 using engine::NurbsSurface;
 using engine::Vec3;
+using test::sample;
+using test::SampledSurface;
 
 std::string data_path(const std::string& relative) {
   return std::string(NURBSREG_SHARED_DIR) + "/data/real/" + relative;
@@ -67,64 +68,6 @@ std::vector<Vec3> vertex_points(const std::string& text) {
     points.push_back(p);
   }
   return points;
-}
-
-// A grid of samples (8 per control point in each direction) of one surface, built once.
-struct SampledSurface {
-  const NurbsSurface* surface;
-  std::vector<Vec3> points;
-  std::vector<Eigen::Vector2d> params;
-};
-
-SampledSurface sample(const NurbsSurface& s) {
-  SampledSurface out{&s, {}, {}};
-  const auto du = s.domain_u();
-  const auto dv = s.domain_v();
-  const int nu = 8 * s.count_u;
-  const int nv = 8 * s.count_v;
-  for (int i = 0; i <= nu; ++i) {
-    for (int j = 0; j <= nv; ++j) {
-      const double u = du.to_parent(static_cast<double>(i) / nu);
-      const double v = dv.to_parent(static_cast<double>(j) / nv);
-      out.points.push_back(s.evaluate(u, v));
-      out.params.emplace_back(u, v);
-    }
-  }
-  return out;
-}
-
-// Distance from p to the surface: the best grid sample, refined by damped Gauss-Newton in
-// (u, v) clamped to the domain.
-double distance_to(const SampledSurface& sampled, const Vec3& p) {
-  const NurbsSurface& s = *sampled.surface;
-  const auto du = s.domain_u();
-  const auto dv = s.domain_v();
-  double best = std::numeric_limits<double>::infinity();
-  double u = du.lo, v = dv.lo;
-  for (std::size_t k = 0; k < sampled.points.size(); ++k) {
-    const double d = (sampled.points[k] - p).squaredNorm();
-    if (d < best) best = d, u = sampled.params[k][0], v = sampled.params[k][1];
-  }
-  double lambda = 1e-9;
-  for (int it = 0; it < 100; ++it) {
-    const auto d = s.derivatives(u, v);
-    const Vec3 r = d.s - p;
-    Eigen::Matrix2d jtj;
-    jtj << d.su.dot(d.su), d.su.dot(d.sv), d.su.dot(d.sv), d.sv.dot(d.sv);
-    const Eigen::Vector2d g(d.su.dot(r), d.sv.dot(r));
-    jtj.diagonal() *= 1.0 + lambda;
-    jtj.diagonal().array() += 1e-300;
-    const Eigen::Vector2d step = jtj.ldlt().solve(-g);
-    const double un = std::clamp(u + step[0], du.lo, du.hi);
-    const double vn = std::clamp(v + step[1], dv.lo, dv.hi);
-    if ((s.evaluate(un, vn) - p).squaredNorm() < r.squaredNorm()) {
-      u = un, v = vn, lambda *= 0.1;
-    } else {
-      lambda *= 10;
-      if (lambda > 1e12) break;
-    }
-  }
-  return (s.evaluate(u, v) - p).norm();
 }
 
 double model_diagonal(const engine::Model& m) {
@@ -181,7 +124,7 @@ TEST_P(StepFiles, MatchSourcesAndCarryTheirVertices) {
   for (const Vec3& p : vertices) {
     double nearest = std::numeric_limits<double>::infinity();
     for (const auto& s : sampled)
-      nearest = std::min(nearest, distance_to(s, p));
+      nearest = std::min(nearest, test::distance_to(s, p));
     worst = std::max(worst, nearest);
   }
   // CAD vertex tolerances are ~1e-7 of the part; 1e-6 of the control-net diagonal still
@@ -304,11 +247,6 @@ TEST(StepReader, ErrorsNameTheEntityOrLine) {
   EXPECT_NE(step_error(knots).find("#5 B_SPLINE_SURFACE_WITH_KNOTS: knots_v: expected 4 values"),
             std::string::npos)
       << step_error(knots);
-}
-
-TEST(StepReader, ModelFilesDispatchOnExtension) {
-  EXPECT_EQ(read_model_file(data_path("dealii/wigley.step")).surfaces.size(), 1u);
-  EXPECT_THROW(read_model_file(data_path("dealii/wigley.iges")), InputError);
 }
 
 }  // namespace

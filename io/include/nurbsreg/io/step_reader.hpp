@@ -43,8 +43,4 @@ engine::Model read_step(const std::string& path, StepImportReport* report = null
 engine::Model parse_step(std::string_view text, const std::string& file_label,
                          StepImportReport* report = nullptr);
 
-// Reads a model by extension: .json -> read_model, .step / .stp (any case) -> read_step.
-// Anything else throws InputError naming the supported extensions.
-engine::Model read_model_file(const std::string& path);
-
 }  // namespace nurbsreg::io
