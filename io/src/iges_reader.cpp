@@ -302,6 +302,7 @@ class Fields {
     return static_cast<int>(x);
   }
   const std::string& label() const { return label_; }
+  std::size_t size() const { return fields_.size(); }
 
  private:
   const IgesFile& iges_;
@@ -364,6 +365,17 @@ engine::NurbsSurface read_surface(const IgesFile& iges, std::size_t index,
   }
   s.count_u = k1 + 1;
   s.count_v = k2 + 1;
+  // Sizes implied by K1, K2 are checked against the parameters actually present before
+  // anything is allocated, so a corrupt header cannot request terabytes.
+  const std::size_t n_points =
+      static_cast<std::size_t>(s.count_u) * static_cast<std::size_t>(s.count_v);
+  const std::size_t needed = 9 + static_cast<std::size_t>(s.count_u + s.degree_u + 1) +
+                             static_cast<std::size_t>(s.count_v + s.degree_v + 1) + 4 * n_points;
+  if (f.size() < needed) {
+    f.fail("K1, K2", "(" + std::to_string(k1) + ", " + std::to_string(k2) + ") imply " +
+                         std::to_string(needed) + " parameters, the entity has " +
+                         std::to_string(f.size()) + " (the parameter data ends early)");
+  }
   std::size_t k = 9;
   for (int a = 0; a < s.count_u + s.degree_u + 1; ++a)
     s.knots_u.push_back(f.real(k++, "knots_u[" + std::to_string(a) + "]"));

@@ -123,12 +123,16 @@ class BodyParser {
   }
   Value parse_list() {
     if (peek() != '(') fail("expected '('");
+    // Real schemas nest a few levels (lists of lists of references); a bound keeps a corrupt
+    // file from exhausting the stack of this recursive parser.
+    if (++depth_ > kMaxDepth) fail("lists nested more than " + std::to_string(kMaxDepth) + " deep");
     ++pos_;
     Value list;
     list.kind = Value::Kind::list;
     skip_blanks();
     if (peek() == ')') {
       ++pos_;
+      --depth_;
       return list;
     }
     while (true) {
@@ -140,6 +144,7 @@ class BodyParser {
       }
       if (peek() == ')') {
         ++pos_;
+        --depth_;
         return list;
       }
       fail(at_end() ? "unterminated list"
@@ -213,10 +218,13 @@ class BodyParser {
     return v;
   }
 
+  static constexpr int kMaxDepth = 64;
+
   std::string_view body_;
   std::string_view text_;
   const std::string& file_;
   std::size_t pos_ = 0;
+  int depth_ = 0;
 };
 
 // The exchange structure's instances: `#id = body;` statements, found by a scan that respects
