@@ -7,8 +7,10 @@
 #include <filesystem>
 #include <random>
 
+#include "nurbsreg/io/iges_reader.hpp"
 #include "nurbsreg/io/model_json.hpp"
 #include "nurbsreg/io/projection_results.hpp"
+#include "nurbsreg/io/step_reader.hpp"
 #include "support/random_entities.hpp"
 
 namespace nurbsreg::io {
@@ -87,6 +89,33 @@ void BM_ParseModel(benchmark::State& state) {
   state.SetBytesProcessed(state.iterations() * static_cast<std::int64_t>(text.size()));
 }
 BENCHMARK(BM_ParseModel)->Arg(100)->Unit(benchmark::kMillisecond);
+
+// Real CAD from shared/data (next to the checkout, as in CI); skipped when it is absent.
+std::string shared_file(const char* relative) {
+  const auto root = std::filesystem::path(__FILE__).parent_path().parent_path().parent_path();
+  return (root / "shared" / "data" / "real" / relative).string();
+}
+
+void BM_ReadCad(benchmark::State& state, const char* relative) {
+  const std::string path = shared_file(relative);
+  if (!std::filesystem::exists(path)) {
+    state.SkipWithError("shared data not found");
+    return;
+  }
+  const bool step = path.ends_with(".step") || path.ends_with(".stp");
+  std::size_t surfaces = 0;
+  for (auto _ : state) {
+    const engine::Model m = step ? read_step(path) : read_iges(path);
+    surfaces = m.surfaces.size();
+  }
+  state.counters["surfaces"] = static_cast<double>(surfaces);
+  state.SetBytesProcessed(state.iterations() *
+                          static_cast<std::int64_t>(std::filesystem::file_size(path)));
+}
+BENCHMARK_CAPTURE(BM_ReadCad, nist_step, "nist/nist_ctc_02_asme1_ap242-1.stp")
+    ->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_ReadCad, linkrods_step, "occt/linkrods.step")->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_ReadCad, bearing_iges, "occt/bearing.iges")->Unit(benchmark::kMillisecond);
 
 }  // namespace
 }  // namespace nurbsreg::io

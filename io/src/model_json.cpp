@@ -1,6 +1,5 @@
 #include "nurbsreg/io/model_json.hpp"
 
-#include <cassert>
 #include <cmath>
 #include <nlohmann/json.hpp>
 

@@ -7,6 +7,8 @@
 #include <fstream>
 #include <random>
 
+#include <tbb/global_control.h>
+
 #include "nurbsreg/io/errors.hpp"
 #include "nurbsreg/io/projection_results.hpp"
 #include "support/random_entities.hpp"
@@ -87,6 +89,34 @@ TEST_P(ProjectionRoundTrip, IsBitExact) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Formats, ProjectionRoundTrip, ::testing::Values("csv", "pcd", "CSV"));
+
+// More rows than one parallel batch (32 blocks of 8192): one thread and all threads must
+// write the same bytes.
+TEST(ProjectionResults, CsvBytesDoNotDependOnThreads) {
+  // Short numbers keep the two files small; the block logic is what is under test.
+  ProjectionTable table;
+  const std::size_t rows = 32 * 8192 + 1000;
+  for (std::size_t r = 0; r < rows; ++r) {
+    const double x = static_cast<double>(r % 1000);
+    table.point.emplace_back(x, 0.5, -x);
+    table.foot.emplace_back(x, 0, -x);
+    table.distance.push_back(0.5);
+    table.entity.push_back(static_cast<std::int32_t>(r % 7));
+    table.u.push_back(0.25);
+    table.v.push_back(x);
+  }
+  const std::string serial = (temp_dir() / "serial.csv").string();
+  const std::string parallel = (temp_dir() / "parallel.csv").string();
+  {
+    const tbb::global_control one(tbb::global_control::max_allowed_parallelism, 1);
+    write_projection_csv(serial, table.columns());
+  }
+  write_projection_csv(parallel, table.columns());
+  const std::string a = read_file(serial);
+  EXPECT_EQ(a, read_file(parallel));
+  EXPECT_EQ(static_cast<std::size_t>(std::count(a.begin(), a.end(), '\n')), rows + 1);
+  EXPECT_EQ(read_projection_csv(parallel).index.back(), rows - 1);
+}
 
 TEST(ProjectionResults, CsvHasTheContractHeaderAndRows) {
   ProjectionTable t = random_table(3, 4);

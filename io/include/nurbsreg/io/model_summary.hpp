@@ -1,0 +1,53 @@
+#pragma once
+// What `nurbsreg info` reports about a model (CONTRACT.md §1): surfaces and curves with their
+// degrees, control-point counts, rationality and parameter domains; the number of Bézier
+// patches (pieces for curves) the engine will cache; and a bounding box.
+//
+// The box is the union of the Bézier patches' control-point boxes: by the convex-hull property
+// of rational Bézier patches with positive weights it contains the model, and it is usually much
+// tighter than the NURBS control net's box (for the exact sphere and circle it is exact).
+// summarize_model decomposes every entity once (allocates; load-time code). Thread-safe.
+
+#include <cstddef>
+#include <string>
+#include <vector>
+
+#include "nurbsreg/engine/bounds.hpp"
+#include "nurbsreg/engine/model.hpp"
+
+namespace nurbsreg::io {
+
+struct EntitySummary {
+  std::size_t index = 0;  // position in Model::surfaces or Model::curves
+  std::string name;
+  int degree_u = 0;  // curves: the degree
+  int degree_v = 0;  // curves: 0
+  int count_u = 0;   // control points along u (curves: all of them)
+  int count_v = 0;   // curves: 1
+  bool rational = false;
+  std::size_t bezier_pieces = 0;  // patches (surfaces) or pieces (curves)
+  engine::ParamInterval domain_u;
+  engine::ParamInterval domain_v;  // curves: [0, 0]
+  engine::Aabb box;
+};
+
+struct ModelSummary {
+  std::string units;
+  std::vector<EntitySummary> surfaces;
+  std::vector<EntitySummary> curves;
+  std::size_t bezier_patches = 0;       // over all surfaces
+  std::size_t bezier_curve_pieces = 0;  // over all curves
+  engine::Aabb box;                     // over everything
+};
+
+ModelSummary summarize_model(const engine::Model& model);
+
+// Human-readable, one line per entity, e.g.
+//   surface 0 "hood": degree (3, 3), 7 x 6 control points, rational, 12 Bézier patches, ...
+std::string format_model_summary(const ModelSummary& summary, const std::string& model_label);
+
+// The same as a JSON object (for scripts): {"units", "surfaces": [...], "curves": [...],
+// "bezier_patches", "bezier_curve_pieces", "bounding_box": {"min": [..], "max": [..]}}.
+std::string model_summary_to_json(const ModelSummary& summary);
+
+}  // namespace nurbsreg::io

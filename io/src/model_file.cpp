@@ -1,0 +1,24 @@
+#include "nurbsreg/io/model_file.hpp"
+
+#include <algorithm>
+#include <cctype>
+#include <filesystem>
+
+#include "nurbsreg/io/errors.hpp"
+#include "nurbsreg/io/iges_reader.hpp"
+#include "nurbsreg/io/model_json.hpp"
+#include "nurbsreg/io/step_reader.hpp"
+
+namespace nurbsreg::io {
+
+engine::Model read_model_file(const std::string& path) {
+  std::string ext = std::filesystem::path(path).extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(),
+                 [](unsigned char ch) { return static_cast<char>(std::tolower(ch)); });
+  if (ext == ".json") return read_model(path);
+  if (ext == ".step" || ext == ".stp") return read_step(path);
+  if (ext == ".iges" || ext == ".igs") return read_iges(path);
+  throw InputError(path, "unknown model format: expected a .json, .step, .stp, .iges or .igs file");
+}
+
+}  // namespace nurbsreg::io
