@@ -178,13 +178,18 @@ void run_align(const AlignArgs& args) {
     report.pose = result.T_model_scan.matrix();
     report.rms = result.rms;
     report.iterations = result.iterations;
-    report.converged = result.converged();
+    // A degenerate scan converges within the directions it constrains; the termination text
+    // names the free ones.
+    report.converged = result.converged() || result.termination == icp::IcpTermination::degenerate;
     report.inliers = result.inliers;
     report.points = result.points;
     report.skipped_points = cloud.skipped_nonfinite;
     report.seconds = total.seconds();
     report.method = args.method;
     report.termination = std::string(icp::to_string(result.termination)) + ": " + result.message;
+    if (result.degeneracy.degenerate()) {
+      report.termination += "; free directions: " + result.degeneracy.describe();
+    }
     int k = 0;
     for (const icp::IcpIteration& it : result.log) {
       report.history.push_back(

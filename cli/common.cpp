@@ -1,11 +1,6 @@
 #include "common.hpp"
 
-#include <algorithm>
-#include <cctype>
-#include <filesystem>
-
-#include "nurbsreg/io/errors.hpp"
-#include "nurbsreg/io/model_json.hpp"
+#include "nurbsreg/io/model_file.hpp"
 
 namespace nurbsreg::cli {
 
@@ -17,12 +12,7 @@ std::unique_ptr<tbb::global_control> limit_threads(int threads) {
 }
 
 engine::Model load_model_file(const std::string& path) {
-  std::string extension = std::filesystem::path(path).extension().string();
-  std::transform(extension.begin(), extension.end(), extension.begin(),
-                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
-  if (extension == ".json") return io::read_model(path);
-  throw io::InputError(path, "unsupported model format '" + extension +
-                                 "' (supported: .json as described in CONTRACT.md)");
+  return io::read_model_file(path);
 }
 
 }  // namespace nurbsreg::cli

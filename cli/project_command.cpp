@@ -28,6 +28,9 @@ constexpr std::size_t kProgressBlock = 1 << 18;
 
 void run_project(const ProjectArgs& args) {
   const auto threads = limit_threads(args.threads);
+  if (!io::table_format_for(args.out)) {
+    throw UsageError("--out: " + args.out + ": expected a .csv or .pcd file name");
+  }
   const Stopwatch total;
   engine::Model model = load_model_file(args.model);
   const engine::ProjectionTarget target = args.target == "curves"

@@ -1,5 +1,7 @@
 #include "nurbsreg/icp/model_finder.hpp"
 
+#include <cmath>
+
 namespace nurbsreg::icp {
 
 ModelCorrespondenceFinder::ModelCorrespondenceFinder(const engine::PreparedModel& model)
@@ -7,6 +9,25 @@ ModelCorrespondenceFinder::ModelCorrespondenceFinder(const engine::PreparedModel
 
 void ModelCorrespondenceFinder::reset(std::size_t scan_size) {
   hints_.assign(scan_size, engine::ProjectionHint{});
+}
+
+// The point lies beyond an open edge of the model when its foot is on the surface's domain
+// boundary and the offset is not along the normal (an interior-type foot, e.g. on a closed seam,
+// has p - foot parallel to the normal).
+bool ModelCorrespondenceFinder::beyond_edge(std::size_t k, const engine::Vec3& p) const {
+  const int entity = results_.entity[k];
+  const double distance = results_.distance[k];
+  if (entity < 0 || !(distance > 0.0)) return false;
+  const engine::NurbsSurface& s = projector_.model().model().surfaces[entity];
+  const engine::ParamInterval du = s.domain_u();
+  const engine::ParamInterval dv = s.domain_v();
+  const double u = results_.u[k];
+  const double v = results_.v[k];
+  const double eps = 1e-12;
+  const bool on_edge = u <= du.lo + eps * du.width() || u >= du.hi - eps * du.width() ||
+                       v <= dv.lo + eps * dv.width() || v >= dv.hi - eps * dv.width();
+  if (!on_edge) return false;
+  return std::abs((p - results_.foot[k]).dot(results_.normal[k])) < (1.0 - 1e-6) * distance;
 }
 
 void ModelCorrespondenceFinder::find(const CorrespondenceQuery& query,
@@ -35,6 +56,7 @@ void ModelCorrespondenceFinder::find(const CorrespondenceQuery& query,
     c.foot = results_.foot[k];
     c.normal = results_.normal[k];
     c.distance = results_.distance[k];
+    c.on_boundary = beyond_edge(k, query.points[k]);
     const std::size_t s = scan_index(k);
     if (s >= hints_.size()) hints_.resize(s + 1);
     hints_[s] = results_.hint(k);

@@ -25,6 +25,8 @@ class ModelCorrespondenceFinder final : public CorrespondenceFinder {
   const engine::ProjectionCounters& last_counters() const { return counters_; }
 
  private:
+  bool beyond_edge(std::size_t k, const engine::Vec3& p) const;
+
   engine::Projector projector_;
   std::vector<engine::ProjectionHint> hints_;        // by scan index
   std::vector<engine::ProjectionHint> query_hints_;  // by query position (reused)

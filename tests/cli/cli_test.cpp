@@ -1,0 +1,148 @@
+// End-to-end tests of the real `nurbsreg` binary: the contract's exit codes and messages, and
+// the main jobs (synth -> project, synth -> align) on the bundled examples.
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
+#include <nlohmann/json.hpp>
+
+#include "nurbsreg/io/pose.hpp"
+#include "support/run_command.hpp"
+
+namespace nurbsreg::test {
+namespace {
+
+const std::string kPanel = std::string(NURBSREG_EXAMPLES_DIR) + "/panel.json";
+const std::string kSphere = std::string(NURBSREG_EXAMPLES_DIR) + "/sphere.json";
+
+int count_lines(const std::string& text) {
+  return static_cast<int>(std::count(text.begin(), text.end(), '\n'));
+}
+
+TEST(Cli, HelpForEverySubcommand) {
+  ScratchDir dir("help");
+  for (const char* sub : {"", "info", "project", "synth", "align"}) {
+    const CommandResult r = run_nurbsreg(std::string(sub) + " --help", dir.path());
+    EXPECT_EQ(r.status, 0) << sub;
+    EXPECT_NE(r.out.find("Usage"), std::string::npos) << sub;
+  }
+}
+
+TEST(Cli, UsageErrorsExitTwo) {
+  ScratchDir dir("usage");
+  EXPECT_EQ(run_nurbsreg("", dir.path()).status, 2);
+  EXPECT_EQ(run_nurbsreg("frobnicate", dir.path()).status, 2);
+  EXPECT_EQ(run_nurbsreg("project --model " + kPanel, dir.path()).status, 2);  // missing options
+  EXPECT_EQ(run_nurbsreg("synth --model " + kPanel + " --points 10 --out " + (dir / "s.pcd") +
+                             " --pose \"1 2 3\"",
+                         dir.path())
+                .status,
+            2);
+  const CommandResult r = run_nurbsreg(
+      "project --model " + kPanel + " --points x.xyz --out " + (dir / "r.txt"), dir.path());
+  EXPECT_EQ(r.status, 2);
+  EXPECT_NE(r.err.find("r.txt"), std::string::npos);
+}
+
+TEST(Cli, BadInputExitsThreeWithOneLineNamingTheFile) {
+  ScratchDir dir("bad");
+  const std::string model = dir / "broken.json";
+  std::ofstream(model) << R"({"nurbsreg_model": 1, "surfaces": [{"name": "s", "degree": [3, 3],
+    "knots_u": [0, 0, 0, 0, 1, 0.5, 1, 1, 1], "knots_v": [0, 0, 0, 0, 1, 1, 1, 1],
+    "control_points": []}]})";
+  const CommandResult info = run_nurbsreg("info --model " + model, dir.path());
+  EXPECT_EQ(info.status, 3);
+  EXPECT_EQ(count_lines(info.err), 1) << info.err;
+  EXPECT_EQ(info.err.rfind("error: ", 0), 0u) << info.err;
+  EXPECT_NE(info.err.find("broken.json"), std::string::npos) << info.err;
+
+  const std::string scan = dir / "scan.xyz";
+  std::ofstream(scan) << "1 2 3\n4 five 6\n";
+  const std::string out = dir / "r.csv";
+  const CommandResult project =
+      run_nurbsreg("project --model " + kPanel + " --points " + scan + " --out " + out, dir.path());
+  EXPECT_EQ(project.status, 3);
+  EXPECT_NE(project.err.find("scan.xyz"), std::string::npos) << project.err;
+  EXPECT_NE(project.err.find("line 2"), std::string::npos) << project.err;
+  EXPECT_FALSE(std::filesystem::exists(out)) << "no partial output";
+
+  EXPECT_EQ(run_nurbsreg("info --model " + (dir / "missing.json"), dir.path()).status, 3);
+}
+
+TEST(Cli, InfoReportsTheExamplePanel) {
+  ScratchDir dir("info");
+  const CommandResult r = run_nurbsreg("info --json --model " + kPanel, dir.path());
+  ASSERT_EQ(r.status, 0) << r.err;
+  const auto doc = nlohmann::json::parse(r.out);
+  EXPECT_EQ(doc["bezier_patches"], 49);
+  EXPECT_EQ(doc["surfaces"].size(), 1u);
+}
+
+TEST(Cli, ProjectWritesTheContractColumnsAndSkipsNaN) {
+  ScratchDir dir("project");
+  const std::string points = dir / "points.xyz";
+  std::ofstream(points) << "# x y z\n10 20 30\nnan 1 2\n50,50,-10\n0 0 0\n";
+  const std::string out = dir / "r.csv";
+  const CommandResult r = run_nurbsreg(
+      "project --model " + kPanel + " --points " + points + " --out " + out, dir.path());
+  ASSERT_EQ(r.status, 0) << r.err;
+  const std::string csv = read_text(out);
+  EXPECT_EQ(csv.rfind("index,x,y,z,foot_x,foot_y,foot_z,distance,entity,u,v", 0), 0u);
+  EXPECT_EQ(count_lines(csv), 4);  // header + 3 finite points
+  EXPECT_NE(csv.find("\n3,0,0,0,"), std::string::npos) << "input index kept after the NaN row";
+  EXPECT_EQ(csv.find("\n1,"), std::string::npos) << "the NaN point has no row";
+}
+
+TEST(Cli, ProjectIsTheSameForOneAndTwoThreads) {
+  ScratchDir dir("threads");
+  const std::string scan = dir / "scan.pcd";
+  ASSERT_EQ(run_nurbsreg("synth --model " + kSphere +
+                             " --points 3000 --noise 0.5 --outliers 0.2 "
+                             "--out " +
+                             scan,
+                         dir.path())
+                .status,
+            0);
+  ASSERT_EQ(run_nurbsreg("project --threads 1 --model " + kSphere + " --points " + scan +
+                             " --out " + (dir / "one.csv"),
+                         dir.path())
+                .status,
+            0);
+  ASSERT_EQ(run_nurbsreg("project --threads 2 --model " + kSphere + " --points " + scan +
+                             " --out " + (dir / "two.csv"),
+                         dir.path())
+                .status,
+            0);
+  EXPECT_EQ(read_text(dir / "one.csv"), read_text(dir / "two.csv"));
+}
+
+TEST(Cli, AlignRecoversTheSynthPose) {
+  ScratchDir dir("align");
+  const std::string scan = dir / "scan.pcd";
+  const CommandResult synth = run_nurbsreg(
+      "synth --model " + kPanel + " --points 20000 --seed 3 --pose \"4 -3 5 4 -2 3\" --out " +
+          scan + " --out-pose " + (dir / "true.txt"),
+      dir.path());
+  ASSERT_EQ(synth.status, 0) << synth.err;
+  const CommandResult align = run_nurbsreg(
+      "align --model " + kPanel + " --scan " + scan + " --out-pose " + (dir / "pose.txt") +
+          " --report " + (dir / "report.json") + " --aligned " + (dir / "aligned.pcd"),
+      dir.path());
+  ASSERT_EQ(align.status, 0) << align.err;
+  const Eigen::Matrix4d truth = io::read_pose(dir / "true.txt");
+  const Eigen::Matrix4d pose = io::read_pose(dir / "pose.txt");
+  // Noise-free scan: exact projections make the recovered pose exact to rounding.
+  EXPECT_LT((truth - pose).cwiseAbs().maxCoeff(), 1e-7) << pose;
+  const auto report = nlohmann::json::parse(read_text(dir / "report.json"));
+  for (const char* key :
+       {"pose", "rms", "iterations", "converged", "inliers", "points", "seconds"}) {
+    EXPECT_TRUE(report.contains(key)) << key;
+  }
+  EXPECT_TRUE(report["converged"].get<bool>());
+  EXPECT_LT(report["rms"].get<double>(), 1e-6);
+  EXPECT_EQ(report["points"].get<int>(), 20000);
+  EXPECT_TRUE(std::filesystem::exists(dir / "aligned.pcd"));
+  EXPECT_NE(align.out.find("deviation"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace nurbsreg::test
