@@ -243,6 +243,20 @@ TEST(CurveModification, Eq13IsExactAlongTheNoseDirections) {
     EXPECT_GT(w, 0.0);
 }
 
+TEST(CurveModification, Eq13GeneralisesToCubicCurves) {
+  // Degree 3: n rows, n + 1 free weights -> the minimum-norm exact solution; still exact along u.
+  const NurbsCurve c = test::random_curve(21, 3, 8, true, true, 2);
+  const std::vector<NosePoint> noses = nose_points(c);
+  std::vector<Vec3> targets;
+  for (const NosePoint& n : noses) {
+    targets.push_back(n.point + 0.05 * (c.control_points[n.nose_control] - n.point));
+  }
+  const StepResult r = change_weights(c, noses, targets);
+  ASSERT_TRUE(r.applicable) << r.message;
+  EXPECT_TRUE(r.exact) << r.message;
+  EXPECT_LT(worst_u_miss(r.curve, noses, targets, c), 1e-9);
+}
+
 // Targets that pull segment `seg`'s nose point towards the chord of its outer control points, far
 // enough that eq. 13 asks for a negative weight; the other noses are held.
 std::vector<Vec3> process1_targets(const NurbsCurve& c, int seg, double fraction) {
@@ -392,6 +406,42 @@ TEST(CurveModification, IterationReducesTheErrorUntilRhoStopsIt) {
   const ModifyResult nearest =
       modify_curve(c, t, options(ModifyMethod::points, true, NoseRule::nearest_to_control_point));
   EXPECT_LT(nearest.steps.back().total, 0.5 * nearest.steps.front().total);
+}
+
+// The paper's own setting (Figure 7, Tables 1-3): curve-fitting improvement, nose points nearest
+// to their nose control points, targets = the data points nearest to them. The "data" are a
+// dense sampling of the curve pushed off along its normal by 2 + 1.5 sin(3u) (a smooth deviation
+// of a built part); nearest points by brute force.
+TEST(CurveModification, CurveFittingImprovementFollowsThePapersRecipe) {
+  const NurbsCurve c = paper_curve();
+  std::vector<Vec3> data;
+  for (int k = 0; k <= 2000; ++k) {
+    const double u = 3.287 * k / 2000.0;
+    data.push_back(c.evaluate(u) + (2.0 + 1.5 * std::sin(3.0 * u)) * planar_normal(c, u));
+  }
+  std::vector<SegmentTarget> targets;
+  for (const NosePoint& n : nose_points(c, NoseRule::nearest_to_control_point)) {
+    std::size_t best = 0;
+    for (std::size_t i = 1; i < data.size(); ++i) {
+      if ((data[i] - n.point).squaredNorm() < (data[best] - n.point).squaredNorm()) best = i;
+    }
+    targets.push_back({n.segment, data[best]});
+  }
+  const ModifyResult r = modify_curve(
+      c, targets, options(ModifyMethod::combined, true, NoseRule::nearest_to_control_point));
+  // (dW/X) x k -> dB with k >= 2 chosen by rho, each dW/X improving, dB improving further.
+  ASSERT_GE(r.steps.size(), 4u) << r.termination;
+  EXPECT_EQ(r.termination, "rho < rho_min");
+  for (std::size_t k = 1; k + 1 < r.steps.size(); ++k) {
+    EXPECT_EQ(r.steps[k].operation, "dW/X");
+    EXPECT_GT(r.steps[k].rho, 0.0) << k;
+    EXPECT_LT(r.steps[k].total, r.steps[k - 1].total) << k;
+  }
+  EXPECT_LT(r.steps[r.steps.size() - 2].rho, 0.25);
+  EXPECT_EQ(r.steps.back().operation, "dB");
+  EXPECT_LT(r.steps.back().total, 0.1 * r.steps.front().total);
+  for (double w : r.curve.weights)
+    EXPECT_GT(w, 0.0);
 }
 
 TEST(CurveModification, InvalidTargetsAreRejected) {
