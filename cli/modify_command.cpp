@@ -18,6 +18,8 @@
 #include <stdexcept>
 #include <string>
 
+#include "commands.hpp"
+#include "common.hpp"
 #include "nurbsreg/engine/curve_modification.hpp"
 #include "nurbsreg/io/errors.hpp"
 #include "nurbsreg/io/model_json.hpp"
@@ -50,7 +52,7 @@ engine::ModifyMethod parse_method(const std::string& s) {
 }
 
 void run_modify(const ModifyArgs& args) {
-  engine::Model model = io::read_model(args.model);
+  engine::Model model = load_model_file(args.model);
   auto it = std::find_if(model.curves.begin(), model.curves.end(),
                          [&](const engine::NurbsCurve& c) { return c.name == args.curve; });
   if (it == model.curves.end()) {
