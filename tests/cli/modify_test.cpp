@@ -149,6 +149,10 @@ TEST_F(ModifyCommand, InvalidInputExitsWith3) {
   EXPECT_EQ(r.status, 3);
   EXPECT_NE(r.err.find("empty.xyz"), std::string::npos) << r.err;
   EXPECT_FALSE(fs::exists(path("out.json")));
+  // Neither or both target sources: a usage error.
+  EXPECT_EQ(run(base()).status, 2);
+  EXPECT_EQ(run(base() + " --targets " + path("t.csv") + " --points " + path("empty.xyz")).status,
+            2);
 }
 
 }  // namespace
