@@ -43,6 +43,7 @@ int main(int argc, char** argv) {
   nurbsreg::cli::add_project_command(app);
   nurbsreg::cli::add_synth_command(app);
   nurbsreg::cli::add_align_command(app);
+  nurbsreg::cli::add_modify_command(app);
 
   try {
     app.parse(argc, argv);
