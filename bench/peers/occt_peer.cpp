@@ -116,6 +116,9 @@ class OcctPeer final : public Peer {
         copy->Bounds(u0, u1, v0, v1);
         auto projector = std::make_unique<GeomAPI_ProjectPointOnSurf>();
         projector->Init(copy, u0, u1, v0, v1, tree_ ? Extrema_ExtAlgo_Tree : Extrema_ExtAlgo_Grad);
+        // Extrema fills part of its sampling (grid, tree) lazily on the first Perform: one call
+        // here so that counts as preparation, as it would for a long-lived projector.
+        projector->Perform(copy->Value(0.5 * (u0 + u1), 0.5 * (v0 + v1)));
         per_surface.push_back(std::move(projector));
       }
       slots_.push_back(std::move(per_surface));
