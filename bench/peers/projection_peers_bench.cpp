@@ -433,6 +433,40 @@ void print_targets(const std::vector<ModelReport>& reports, const Options& optio
           verdict(frame->seconds < 1.0), frame->seconds, frame->stats.failures);
     }
   }
+  std::printf("\nRatios on every model (nurbsreg cold points/s over the peer's, %d threads):\n\n",
+              t);
+  std::printf(
+      "| model | vs fastest OCCT | vs SISL s1954 | vs FLANN | nurbsreg failures | OCCT "
+      "failures (boundary / local min) |\n|---|--:|--:|--:|--:|---|\n");
+  for (const auto& report : reports) {
+    const Row* ours = report.find("nurbsreg", t, "cold");
+    if (ours == nullptr) continue;
+    const Row* occt = nullptr;
+    for (const char* name : {"OCCT Extrema Grad", "OCCT Extrema Tree"}) {
+      const Row* r = report.find(name, t, "cold");
+      if (r != nullptr && (occt == nullptr || r->rate() > occt->rate())) occt = r;
+    }
+    const Row* sisl = report.find("SISL s1954", t, "cold");
+    const Row* flann = nullptr;
+    for (const Row& r : report.rows) {
+      if (r.threads == t && !r.exact) flann = &r;
+    }
+    auto ratio = [&](const Row* r) {
+      if (r == nullptr || r->rate() <= 0) return std::string("-");
+      char buffer[32];
+      std::snprintf(buffer, sizeof buffer, "%.1f", ours->rate() / r->rate());
+      return std::string(buffer);
+    };
+    std::string occt_failures = "-";
+    if (occt != nullptr) {
+      occt_failures = occt->method + ": " + std::to_string(occt->stats.boundary) + " / " +
+                      std::to_string(occt->stats.local) + " of " +
+                      std::to_string(occt->stats.checked);
+    }
+    std::printf("| %s | %s | %s | %s | %zu of %zu | %s |\n", report.name.c_str(),
+                ratio(occt).c_str(), ratio(sisl).c_str(), ratio(flann).c_str(),
+                ours->stats.failures, ours->stats.checked, occt_failures.c_str());
+  }
 }
 
 }  // namespace
