@@ -21,7 +21,8 @@ void write_atomically(const std::string& path, const std::function<void(std::ost
   try {
     {
       std::ofstream out(temporary, std::ios::binary | std::ios::trunc);
-      if (!out) throw OutputError(path, "cannot create the file (directory missing or not writable)");
+      if (!out)
+        throw OutputError(path, "cannot create the file (directory missing or not writable)");
       write(out);
       out.flush();
       if (!out) throw OutputError(path, "write failed (disk full?)");

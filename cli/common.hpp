@@ -1,0 +1,38 @@
+#pragma once
+// Helpers shared by the sub-commands: usage errors, thread limits, model loading, timing.
+
+#include <tbb/global_control.h>
+
+#include <chrono>
+#include <memory>
+#include <stdexcept>
+#include <string>
+
+#include "nurbsreg/engine/model.hpp"
+
+namespace nurbsreg::cli {
+
+// A semantic usage error found after parsing (e.g. a malformed --pose value): exit status 2.
+class UsageError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+// Limits TBB to `threads` workers for the lifetime of the returned object (0 = all hardware
+// threads). The thread count belongs to the application, never to the library.
+std::unique_ptr<tbb::global_control> limit_threads(int threads);
+
+// Reads a model file (JSON; CAD formats when supported), throwing io::InputError naming the file.
+engine::Model load_model_file(const std::string& path);
+
+class Stopwatch {
+ public:
+  double seconds() const {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+  }
+
+ private:
+  std::chrono::steady_clock::time_point start_ = std::chrono::steady_clock::now();
+};
+
+}  // namespace nurbsreg::cli

@@ -1,0 +1,228 @@
+#include "nurbsreg/engine/projection.hpp"
+
+#include <tbb/blocked_range.h>
+#include <tbb/enumerable_thread_specific.h>
+#include <tbb/parallel_for.h>
+
+#include <cmath>
+#include <limits>
+
+#include "nurbsreg/engine/sampling.hpp"
+
+namespace nurbsreg::engine {
+
+void ProjectionResults::resize(std::size_t n) {
+  foot.resize(n);
+  distance.resize(n);
+  signed_distance.resize(n);
+  entity.resize(n);
+  u.resize(n);
+  v.resize(n);
+  normal.resize(n);
+  status.resize(n);
+}
+
+void ProjectionResults::copy_from(const ProjectionResults& part, std::size_t offset) {
+  auto put = [offset](auto& to, const auto& from) {
+    std::copy(from.begin(), from.end(), to.begin() + static_cast<std::ptrdiff_t>(offset));
+  };
+  put(foot, part.foot);
+  put(distance, part.distance);
+  put(signed_distance, part.signed_distance);
+  put(entity, part.entity);
+  put(u, part.u);
+  put(v, part.v);
+  put(normal, part.normal);
+  put(status, part.status);
+}
+
+struct Projector::ThreadState {
+  SurfaceScratch surface_scratch;
+  SurfaceProjectionStats surface_stats;
+  CurveProjectionStats curve_stats;
+  Bvh::Scratch bvh_scratch;
+  ProjectionCounters counters;
+};
+
+struct Projector::Impl {
+  tbb::enumerable_thread_specific<ThreadState> states;
+};
+
+namespace {
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+void write_missing(ProjectionResults& out, std::size_t i, ProjectionStatus status) {
+  out.foot[i] = Vec3::Constant(kNaN);
+  out.distance[i] = kNaN;
+  out.signed_distance[i] = kNaN;
+  out.entity[i] = -1;
+  out.u[i] = kNaN;
+  out.v[i] = kNaN;
+  out.normal[i] = Vec3::Zero();
+  out.status[i] = status;
+}
+
+bool valid_hint(const ProjectionHint* hint, std::size_t entities) {
+  return hint != nullptr && hint->entity >= 0 &&
+         static_cast<std::size_t>(hint->entity) < entities && std::isfinite(hint->u) &&
+         std::isfinite(hint->v);
+}
+
+}  // namespace
+
+Projector::Projector(const PreparedModel& model) : model_(model), impl_(std::make_unique<Impl>()) {}
+
+Projector::~Projector() = default;
+
+void Projector::project_range(PointView points, const ProjectionOptions& options,
+                              ProjectionResults& out, std::span<const ProjectionHint> hints,
+                              std::size_t begin, std::size_t end, ThreadState& state) const {
+  const Model& model = model_.model();
+  const bool surfaces = options.target == ProjectionTarget::surfaces;
+  const std::size_t entities = surfaces ? model.surfaces.size() : model.curves.size();
+  for (std::size_t i = begin; i < end; ++i) {
+    const Vec3 p = points[i];
+    ++state.counters.points;
+    if (!p.allFinite()) {
+      ++state.counters.skipped;
+      write_missing(out, i, ProjectionStatus::skipped_nonfinite);
+      continue;
+    }
+    if (entities == 0) {
+      write_missing(out, i, ProjectionStatus::no_geometry);
+      continue;
+    }
+    const ProjectionHint* hint = hints.empty() ? nullptr : &hints[i];
+    if (surfaces) {
+      // Seed alpha with the hint: an upper bound only, so the answer stays exact.
+      SurfaceHit best;
+      int best_surface = -1;
+      if (valid_hint(hint, entities)) {
+        const NurbsSurface& s = model.surfaces[hint->entity];
+        best.u = std::clamp(hint->u, s.domain_u().lo, s.domain_u().hi);
+        best.v = std::clamp(hint->v, s.domain_v().lo, s.domain_v().hi);
+        best.foot = s.evaluate(best.u, best.v);
+        best.distance_sq = (best.foot - p).squaredNorm();
+        best_surface = hint->entity;
+      }
+      const double limit_sq = options.max_distance * options.max_distance;
+      if (best.distance_sq >= limit_sq) {
+        best = SurfaceHit{};
+        best.distance_sq = limit_sq;
+        best_surface = -1;
+      }
+      double alpha = best.distance_sq;
+      model_.patch_hierarchy().nearest(
+          p, alpha, state.bvh_scratch,
+          [this](std::uint32_t k, const Vec3& x) { return model_.patch_lower_bound(k, x); },
+          [&](std::uint32_t k, double& a) {
+            ++state.counters.patches_visited;
+            if (project_onto_patch(model_.patch(k), p, best, state.surface_scratch,
+                                   &state.surface_stats)) {
+              best_surface = model_.patch_surface(k);
+              a = best.distance_sq;
+            }
+          });
+      if (best_surface < 0) {
+        write_missing(out, i, ProjectionStatus::beyond_max_distance);
+        continue;
+      }
+      const NurbsSurface& s = model.surfaces[best_surface];
+      const double distance = std::sqrt(best.distance_sq);
+      const Vec3 n = surface_normal(s, best.u, best.v);
+      out.foot[i] = best.foot;
+      out.distance[i] = distance;
+      out.signed_distance[i] = (p - best.foot).dot(n) < 0.0 ? -distance : distance;
+      out.entity[i] = best_surface;
+      out.u[i] = best.u;
+      out.v[i] = best.v;
+      out.normal[i] = n;
+    } else {
+      CurveHit best;
+      int best_curve = -1;
+      if (valid_hint(hint, entities)) {
+        const NurbsCurve& c = model.curves[hint->entity];
+        best.u = std::clamp(hint->u, c.domain().lo, c.domain().hi);
+        best.foot = c.evaluate(best.u);
+        best.distance_sq = (best.foot - p).squaredNorm();
+        best_curve = hint->entity;
+      }
+      const double limit_sq = options.max_distance * options.max_distance;
+      if (best.distance_sq >= limit_sq) {
+        best = CurveHit{};
+        best.distance_sq = limit_sq;
+        best_curve = -1;
+      }
+      double alpha = best.distance_sq;
+      model_.piece_hierarchy().nearest(
+          p, alpha, state.bvh_scratch,
+          [this](std::uint32_t k, const Vec3& x) { return model_.piece_lower_bound(k, x); },
+          [&](std::uint32_t k, double& a) {
+            ++state.counters.patches_visited;
+            if (project_onto_piece(model_.piece(k), p, best, &state.curve_stats)) {
+              best_curve = model_.piece_curve(k);
+              a = best.distance_sq;
+            }
+          });
+      if (best_curve < 0) {
+        write_missing(out, i, ProjectionStatus::beyond_max_distance);
+        continue;
+      }
+      const double distance = std::sqrt(best.distance_sq);
+      out.foot[i] = best.foot;
+      out.distance[i] = distance;
+      out.signed_distance[i] = distance;
+      out.entity[i] = best_curve;
+      out.u[i] = best.u;
+      out.v[i] = 0.0;
+      out.normal[i] = Vec3::Zero();
+    }
+    out.status[i] = ProjectionStatus::ok;
+  }
+}
+
+void Projector::project(PointView points, const ProjectionOptions& options, ProjectionResults& out,
+                        std::span<const ProjectionHint> hints, ProjectionCounters* counters) {
+  out.resize(points.size());
+  for (ThreadState& s : impl_->states) {
+    s.counters = {};
+    s.surface_stats = {};
+    s.curve_stats = {};
+  }
+  tbb::parallel_for(
+      tbb::blocked_range<std::size_t>(0, points.size(), std::max<std::size_t>(1, options.grain)),
+      [&](const tbb::blocked_range<std::size_t>& range) {
+        project_range(points, options, out, hints, range.begin(), range.end(),
+                      impl_->states.local());
+      });
+  if (counters) {
+    *counters = {};
+    // Integer sums: the order of combination does not matter.
+    for (const ThreadState& s : impl_->states) {
+      counters->points += s.counters.points;
+      counters->skipped += s.counters.skipped;
+      counters->patches_visited += s.counters.patches_visited;
+      counters->subdivisions += static_cast<std::uint64_t>(s.surface_stats.subdivisions) +
+                                static_cast<std::uint64_t>(s.curve_stats.subdivisions);
+    }
+  }
+}
+
+void Projector::project_serial(PointView points, const ProjectionOptions& options,
+                               ProjectionResults& out, std::span<const ProjectionHint> hints,
+                               ProjectionCounters* counters) {
+  out.resize(points.size());
+  ThreadState& state = impl_->states.local();
+  state.counters = {};
+  state.surface_stats = {};
+  state.curve_stats = {};
+  project_range(points, options, out, hints, 0, points.size(), state);
+  if (counters) {
+    *counters = state.counters;
+    counters->subdivisions = static_cast<std::uint64_t>(state.surface_stats.subdivisions) +
+                             static_cast<std::uint64_t>(state.curve_stats.subdivisions);
+  }
+}
+
+}  // namespace nurbsreg::engine

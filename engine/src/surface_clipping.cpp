@@ -1,0 +1,708 @@
+// Spherical clipping for rational Bézier patches (seed paper 001, extended to NURBS), the cached
+// squared-distance coefficients (DESIGN.md "Projection: surfaces") and the box-constrained Newton
+// on the surface geometry shared by both strategies.
+
+#include <algorithm>
+#include <cassert>
+#include <cmath>
+#include <cstring>
+
+#include "nurbsreg/engine/surface_projection.hpp"
+
+namespace nurbsreg::engine {
+namespace {
+
+constexpr int kMaxGridSide = 2 * kMaxDegree + 1;
+
+double binomial(int n, int k) {
+  double r = 1.0;
+  for (int i = 1; i <= k; ++i)
+    r = r * (n - k + i) / i;
+  return r;
+}
+
+// A closed range [lo, hi]. Rounding is covered by the relative margins of the tests using it.
+struct Iv {
+  double lo, hi;
+};
+
+// Ranges of the Bernstein coefficients of the first and second partial derivatives of a scalar
+// tensor Bernstein polynomial of degree (rows - 1, cols - 1) on the local box (differenced
+// coefficients; by the convex hull property each derivative lies in its range).
+struct DerivativeRanges {
+  Iv v, s, t, ss, st, tt;
+};
+
+DerivativeRanges derivative_ranges(const double* a, int rows, int cols) {
+  const double inf = std::numeric_limits<double>::infinity();
+  DerivativeRanges r{{inf, -inf}, {inf, -inf}, {inf, -inf}, {inf, -inf}, {inf, -inf}, {inf, -inf}};
+  auto grow = [](Iv& iv, double x) {
+    iv.lo = std::min(iv.lo, x);
+    iv.hi = std::max(iv.hi, x);
+  };
+  const int m = rows - 1, n = cols - 1;
+  for (int i = 0; i < rows; ++i) {
+    const double* row = a + i * cols;
+    for (int j = 0; j < cols; ++j) {
+      grow(r.v, row[j]);
+      if (i + 1 < rows) grow(r.s, m * (row[cols + j] - row[j]));
+      if (j + 1 < cols) grow(r.t, n * (row[j + 1] - row[j]));
+      if (i + 2 < rows)
+        grow(r.ss, m * (m - 1) * (row[2 * cols + j] - 2.0 * row[cols + j] + row[j]));
+      if (j + 2 < cols) grow(r.tt, n * (n - 1) * (row[j + 2] - 2.0 * row[j + 1] + row[j]));
+      if (i + 1 < rows && j + 1 < cols) {
+        grow(r.st, m * n * (row[cols + j + 1] - row[cols + j] - row[j + 1] + row[j]));
+      }
+    }
+  }
+  // Degree 0 in a direction: the derivative is identically zero.
+  for (Iv* iv : {&r.s, &r.t, &r.ss, &r.st, &r.tt}) {
+    if (iv->lo > iv->hi) *iv = {0.0, 0.0};
+  }
+  return r;
+}
+
+// Bounds used by the termination and edge tests, from Bézier bounds (differenced coefficients).
+// Polynomial patch (D == 1): the ranges of F's own first and second derivatives.
+// Rational patch, F = N / D: bounding F's derivatives through the quotient rule by interval
+// arithmetic works but is loose (F_s D_s and F D_ss terms). We use instead the polynomials
+//   G_c = N - c D,   c in [c_lo, c_hi] = [min f_ij, max f_ij] (contains F's range on the box),
+// whose coefficients are affine in c, so the union of the ranges at c_lo and c_hi bounds them for
+// every c. The returned ranges are those of G_c's derivatives over all such c. Why they suffice:
+//  - sign of F_s: at any x, F_s(x) = (G_c)_s(x) / D(x) with c = F(x); so (G_c)_s > 0 for all c
+//    proves F_s > 0 on the box (the edge test).
+//  - convexity: if every G_c is strictly convex on the box, F is strictly quasi-convex there and a
+//    KKT point x* of F on the box is its global minimiser: grad F(x*) = grad G_m(x*) / D with
+//    m = F(x*), so x* is a KKT point of the convex G_m, hence G_m >= G_m(x*) = 0 on the box,
+//    i.e. F >= m. A box-constrained Newton (descent to a KKT point) therefore finds the minimum.
+// For D == 1 both readings coincide.
+struct FDerivatives {
+  Iv s, t, ss, tt, st;
+};
+
+Iv hull(Iv a, Iv b) {
+  return {std::min(a.lo, b.lo), std::max(a.hi, b.hi)};
+}
+
+FDerivatives f_derivatives(const double* n_grid, const double* d_grid, int rows, int cols,
+                           bool rational, Iv f_range) {
+  if (!rational) {
+    const DerivativeRanges n = derivative_ranges(n_grid, rows, cols);
+    return {n.s, n.t, n.ss, n.tt, n.st};
+  }
+  double shifted[SurfaceScratch::kGridCapacity];
+  FDerivatives r{};
+  for (int end = 0; end < 2; ++end) {
+    const double c = end == 0 ? f_range.lo : f_range.hi;
+    for (int k = 0; k < rows * cols; ++k)
+      shifted[k] = n_grid[k] - c * d_grid[k];
+    const DerivativeRanges g = derivative_ranges(shifted, rows, cols);
+    if (end == 0) {
+      r = {g.s, g.t, g.ss, g.tt, g.st};
+    } else {
+      r = {hull(r.s, g.s), hull(r.t, g.t), hull(r.ss, g.ss), hull(r.tt, g.tt), hull(r.st, g.st)};
+    }
+  }
+  return r;
+}
+
+// Termination test (DESIGN.md): min F_ss > 0, min F_tt > 0 and min F_ss min F_tt > max F_st^2
+// imply a positive definite Hessian on the whole box (of F, or of every G_c for a rational patch),
+// hence a unique minimiser on the box that a descent method (box-constrained Newton) finds.
+bool convex(const FDerivatives& f) {
+  // A relative margin keeps rounding in the differences from faking convexity.
+  const double margin = 1e-12 * (std::abs(f.ss.hi) + std::abs(f.tt.hi) + std::abs(f.st.hi));
+  const double a = f.ss.lo - margin, b = f.tt.lo - margin;
+  const double c = std::max(std::abs(f.st.lo), std::abs(f.st.hi)) + margin;
+  return a > 0.0 && b > 0.0 && a * b > c * c;
+}
+
+// Monotonicity edge test, valid for rational patches too (see f_derivatives for the sign of F_s
+// through G_c): if F_s > 0 on the whole box, every
+// point (s, t) has F(s, t) > F(s0, t), so the box's minimum lies on its edge s = s0 (and so on).
+// This replaces seed 001's Theorem 2 where that does not hold (rational F). Returns the edge as in
+// boundary_edge, or -1.
+int monotone_edge(const FDerivatives& f) {
+  const double margin_s = 1e-12 * std::max(std::abs(f.s.lo), std::abs(f.s.hi));
+  const double margin_t = 1e-12 * std::max(std::abs(f.t.lo), std::abs(f.t.hi));
+  if (f.s.lo > margin_s) return 0;
+  if (f.s.hi < -margin_s) return 1;
+  if (f.t.lo > margin_t) return 2;
+  if (f.t.hi < -margin_t) return 3;
+  return -1;
+}
+
+// de Casteljau at 1/2 along s (rows): `low` (in place) gets [s0, mid], `high` [mid, s1].
+void split_rows(double* low, double* high, int rows, int cols) {
+  double work[kMaxGridSide];
+  const int m = rows - 1;
+  for (int j = 0; j < cols; ++j) {
+    for (int i = 0; i < rows; ++i)
+      work[i] = low[i * cols + j];
+    high[m * cols + j] = work[m];
+    for (int r = 1; r <= m; ++r) {
+      for (int i = 0; i <= m - r; ++i)
+        work[i] = 0.5 * (work[i] + work[i + 1]);
+      low[r * cols + j] = work[0];
+      high[(m - r) * cols + j] = work[m - r];
+    }
+  }
+}
+
+// de Casteljau at 1/2 along t of one contiguous row of `count` values.
+void split_line(double* low, double* high, int count) {
+  double work[kMaxGridSide];
+  const int n = count - 1;
+  std::memcpy(work, low, sizeof(double) * count);
+  high[n] = work[n];
+  for (int r = 1; r <= n; ++r) {
+    for (int i = 0; i <= n - r; ++i)
+      work[i] = 0.5 * (work[i] + work[i + 1]);
+    low[r] = work[0];
+    high[n - r] = work[n - r];
+  }
+}
+
+void split_cols(double* low, double* high, int rows, int cols) {
+  for (int i = 0; i < rows; ++i)
+    split_line(low + i * cols, high + i * cols, cols);
+}
+
+double lower_bound(const double* n, const double* d, int count, bool rational) {
+  double lo = std::numeric_limits<double>::infinity();
+  if (rational) {
+    for (int k = 0; k < count; ++k)
+      lo = std::min(lo, n[k] / d[k]);
+  } else {
+    for (int k = 0; k < count; ++k)
+      lo = std::min(lo, n[k]);
+  }
+  return lo;
+}
+
+// Theorem 2 of seed 001 for a polynomial F: if the coefficients of one boundary row (column) are
+// below every coefficient of their column (row), F attains its minimum over the box on that edge.
+// Returns 0: s = s0, 1: s = s1, 2: t = t0, 3: t = t1, or -1. Not used for rational patches: the
+// proof compares F with F(u0, v) through the same Bernstein weights, which a rational F (weights
+// B D_ij / Σ B D) does not share, so it does not carry over.
+int boundary_edge(const double* f, int rows, int cols) {
+  auto row_below = [&](int r) {
+    const double* edge = f + r * cols;
+    for (int i = 0; i < rows; ++i) {
+      for (int j = 0; j < cols; ++j) {
+        if (f[i * cols + j] < edge[j]) return false;
+      }
+    }
+    return true;
+  };
+  auto col_below = [&](int c) {
+    for (int i = 0; i < rows; ++i) {
+      const double edge = f[i * cols + c];
+      for (int j = 0; j < cols; ++j) {
+        if (f[i * cols + j] < edge) return false;
+      }
+    }
+    return true;
+  };
+  if (row_below(0)) return 0;
+  if (row_below(rows - 1)) return 1;
+  if (col_below(0)) return 2;
+  if (col_below(cols - 1)) return 3;
+  return -1;
+}
+
+// The state of one clipping run on one patch.
+struct Clipper {
+  const PreparedPatch& pp;
+  const Vec3& p;
+  SurfaceScratch& sc;
+  SurfaceProjectionStats& st;
+  double alpha;      // upper bound on the minimum squared distance
+  double round_err;  // bound on rounding in any computed coefficient ratio
+  double eps_d;      // accepted loss in distance when eliminating (relative to the patch size)
+  double best_value = std::numeric_limits<double>::infinity();
+  double best_s = 0, best_t = 0;
+  bool best_exact = false;  // the best candidate is a Newton result on the geometry
+  Vec3 best_foot = Vec3::Zero();
+
+  // Theorem 1 with an accuracy tolerance and a rounding margin: drop the box when its lower bound,
+  // even lowered by the rounding bound, shows that no point of the box is closer than
+  // sqrt(alpha) - eps_d. Where round_err exceeds that tolerance this is conservative.
+  bool eliminated(double lower) const {
+    if (!std::isfinite(alpha)) return false;
+    const double target = std::max(std::sqrt(alpha) - eps_d, 0.0);
+    return lower - round_err >= target * target;
+  }
+  // A value known only through coefficients (corner values): its bound is value + round_err.
+  void offer_coefficient(double value, double s, double t) {
+    if (value < best_value) {
+      best_value = value;
+      best_s = s;
+      best_t = t;
+      best_exact = false;
+    }
+    alpha = std::min(alpha, value + round_err);
+  }
+  // A value of the real geometry (Newton result).
+  void offer_exact(double value, double s, double t, const Vec3& foot) {
+    if (value < best_value) {
+      best_value = value;
+      best_s = s;
+      best_t = t;
+      best_exact = true;
+      best_foot = foot;
+    }
+    alpha = std::min(alpha, value);
+  }
+  void newton(double s0, double s1, double t0, double t1) {
+    double s = 0.5 * (s0 + s1), t = 0.5 * (t0 + t1);
+    // Neighbouring boxes often share the minimiser: start from the best point so far when it lies
+    // in this box (it is then usually already the answer and Newton stops at once).
+    if (best_exact && best_s >= s0 && best_s <= s1 && best_t >= t0 && best_t <= t1) {
+      s = best_s;
+      t = best_t;
+    }
+    Vec3 foot;
+    const double value = newton_on_patch(pp.patch, p, s0, s1, t0, t1, s, t, foot, &st);
+    offer_exact(value, s, t, foot);
+  }
+
+  // The row (stride 1) or column (stride cols) of N and D along an edge of the current box.
+  void clip_boundary(const double* n_row, const double* d_row, int stride, int count, bool along_t,
+                     double fixed, double a0, double a1);
+  void reduce_to_edge(int edge, const double* n, const double* d, const SurfaceScratch::Box& b) {
+    ++st.boundary_reductions;
+    const int rows = pp.rows, cols = pp.cols;
+    if (edge <= 1) {
+      const int offset = edge == 0 ? 0 : (rows - 1) * cols;
+      clip_boundary(n + offset, d + offset, 1, cols, true, edge == 0 ? b.s0 : b.s1, b.t0, b.t1);
+    } else {
+      const int offset = edge == 2 ? 0 : cols - 1;
+      clip_boundary(n + offset, d + offset, cols, rows, false, edge == 2 ? b.t0 : b.t1, b.s0, b.s1);
+    }
+  }
+  void run();
+};
+
+// 1-D spherical clipping on a boundary row of F (seed 002's circular clipping applied to the
+// boundary curve's squared distance, whose rational Bernstein coefficients are that row of N and
+// D): elimination by the minimum coefficient ratio; termination, for a polynomial row, when the
+// coefficient differences change sign at most once from - to + (Property 2 of seed 002: one
+// minimum on the interval) and, for a rational row, when F_t is provably of one sign (the minimum
+// is an end value) or F_tt > 0 (convex: one minimum). The minimum is then found by Newton on the
+// boundary curve of the surface itself.
+void Clipper::clip_boundary(const double* n_row, const double* d_row, int stride, int count,
+                            bool along_t, double fixed, double a0, double a1) {
+  constexpr int kLine = 2 * kMaxDegree + 1;
+  const bool rational = pp.rational;
+  auto ratio_min = [&](const double* n, const double* d) {
+    double lo = std::numeric_limits<double>::infinity();
+    for (int j = 0; j < count; ++j)
+      lo = std::min(lo, rational ? n[j] / d[j] : n[j]);
+    return lo;
+  };
+  auto newton_on = [&](double lo, double hi) {
+    if (along_t) {
+      newton(fixed, fixed, lo, hi);
+    } else {
+      newton(lo, hi, fixed, fixed);
+    }
+  };
+  int top = 0;
+  double* base = sc.rows.data();
+  for (int j = 0; j < count; ++j) {
+    base[j] = n_row[j * stride];
+    base[kLine + j] = d_row[j * stride];
+  }
+  sc.intervals[top++] = {a0, a1, ratio_min(base, base + kLine), 0};
+  while (top > 0) {
+    const SurfaceScratch::Interval iv = sc.intervals[--top];
+    double* c = base + top * 2 * kLine;
+    double* w = c + kLine;
+    if (eliminated(iv.lower)) {
+      ++st.eliminations;
+      continue;
+    }
+    offer_coefficient(c[0] / w[0], along_t ? fixed : iv.t0, along_t ? iv.t0 : fixed);
+    offer_coefficient(c[count - 1] / w[count - 1], along_t ? fixed : iv.t1,
+                      along_t ? iv.t1 : fixed);
+    double c_max = -std::numeric_limits<double>::infinity();
+    for (int j = 0; j < count; ++j)
+      c_max = std::max(c_max, rational ? c[j] / w[j] : c[j]);
+    if (c_max - iv.lower <= 4.0 * round_err) {  // below the coefficients' resolution
+      ++st.resolution_terminations;
+      newton_on(iv.t0, iv.t1);
+      continue;
+    }
+    if (!rational) {
+      int changes = 0;
+      int last_sign = 0;
+      bool falls_first = false;
+      for (int j = 0; j + 1 < count; ++j) {
+        const double delta = c[j + 1] - c[j];
+        const int sign = delta > 0 ? 1 : (delta < 0 ? -1 : 0);
+        if (sign == 0) continue;
+        if (last_sign == 0) falls_first = sign < 0;
+        if (last_sign != 0 && sign != last_sign) ++changes;
+        last_sign = sign;
+      }
+      if (changes == 0) continue;  // monotone: the minimum is an end value, already offered
+      if (changes == 1 && falls_first) {
+        ++st.convex_terminations;
+        newton_on(iv.t0, iv.t1);
+        continue;
+      }
+    } else {
+      // A 1 x count grid: the same derivative bounds with no s direction.
+      const FDerivatives f = f_derivatives(c, w, 1, count, true, {iv.lower, c_max});
+      const double margin = 1e-12 * std::max(std::abs(f.t.lo), std::abs(f.t.hi));
+      if (f.t.lo > margin || f.t.hi < -margin) continue;  // monotone: an end value
+      if (f.tt.lo > 1e-12 * std::abs(f.tt.hi)) {
+        ++st.convex_terminations;
+        newton_on(iv.t0, iv.t1);
+        continue;
+      }
+    }
+    if (iv.depth >= SurfaceScratch::kMaxDepth || top + 2 > SurfaceScratch::kStackCapacity) {
+      ++st.depth_limit_hits;
+      newton_on(iv.t0, iv.t1);
+      continue;
+    }
+    ++st.subdivisions;
+    double* high = c + 2 * kLine;
+    double* high_w = high + kLine;
+    split_line(c, high, count);
+    if (rational) {
+      split_line(w, high_w, count);
+    } else {
+      std::memcpy(high_w, w, sizeof(double) * count);
+    }
+    const double mid = 0.5 * (iv.t0 + iv.t1);
+    const double low_lower = ratio_min(c, w);
+    const double high_lower = ratio_min(high, high_w);
+    SurfaceScratch::Interval first{iv.t0, mid, low_lower, iv.depth + 1};  // data in slot top
+    SurfaceScratch::Interval second{mid, iv.t1, high_lower, iv.depth + 1};
+    // Visit the more promising half first: it goes on top of the stack.
+    if (low_lower < high_lower) {
+      std::swap_ranges(c, c + 2 * kLine, high);
+      std::swap(first, second);
+    }
+    sc.intervals[top++] = first;
+    sc.intervals[top++] = second;
+  }
+}
+
+void Clipper::run() {
+  const int rows = pp.rows, cols = pp.cols, count = rows * cols;
+  constexpr int kSlot = 2 * SurfaceScratch::kGridCapacity;
+  double* base = sc.grids.data();
+  int top = 0;
+  pp.numerator(p, base);
+  std::memcpy(base + SurfaceScratch::kGridCapacity, pp.d.data(), sizeof(double) * count);
+  sc.boxes[top++] = {0.0,
+                     1.0,
+                     0.0,
+                     1.0,
+                     lower_bound(base, base + SurfaceScratch::kGridCapacity, count, pp.rational),
+                     0};
+  while (top > 0) {
+    const SurfaceScratch::Box b = sc.boxes[--top];
+    double* n = base + top * kSlot;
+    double* d = n + SurfaceScratch::kGridCapacity;
+    if (eliminated(b.lower)) {
+      ++st.eliminations;
+      continue;
+    }
+    // Corner values are exact values of F: they shrink the clipping sphere (seed 001 §2).
+    const int c00 = 0, c01 = cols - 1, c10 = (rows - 1) * cols, c11 = count - 1;
+    offer_coefficient(n[c00] / d[c00], b.s0, b.t0);
+    offer_coefficient(n[c01] / d[c01], b.s0, b.t1);
+    offer_coefficient(n[c10] / d[c10], b.s1, b.t0);
+    offer_coefficient(n[c11] / d[c11], b.s1, b.t1);
+    if (eliminated(b.lower)) {
+      ++st.eliminations;
+      continue;
+    }
+    if (!pp.rational) {
+      const int edge = boundary_edge(n, rows, cols);
+      if (edge >= 0) {
+        reduce_to_edge(edge, n, d, b);
+        continue;
+      }
+    }
+    double f_max = -std::numeric_limits<double>::infinity();
+    double var_s = 0.0, var_t = 0.0;
+    for (int i = 0; i < rows; ++i) {
+      for (int j = 0; j < cols; ++j) {
+        const int k = i * cols + j;
+        const double f = pp.rational ? n[k] / d[k] : n[k];
+        f_max = std::max(f_max, f);
+        if (i + 1 < rows) {
+          const double g = pp.rational ? n[k + cols] / d[k + cols] : n[k + cols];
+          var_s = std::max(var_s, std::abs(g - f));
+        }
+        if (j + 1 < cols) {
+          const double g = pp.rational ? n[k + 1] / d[k + 1] : n[k + 1];
+          var_t = std::max(var_t, std::abs(g - f));
+        }
+      }
+    }
+    // F is known to +-round_err only: once its whole range on the box is within a few round_err
+    // the coefficients cannot resolve the box further (a point on or within ~sqrt(round_err) of
+    // the surface, or a pole where F is flat across the box). The geometry can: Newton finishes.
+    if (f_max - b.lower <= 4.0 * round_err) {
+      ++st.resolution_terminations;
+      newton(b.s0, b.s1, b.t0, b.t1);
+      continue;
+    }
+    const FDerivatives fd = f_derivatives(n, d, rows, cols, pp.rational, {b.lower, f_max});
+    if (convex(fd)) {
+      ++st.convex_terminations;
+      newton(b.s0, b.s1, b.t0, b.t1);
+      continue;
+    }
+    if (pp.rational) {
+      const int edge = monotone_edge(fd);
+      if (edge >= 0) {
+        reduce_to_edge(edge, n, d, b);
+        continue;
+      }
+    }
+    if (b.depth >= SurfaceScratch::kMaxDepth || top + 2 > SurfaceScratch::kStackCapacity) {
+      ++st.depth_limit_hits;
+      newton(b.s0, b.s1, b.t0, b.t1);
+      continue;
+    }
+    ++st.subdivisions;
+    // Split across the direction in which F varies most: that is where the box is "long".
+    double* high = n + kSlot;
+    double* high_d = high + SurfaceScratch::kGridCapacity;
+    SurfaceScratch::Box lo = b, hi = b;
+    lo.depth = hi.depth = b.depth + 1;
+    if (var_s >= var_t) {
+      split_rows(n, high, rows, cols);
+      if (pp.rational) split_rows(d, high_d, rows, cols);
+      lo.s1 = hi.s0 = 0.5 * (b.s0 + b.s1);
+    } else {
+      split_cols(n, high, rows, cols);
+      if (pp.rational) split_cols(d, high_d, rows, cols);
+      lo.t1 = hi.t0 = 0.5 * (b.t0 + b.t1);
+    }
+    if (!pp.rational) std::memcpy(high_d, d, sizeof(double) * count);
+    lo.lower = lower_bound(n, d, count, pp.rational);
+    hi.lower = lower_bound(high, high_d, count, pp.rational);
+    // Depth first, the more promising half on top (it shrinks alpha soonest).
+    if (lo.lower < hi.lower) {
+      std::swap_ranges(n, n + count, high);
+      std::swap_ranges(d, d + count, high_d);
+      std::swap(lo, hi);
+    }
+    sc.boxes[top++] = lo;
+    sc.boxes[top++] = hi;
+  }
+}
+
+}  // namespace
+
+void SurfaceProjectionStats::add(const SurfaceProjectionStats& o) {
+  subdivisions += o.subdivisions;
+  newton_iterations += o.newton_iterations;
+  depth_limit_hits += o.depth_limit_hits;
+  patches_visited += o.patches_visited;
+  eliminations += o.eliminations;
+  convex_terminations += o.convex_terminations;
+  boundary_reductions += o.boundary_reductions;
+  resolution_terminations += o.resolution_terminations;
+}
+
+SurfaceScratch::SurfaceScratch()
+    : grids(static_cast<std::size_t>(kStackCapacity + 1) * 2 * kGridCapacity),
+      boxes(kStackCapacity + 1),
+      rows(static_cast<std::size_t>(kStackCapacity + 2) * 2 * (2 * kMaxDegree + 1)),
+      intervals(kStackCapacity + 1) {
+  order.reserve(kDefaultPatchCapacity);
+}
+
+void PreparedPatch::numerator(const Vec3& point, double* out) const {
+  const Vec3 q = point - origin;
+  const double qq = q.squaredNorm();
+  const int count = rows * cols;
+  for (int k = 0; k < count; ++k)
+    out[k] = g[k] - 2.0 * q.dot(e[k]) + qq * d[k];
+}
+
+PreparedPatch prepare_patch(const BezierPatch& patch) {
+  assert(patch.degree_u <= kMaxDegree && patch.degree_v <= kMaxDegree);
+  PreparedPatch pp;
+  pp.patch = patch;
+  pp.box = bounding_box(patch);
+  pp.sphere = bounding_sphere(patch);
+  pp.origin = pp.sphere.center;
+  const int p = patch.degree_u, q = patch.degree_v;
+  pp.rows = 2 * p + 1;
+  pp.cols = 2 * q + 1;
+  const double w0 = patch.cw[0][3];
+  pp.rational = false;
+  for (const Vec4& c : patch.cw) {
+    if (std::abs(c[3] - w0) > 1e-14 * w0) pp.rational = true;
+  }
+  const int count = pp.rows * pp.cols;
+  pp.d.assign(count, 0.0);
+  pp.g.assign(count, 0.0);
+  pp.e.assign(count, Vec3::Zero());
+  // Homogeneous points relative to the origin, w (P - o); weights 1 for polynomial patches.
+  std::vector<Vec3> pw(patch.cw.size());
+  std::vector<double> w(patch.cw.size());
+  for (std::size_t k = 0; k < patch.cw.size(); ++k) {
+    const Vec4& c = patch.cw[k];
+    w[k] = pp.rational ? c[3] : 1.0;
+    pw[k] = w[k] * (c.head<3>() / c[3] - pp.origin);
+  }
+  // Bernstein product identity B_a^p B_c^p = C(p,a) C(p,c) / C(2p,a+c) B_{a+c}^{2p}.
+  const int stride = q + 1;
+  for (int a = 0; a <= p; ++a) {
+    for (int c = 0; c <= p; ++c) {
+      const double bu = binomial(p, a) * binomial(p, c) / binomial(2 * p, a + c);
+      for (int b = 0; b <= q; ++b) {
+        for (int dd = 0; dd <= q; ++dd) {
+          const double beta = bu * binomial(q, b) * binomial(q, dd) / binomial(2 * q, b + dd);
+          const int k = (a + c) * pp.cols + (b + dd);
+          const int ab = a * stride + b, cd = c * stride + dd;
+          pp.d[k] += beta * w[ab] * w[cd];
+          pp.g[k] += beta * pw[ab].dot(pw[cd]);
+          pp.e[k] += beta * 0.5 * (w[cd] * pw[ab] + w[ab] * pw[cd]);
+        }
+      }
+    }
+  }
+  if (!pp.rational) std::fill(pp.d.begin(), pp.d.end(), 1.0);
+  return pp;
+}
+
+double newton_on_patch(const BezierPatch& patch, const Vec3& p, double s0, double s1, double t0,
+                       double t1, double& s, double& t, Vec3& foot, SurfaceProjectionStats* stats) {
+  s = std::clamp(s, s0, s1);
+  t = std::clamp(t, t0, t1);
+  Vec3 d[6];
+  patch.derivatives(s, t, d);
+  Vec3 r = d[0] - p;
+  double f = r.squaredNorm();
+  long iterations = 0;
+  for (int it = 0; it < 60; ++it) {
+    ++iterations;
+    const Vec3 &su = d[1], &sv = d[2];
+    // Half gradient and half Hessian of F = |S - p|^2.
+    const double gs = r.dot(su), gt = r.dot(sv);
+    const double hss = su.dot(su) + r.dot(d[3]);
+    const double hst = su.dot(sv) + r.dot(d[4]);
+    const double htt = sv.dot(sv) + r.dot(d[5]);
+    // Projected Newton: a variable at a bound whose gradient pushes outward is held fixed.
+    // A gradient component below rounding (relative 1e-15) counts as zero: stationary.
+    const double noise = 1e-15 * r.norm() * std::max(su.norm(), sv.norm());
+    const bool free_s =
+        s1 > s0 && std::abs(gs) > noise && !((s <= s0 && gs > 0) || (s >= s1 && gs < 0));
+    const bool free_t =
+        t1 > t0 && std::abs(gt) > noise && !((t <= t0 && gt > 0) || (t >= t1 && gt < 0));
+    if (!free_s && !free_t) break;
+    double ds = 0, dt = 0;
+    bool newton_step = false;
+    if (free_s && free_t) {
+      const double det = hss * htt - hst * hst;
+      if (hss > 0 && htt > 0 && det > 1e-12 * hss * htt) {
+        ds = -(htt * gs - hst * gt) / det;
+        dt = -(hss * gt - hst * gs) / det;
+        newton_step = true;
+      } else {
+        // Not locally convex: Gauss-Newton (J^T J is positive semi-definite), regularised for a
+        // degenerate parametrisation (a pole, where S_t = 0).
+        const double a = su.dot(su), b = su.dot(sv), c = sv.dot(sv);
+        const double mu = 1e-10 * (a + c) + 1e-300;
+        const double det2 = (a + mu) * (c + mu) - b * b;
+        ds = -((c + mu) * gs - b * gt) / det2;
+        dt = -((a + mu) * gt - b * gs) / det2;
+      }
+    } else if (free_s) {
+      newton_step = hss > 0;
+      ds = -gs / (newton_step ? hss : su.dot(su) + 1e-300);
+    } else {
+      newton_step = htt > 0;
+      dt = -gt / (newton_step ? htt : sv.dot(sv) + 1e-300);
+    }
+    if (!free_s) ds = 0;
+    if (!free_t) dt = 0;
+    if (!std::isfinite(ds) || !std::isfinite(dt)) break;
+    // Never try to leave the box by more than its size (gradient steps near a pole are huge).
+    const double reach = std::max(std::abs(ds) / std::max(s1 - s0, 1e-300),
+                                  std::abs(dt) / std::max(t1 - t0, 1e-300));
+    if (reach > 1.0) {
+      ds /= reach;
+      dt /= reach;
+    }
+    // Rounding in |S - p|^2: S carries ~eps |S| absolute error, so F carries ~2 |r| eps |S|.
+    const double f_noise = 1e-14 * r.norm() * (d[0].norm() + p.norm()) + 1e-300;
+    double step = 1.0;
+    bool accepted = false;
+    double ns = s, nt = t;
+    for (int ls = 0; ls < 60; ++ls) {
+      ns = std::clamp(s + step * ds, s0, s1);
+      nt = std::clamp(t + step * dt, t0, t1);
+      const double nf = (patch.evaluate(ns, nt) - p).squaredNorm();
+      const double predicted = 2.0 * (gs * (ns - s) + gt * (nt - t));
+      const double moved = std::max(std::abs(ns - s), std::abs(nt - t));
+      if (nf <= f + 1e-4 * predicted ||
+          // In the quadratic regime the change of F drowns in rounding; a short Newton step is
+          // still taken (it improves orthogonality) unless it visibly increases F.
+          (newton_step && step == 1.0 && moved < 1e-6 && nf <= f + f_noise)) {
+        accepted = true;
+        break;
+      }
+      step *= 0.5;
+    }
+    if (!accepted) break;
+    const double moved = std::max(std::abs(ns - s), std::abs(nt - t));
+    s = ns;
+    t = nt;
+    patch.derivatives(s, t, d);
+    r = d[0] - p;
+    f = r.squaredNorm();
+    if (moved <= 1e-15) break;
+  }
+  if (stats) stats->newton_iterations += iterations;
+  foot = d[0];
+  return f;
+}
+
+bool project_onto_patch(const PreparedPatch& pp, const Vec3& p, SurfaceHit& best,
+                        SurfaceScratch& scratch, SurfaceProjectionStats* stats) {
+  if (!p.allFinite()) return false;  // NaN would defeat every elimination test
+  SurfaceProjectionStats local;
+  const double reach = pp.sphere.radius + (p - pp.origin).norm();
+  Clipper clip{pp, p, scratch, local, best.distance_sq,
+               // Each coefficient is G - 2 q.E + |q|^2 D with terms up to reach^2 D; de Casteljau
+               // is a convex combination, so the error stays a small multiple of eps reach^2.
+               1e-14 * reach * reach, 1e-11 * pp.sphere.radius};
+  ++local.patches_visited;
+  clip.run();
+  bool improved = false;
+  if (std::isfinite(clip.best_value)) {
+    // A candidate known only through coefficients (a corner value) is polished on the geometry
+    // over the whole patch (descent only: it can only improve). Newton results already are.
+    double s = clip.best_s, t = clip.best_t;
+    Vec3 foot = clip.best_foot;
+    double value = clip.best_value;
+    if (!clip.best_exact) {
+      value = newton_on_patch(pp.patch, p, 0.0, 1.0, 0.0, 1.0, s, t, foot, &local);
+    }
+    if (value < best.distance_sq) {
+      best.u = pp.patch.param_u.to_parent(s);
+      best.v = pp.patch.param_v.to_parent(t);
+      best.distance_sq = value;
+      best.foot = foot;
+      improved = true;
+    }
+  }
+  if (stats) stats->add(local);
+  return improved;
+}
+
+}  // namespace nurbsreg::engine

@@ -1,0 +1,60 @@
+#pragma once
+// The closest-point step of ICP, behind a small batch interface.
+//
+// ICP only needs, for each scan point already moved into the model frame, its closest point
+// ("foot") on the model, the unit surface normal there and the distance. Anything that can
+// answer that batch question plugs into the solver: the analytic primitives in analytic.hpp
+// (exact, for tests and demos) or the engine's exact NURBS projector (warm-started from the
+// previous iteration's foot, keyed by scan index).
+
+#include <cstddef>
+#include <limits>
+#include <span>
+
+#include "nurbsreg/engine/types.hpp"
+
+namespace nurbsreg::icp {
+
+// One answer, written by index into caller-owned storage.
+struct Correspondence {
+  engine::Vec3 foot = engine::Vec3::Zero();     // closest point on the model (model frame)
+  engine::Vec3 normal = engine::Vec3::UnitZ();  // unit surface normal at the foot; sign free
+  double distance = std::numeric_limits<double>::infinity();  // |point - foot| >= 0
+  // false: no foot within query.max_distance, or the finder could not answer for this point.
+  // The solver ignores foot/normal/distance of invalid entries.
+  bool valid = false;
+};
+
+struct CorrespondenceQuery {
+  // Points in the model frame (scan points moved by the current pose estimate).
+  std::span<const engine::Vec3> points;
+  // scan_indices[k] is the index in the full scan of points[k]. It is stable across the
+  // iterations of one alignment (also across coarse-to-fine stages), so a finder may keep
+  // per-scan-point state such as a warm-start hint (patch, u, v) of the previous foot.
+  std::span<const std::size_t> scan_indices;
+  // Points farther than this from the model are rejected by the solver anyway: a finder may
+  // mark them invalid without computing their exact foot (e.g. prune its hierarchy with it).
+  // +infinity means "answer every point".
+  double max_distance = std::numeric_limits<double>::infinity();
+  // false: answer on the calling thread only (the solver's serial path).
+  bool parallel = true;
+};
+
+// Contract for implementations:
+// - find() writes out[k] for every k < query.points.size() (out has exactly that size) and
+//   nothing else; the answer for point k may depend only on points[k], scan_indices[k] and
+//   the finder's per-scan-index state, never on scheduling, so results are identical for any
+//   thread count and for query.parallel == false.
+// - The solver calls reset(scan_size) once at the start of every alignment, then find() once
+//   per iteration, from one thread. find() may run its own tbb parallel loops.
+class CorrespondenceFinder {
+ public:
+  virtual ~CorrespondenceFinder() = default;
+
+  // Forget per-point state (warm starts); scan indices will be < scan_size.
+  virtual void reset(std::size_t scan_size) { (void)scan_size; }
+
+  virtual void find(const CorrespondenceQuery& query, std::span<Correspondence> out) = 0;
+};
+
+}  // namespace nurbsreg::icp

@@ -1,0 +1,620 @@
+// The ICP loop. Notation: scan point p_i, current pose T (model <- scan), moved point
+// q_i = T p_i, foot f_i and unit normal n_i on the model, weight w_i, inlier centroid c,
+// length scale L (RMS radius of the scan about its centroid).
+#include "nurbsreg/icp/icp.hpp"
+
+#include <spdlog/spdlog.h>
+#include <tbb/parallel_for.h>
+
+#include <Eigen/Eigenvalues>
+#include <Eigen/SVD>
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <numeric>
+#include <random>
+
+namespace nurbsreg::icp {
+namespace {
+
+using Eigen::Isometry3d;
+using Eigen::Matrix3d;
+using engine::Vec3;
+using Clock = std::chrono::steady_clock;
+
+double seconds_since(Clock::time_point start) {
+  return std::chrono::duration<double>(Clock::now() - start).count();
+}
+
+// Runs body(begin, end, block) over fixed blocks of kReductionBlock indices in [0, n), on TBB
+// threads or serially. Bodies write only to their own block's slot, so combining the slots
+// in block order afterwards gives the same bits for any thread count (STYLE.md point 9).
+template <class Body>
+void for_each_block(std::size_t n, bool parallel, const Body& body) {
+  const std::size_t blocks = (n + kReductionBlock - 1) / kReductionBlock;
+  const auto run = [&](std::size_t b) {
+    body(b * kReductionBlock, std::min(n, (b + 1) * kReductionBlock), b);
+  };
+  if (parallel && blocks > 1) {
+    tbb::parallel_for(std::size_t{0}, blocks, run);
+  } else {
+    for (std::size_t b = 0; b < blocks; ++b)
+      run(b);
+  }
+}
+
+std::size_t block_count(std::size_t n) {
+  return (n + kReductionBlock - 1) / kReductionBlock;
+}
+
+// Partial sums of one block.
+struct Moments {
+  // Point-to-plane normal equations in scaled coordinates xi_s = (L omega, v).
+  Mat6 H = Mat6::Zero();
+  Vec6 g = Vec6::Zero();
+  double sum_w = 0.0;
+  double sum_wr2 = 0.0;
+  // Weighted moments about c for the closed-form point-to-point step: a = q - c, b = f - c.
+  Vec3 sum_wa = Vec3::Zero();
+  Vec3 sum_wb = Vec3::Zero();
+  Matrix3d sum_wba = Matrix3d::Zero();  // sum w b a^T
+
+  void add(const Moments& o) {
+    H += o.H;
+    g += o.g;
+    sum_w += o.sum_w;
+    sum_wr2 += o.sum_wr2;
+    sum_wa += o.sum_wa;
+    sum_wb += o.sum_wb;
+    sum_wba += o.sum_wba;
+  }
+};
+
+struct Centroid {
+  Vec3 sum = Vec3::Zero();
+  std::size_t count = 0;
+};
+
+struct LinearSystem {
+  Moments m;  // H, g about `center`; point-to-point moments about `centroid`
+  std::size_t count = 0;
+  Vec3 centroid = Vec3::Zero();  // inlier centroid c
+  Vec3 center = Vec3::Zero();    // linearisation and update centre c' (see decouple())
+  double length_scale = 1.0;
+};
+
+struct Rejection {
+  std::size_t inliers = 0;
+  double rms = 0.0;
+};
+
+// Increment about the centroid c: q -> c + exp(omega) (q - c) + v (see update_pose).
+struct Step {
+  Vec6 xi = Vec6::Zero();
+  bool finite = true;
+};
+
+}  // namespace
+
+namespace detail {
+struct IcpBuffers {
+  std::vector<std::size_t> ids;  // active scan indices, ascending
+  std::vector<Vec3> moved;       // q_i
+  std::vector<Correspondence> matches;
+  std::vector<std::uint8_t> inlier;
+  std::vector<double> residual;
+  std::vector<double> weight;
+  std::vector<double> scratch;  // selections (trimming, median)
+  std::vector<Moments> moment_blocks;
+  std::vector<Centroid> centroid_blocks;
+
+  void resize(std::size_t n) {
+    moved.resize(n);
+    matches.resize(n);
+    inlier.resize(n);
+    residual.resize(n);
+    weight.resize(n);
+    moment_blocks.resize(block_count(n));
+    centroid_blocks.resize(block_count(n));
+  }
+};
+}  // namespace detail
+
+namespace {
+
+using Buffers = detail::IcpBuffers;
+
+// The active points of a stage: all of them, or a deterministic uniform random subsample
+// (partial Fisher-Yates on std::mt19937_64, which the standard specifies bit for bit), sorted
+// so that the finder reads the scan in memory order.
+void select_points(std::size_t n, std::size_t m, std::uint64_t seed,
+                   std::vector<std::size_t>& ids) {
+  ids.resize(n);
+  std::iota(ids.begin(), ids.end(), std::size_t{0});
+  if (m >= n) return;
+  std::mt19937_64 rng(seed);
+  for (std::size_t i = 0; i < m; ++i) {
+    std::swap(ids[i], ids[i + static_cast<std::size_t>(rng() % (n - i))]);
+  }
+  ids.resize(m);
+  std::sort(ids.begin(), ids.end());
+}
+
+// Step 1, transform: q_i = T p_i.
+void transform_points(const Isometry3d& T, std::span<const Vec3> scan, Buffers& b, bool parallel) {
+  for_each_block(b.ids.size(), parallel, [&](std::size_t begin, std::size_t end, std::size_t) {
+    for (std::size_t k = begin; k < end; ++k)
+      b.moved[k] = T * scan[b.ids[k]];
+  });
+}
+
+// Step 2, correspond: f_i, n_i, d_i = |q_i - f_i| from the model's closest-point step.
+void find_correspondences(CorrespondenceFinder& finder, double max_distance, bool parallel,
+                          Buffers& b) {
+  CorrespondenceQuery query;
+  query.points = b.moved;
+  query.scan_indices = b.ids;
+  query.max_distance = max_distance;
+  query.parallel = parallel;
+  finder.find(query, b.matches);
+}
+
+// Step 3, reject: d_i <= max distance, then Trimmed ICP (Chetverikov et al. 2002): keep the
+// ceil(keep_fraction * m) smallest distances (all ties of the cut value, so the set depends
+// on the values only).
+void reject_outliers(double max_distance, double keep_fraction, Buffers& b) {
+  const std::size_t n = b.ids.size();
+  b.scratch.clear();
+  for (std::size_t k = 0; k < n; ++k) {
+    const Correspondence& c = b.matches[k];
+    const bool ok = c.valid && std::isfinite(c.distance) && c.distance <= max_distance;
+    b.inlier[k] = ok ? 1 : 0;
+    if (ok) b.scratch.push_back(c.distance);
+  }
+  if (keep_fraction < 1.0 && !b.scratch.empty()) {
+    const std::size_t keep = std::max<std::size_t>(
+        1,
+        static_cast<std::size_t>(std::ceil(keep_fraction * static_cast<double>(b.scratch.size()))));
+    std::nth_element(b.scratch.begin(), b.scratch.begin() + static_cast<std::ptrdiff_t>(keep - 1),
+                     b.scratch.end());
+    const double cut = b.scratch[keep - 1];
+    for (std::size_t k = 0; k < n; ++k) {
+      if (b.inlier[k] && b.matches[k].distance > cut) b.inlier[k] = 0;
+    }
+  }
+}
+
+// Inlier count and RMS of d_i over the inliers (serial sum in index order: one cheap pass).
+Rejection inlier_statistics(const Buffers& b) {
+  Rejection r;
+  double sum = 0.0;
+  for (std::size_t k = 0; k < b.ids.size(); ++k) {
+    if (!b.inlier[k]) continue;
+    ++r.inliers;
+    sum += b.matches[k].distance * b.matches[k].distance;
+  }
+  r.rms = r.inliers > 0 ? std::sqrt(sum / static_cast<double>(r.inliers)) : 0.0;
+  return r;
+}
+
+// IRLS weight for residual r and scale s (Zhang 1997, table 1).
+double kernel_weight(RobustKernel kernel, double r, double s) {
+  const double a = std::abs(r);
+  switch (kernel) {
+    case RobustKernel::none:
+      return 1.0;
+    case RobustKernel::huber: {
+      const double k = 1.345 * s;
+      return a <= k ? 1.0 : k / a;
+    }
+    case RobustKernel::tukey: {
+      const double c = 4.685 * s;
+      if (a >= c) return 0.0;
+      const double u = 1.0 - (a / c) * (a / c);
+      return u * u;
+    }
+    case RobustKernel::geman_mcclure: {
+      const double d = s * s + r * r;
+      return s * s * s * s / (d * d);
+    }
+  }
+  return 1.0;
+}
+
+// Step 4, weight: residuals r_i (point-to-plane: n_i . (q_i - f_i), the linearised distance
+// of Chen & Medioni; point-to-point: d_i) and IRLS weights w_i = w(r_i; s). With an automatic
+// scale s = 1.4826 median_inliers |r_i| (MAD about 0, consistent for Gaussian noise), floored
+// at 1e-12 L so that an exact fit (all r = 0) keeps unit weights. Points whose weight is 0
+// (beyond Tukey's cut-off) stop counting as inliers. Returns s (0: no kernel).
+double compute_weights(const IcpOptions& o, double length_scale, Buffers& b) {
+  const std::size_t n = b.ids.size();
+  for (std::size_t k = 0; k < n; ++k) {
+    const Correspondence& c = b.matches[k];
+    b.residual[k] = !b.inlier[k]                            ? 0.0
+                    : o.method == IcpMethod::point_to_plane ? c.normal.dot(b.moved[k] - c.foot)
+                                                            : c.distance;
+  }
+  if (o.kernel == RobustKernel::none) {
+    for (std::size_t k = 0; k < n; ++k)
+      b.weight[k] = b.inlier[k] ? 1.0 : 0.0;
+    return 0.0;
+  }
+  double scale = o.kernel_scale;
+  if (scale == 0.0) {
+    b.scratch.clear();
+    if (std::none_of(b.inlier.begin(), b.inlier.begin() + static_cast<std::ptrdiff_t>(n),
+                     [](std::uint8_t x) { return x != 0; })) {
+      return 0.0;
+    }
+    for (std::size_t k = 0; k < n; ++k) {
+      if (b.inlier[k]) b.scratch.push_back(std::abs(b.residual[k]));
+    }
+    const auto mid = b.scratch.begin() + static_cast<std::ptrdiff_t>((b.scratch.size() - 1) / 2);
+    std::nth_element(b.scratch.begin(), mid, b.scratch.end());
+    scale = std::max(1.4826 * *mid, 1e-12 * length_scale);
+  }
+  for (std::size_t k = 0; k < n; ++k) {
+    b.weight[k] = b.inlier[k] ? kernel_weight(o.kernel, b.residual[k], scale) : 0.0;
+    if (b.weight[k] <= 0.0) b.inlier[k] = 0;
+  }
+  return scale;
+}
+
+// Moves the linearisation centre from c to the point c' = c + d about which rotations and
+// translations are least coupled: the "centre of stiffness" that makes the off-diagonal block
+// sum w ((q - c') x n / L) n^T of H_s vanish in the least-squares sense. With
+// J'_s = T J_s, T = [I, -[d]x / L; 0, I], the block becomes H_rt - [d]x H_tt / L, so d solves
+// [d]x N_k = L C_k for the columns k of N = H_tt, C = H_rt, the minimum-norm solution when
+// that is underdetermined. Full-rank Gauss-Newton steps do not depend on the centre (to first
+// order), but the split into free and constrained directions does: about c' a sphere's free
+// motions are pure rotations about its centre, orthogonal to every translation, so the
+// constrained step translates without rotating (and a plane's c' stays at c).
+void decouple(LinearSystem& sys) {
+  const double L = sys.length_scale;
+  const Matrix3d C = sys.m.H.topRightCorner<3, 3>();
+  const Matrix3d N = sys.m.H.bottomRightCorner<3, 3>();
+  Eigen::Matrix<double, 9, 3> M;
+  Eigen::Matrix<double, 9, 1> rhs;
+  for (int k = 0; k < 3; ++k) {
+    M.block<3, 3>(3 * k, 0) = -skew(N.col(k));
+    rhs.segment<3>(3 * k) = L * C.col(k);
+  }
+  Eigen::JacobiSVD<Eigen::Matrix<double, 9, 3>> svd(M, Eigen::ComputeFullU | Eigen::ComputeFullV);
+  svd.setThreshold(1e-9);
+  const Vec3 d = svd.solve(rhs);
+  // A centre far outside the scan means the decoupling is numerically meaningless: keep c.
+  if (!d.allFinite() || d.norm() > 1e3 * L) return;
+  Mat6 T = Mat6::Identity();
+  T.topRightCorner<3, 3>() = -skew(d) / L;
+  sys.m.H = T * sys.m.H * T.transpose();
+  sys.m.g = T * sys.m.g;
+  sys.center = sys.centroid + d;
+}
+
+// Step 5, linearize. A left increment about the inlier centroid c moves q to
+// q + omega x (q - c) + v, so the point-to-plane residual becomes (Chen & Medioni 1992;
+// Low 2004, eq. 6)
+//   r_i(xi) = n_i . (q_i - f_i) + ((q_i - c) x n_i) . omega + n_i . v = r_i + J_i^T xi,
+// and in scaled coordinates xi_s = (L omega, v): J_s,i = [(q_i - c) x n_i / L ; n_i].
+// Normal equations H_s = sum w J_s J_s^T, g_s = sum w J_s r (eq. GN), reduced by blocks.
+// The point-to-point moments about c are collected in the same pass; then the centre moves
+// to c' (decouple()).
+LinearSystem linearize(double length_scale, bool parallel, Buffers& b) {
+  const std::size_t n = b.ids.size();
+  LinearSystem sys;
+  sys.length_scale = length_scale;
+  for_each_block(n, parallel, [&](std::size_t begin, std::size_t end, std::size_t block) {
+    Centroid part;
+    for (std::size_t k = begin; k < end; ++k) {
+      if (!b.inlier[k]) continue;
+      part.sum += b.moved[k];
+      ++part.count;
+    }
+    b.centroid_blocks[block] = part;
+  });
+  Centroid total;
+  for (std::size_t block = 0; block < block_count(n); ++block) {
+    total.sum += b.centroid_blocks[block].sum;
+    total.count += b.centroid_blocks[block].count;
+  }
+  sys.count = total.count;
+  if (total.count == 0) return sys;
+  const Vec3 c = total.sum / static_cast<double>(total.count);
+  sys.centroid = c;
+  sys.center = c;
+  const double inv_l = 1.0 / length_scale;
+  for_each_block(n, parallel, [&](std::size_t begin, std::size_t end, std::size_t block) {
+    Moments part;
+    for (std::size_t k = begin; k < end; ++k) {
+      const double w = b.weight[k];
+      if (!b.inlier[k] || w <= 0.0) continue;
+      const Correspondence& m = b.matches[k];
+      const Vec3 a = b.moved[k] - c;
+      Vec6 J;
+      J.head<3>() = a.cross(m.normal) * inv_l;
+      J.tail<3>() = m.normal;
+      const double r = b.residual[k];
+      part.H.noalias() += (w * J) * J.transpose();
+      part.g.noalias() += (w * r) * J;
+      part.sum_w += w;
+      part.sum_wr2 += w * r * r;
+      const Vec3 fb = m.foot - c;
+      part.sum_wa += w * a;
+      part.sum_wb += w * fb;
+      part.sum_wba.noalias() += (w * fb) * a.transpose();
+    }
+    b.moment_blocks[block] = part;
+  });
+  for (std::size_t block = 0; block < block_count(n); ++block)
+    sys.m.add(b.moment_blocks[block]);
+  decouple(sys);
+  return sys;
+}
+
+// Eigenvectors of H_s whose eigenvalue is above threshold x the largest: the constrained
+// subspace. Returns their count k; they are the last k columns of eigen.eigenvectors().
+int constrained_count(const Eigen::SelfAdjointEigenSolver<Mat6>& eigen, double threshold) {
+  const double largest = eigen.eigenvalues()(5);
+  int k = 0;
+  for (int i = 0; i < 6; ++i) {
+    if (eigen.eigenvalues()(i) > threshold * largest) ++k;
+  }
+  return k;
+}
+
+// Step 6, solve. Point-to-plane: Gauss-Newton H_s xi_s = -g_s, solved in the constrained
+// subspace only (truncated eigen pseudo-inverse), so the step has no component along free
+// directions (Gelfand et al. 2003; Zhang, Kaess & Singh, "On degeneracy of optimization-based
+// state estimation problems", ICRA 2016, who also project the update). Point-to-point: the
+// weighted closed form of Umeyama (1991, eqs. 34-43) on pairs (q_i - c, f_i - c), converted
+// to (omega, v) and projected onto the same subspace.
+Step solve(IcpMethod method, const LinearSystem& sys, double threshold) {
+  Step step;
+  const double L = sys.length_scale;
+  const Eigen::SelfAdjointEigenSolver<Mat6> eigen(sys.m.H);
+  if (eigen.info() != Eigen::Success || !(eigen.eigenvalues()(5) > 0.0)) {
+    step.finite = false;
+    return step;
+  }
+  const int k = constrained_count(eigen, threshold);
+  const auto U = eigen.eigenvectors().rightCols(k);
+  Vec6 xi_s;
+  if (method == IcpMethod::point_to_plane) {
+    const Eigen::VectorXd lambda = eigen.eigenvalues().tail(k);
+    xi_s = -U * ((U.transpose() * sys.m.g).cwiseQuotient(lambda));
+  } else {
+    const double W = sys.m.sum_w;
+    const Vec3 mean_a = sys.m.sum_wa / W;
+    const Vec3 mean_b = sys.m.sum_wb / W;
+    // Cross-covariance sum w (b - mean_b)(a - mean_a)^T from moments about c.
+    const Matrix3d M = sys.m.sum_wba - W * mean_b * mean_a.transpose();
+    const Eigen::JacobiSVD<Matrix3d> svd(M, Eigen::ComputeFullU | Eigen::ComputeFullV);
+    Matrix3d S = Matrix3d::Identity();
+    if ((svd.matrixU() * svd.matrixV().transpose()).determinant() < 0.0) S(2, 2) = -1.0;
+    // a -> R a + t about c, i.e. the (omega, v) = (log R, t) of the update in step 7.
+    const Matrix3d R = svd.matrixU() * S * svd.matrixV().transpose();
+    // About the update centre c' = c + d: t' = t + (R - I) d.
+    const Vec3 d = sys.center - sys.centroid;
+    xi_s << L * log_so3(R), mean_b - R * mean_a + (R - Matrix3d::Identity()) * d;
+    xi_s = U * (U.transpose() * xi_s);
+  }
+  step.xi << xi_s.head<3>() / L, xi_s.tail<3>();
+  step.finite = step.xi.allFinite();
+  return step;
+}
+
+// Step 7, update: q -> c + exp(omega) (q - c) + v, i.e. T <- Tr(c + v) R(omega) Tr(-c) T.
+// To first order this is the linearised motion q + omega x (q - c) + v of step 5. Rotation
+// about c and translation are kept apart on purpose (an SO(3) x R^3 update rather than the
+// SE(3) exponential, whose V(omega) v term would turn a translation along a constrained
+// normal into a drift along a free in-plane direction); rotation re-orthonormalised.
+Isometry3d update_pose(const Isometry3d& T, const Step& step, const Vec3& c) {
+  Isometry3d about_c = Isometry3d::Identity();
+  about_c.linear() = exp_so3(step.xi.head<3>());
+  about_c.translation() = c + step.xi.tail<3>() - about_c.linear() * c;
+  Isometry3d next = about_c * T;
+  next.linear() = orthonormalize(next.linear());
+  return next;
+}
+
+// Step 8, check convergence: increment small (rotation and centroid translation), or the
+// inlier RMS no longer changing (relative to its previous value).
+bool has_converged(const IcpOptions& o, double translation_tolerance, const IcpIteration& it,
+                   double previous_rms) {
+  if (it.rotation_step <= o.rotation_tolerance && it.translation_step <= translation_tolerance) {
+    return true;
+  }
+  return std::isfinite(previous_rms) &&
+         std::abs(it.rms - previous_rms) <= o.relative_rms_tolerance * previous_rms;
+}
+
+// RMS radius of the scan about its centroid (block-deterministic).
+double scan_length_scale(std::span<const Vec3> scan, bool parallel) {
+  const std::size_t n = scan.size();
+  std::vector<Vec3> sums(block_count(n), Vec3::Zero());
+  for_each_block(n, parallel, [&](std::size_t begin, std::size_t end, std::size_t block) {
+    Vec3 s = Vec3::Zero();
+    for (std::size_t k = begin; k < end; ++k)
+      s += scan[k];
+    sums[block] = s;
+  });
+  Vec3 total = Vec3::Zero();
+  for (const Vec3& s : sums)
+    total += s;
+  const Vec3 centroid = total / static_cast<double>(n);
+  std::vector<double> squares(block_count(n), 0.0);
+  for_each_block(n, parallel, [&](std::size_t begin, std::size_t end, std::size_t block) {
+    double s = 0.0;
+    for (std::size_t k = begin; k < end; ++k)
+      s += (scan[k] - centroid).squaredNorm();
+    squares[block] = s;
+  });
+  double sum = 0.0;
+  for (double s : squares)
+    sum += s;
+  return std::sqrt(sum / static_cast<double>(n));
+}
+
+// sigma^2 H_s^+ mapped to the unscaled twist about the model origin:
+// xi = D^-1 xi_s with D = diag(L I, I), then v_origin = v_c + c x omega (adjoint of Tr(c)).
+Mat6 pose_covariance(const LinearSystem& sys, double threshold) {
+  const double n = static_cast<double>(sys.count);
+  if (sys.count <= 6 || !(sys.m.sum_w > 0.0)) return Mat6::Zero();
+  const double sigma2 = sys.m.sum_wr2 / sys.m.sum_w * n / (n - 6.0);
+  const Eigen::SelfAdjointEigenSolver<Mat6> eigen(sys.m.H);
+  if (!(eigen.eigenvalues()(5) > 0.0)) return Mat6::Zero();
+  const int k = constrained_count(eigen, threshold);
+  Mat6 cov_s = Mat6::Zero();
+  for (int i = 6 - k; i < 6; ++i) {
+    const Vec6 u = eigen.eigenvectors().col(i);
+    cov_s += (sigma2 / eigen.eigenvalues()(i)) * u * u.transpose();
+  }
+  Mat6 D_inv = Mat6::Identity();
+  D_inv.topLeftCorner<3, 3>() /= sys.length_scale;
+  Mat6 A = Mat6::Identity();
+  A.bottomLeftCorner<3, 3>() = skew(sys.center);
+  const Mat6 AD = A * D_inv;
+  return AD * cov_s * AD.transpose();
+}
+
+}  // namespace
+
+IcpSolver::IcpSolver(IcpOptions options)
+    : options_(std::move(options)), buffers_(std::make_unique<detail::IcpBuffers>()) {}
+IcpSolver::~IcpSolver() = default;
+IcpSolver::IcpSolver(IcpSolver&&) noexcept = default;
+IcpSolver& IcpSolver::operator=(IcpSolver&&) noexcept = default;
+
+IcpResult IcpSolver::align(CorrespondenceFinder& finder, std::span<const Vec3> scan,
+                           const Isometry3d& T_model_scan_init) {
+  const auto start = Clock::now();
+  const IcpOptions& o = options_;
+  Buffers& b = *buffers_;
+  IcpResult result;
+  result.T_model_scan = T_model_scan_init;
+  result.points = scan.size();
+  const auto finish = [&](IcpTermination termination, std::string message) {
+    result.termination = termination;
+    result.message = std::move(message);
+    result.seconds = seconds_since(start);
+    return result;
+  };
+
+  if (auto e = o.validate()) return finish(IcpTermination::invalid_input, "options: " + *e);
+  if (!T_model_scan_init.matrix().allFinite()) {
+    return finish(IcpTermination::invalid_input, "initial pose: non-finite entries");
+  }
+  for (std::size_t i = 0; i < scan.size(); ++i) {
+    if (!scan[i].allFinite()) {
+      return finish(IcpTermination::invalid_input,
+                    "scan point " + std::to_string(i) + ": non-finite coordinate");
+    }
+  }
+  if (scan.size() < o.min_correspondences) {
+    return finish(IcpTermination::too_few_correspondences,
+                  "scan has " + std::to_string(scan.size()) +
+                      " points, fewer than min_correspondences (" +
+                      std::to_string(o.min_correspondences) + ")");
+  }
+  const double L = scan_length_scale(scan, o.parallel);
+  if (!(L > 0.0)) return finish(IcpTermination::invalid_input, "scan: all points coincide");
+  const double translation_tolerance =
+      o.translation_tolerance > 0.0 ? o.translation_tolerance : 1e-10 * L;
+
+  finder.reset(scan.size());
+  std::vector<std::size_t> stage_sizes;
+  for (std::size_t m : o.coarse_sizes) {
+    if (m < scan.size()) stage_sizes.push_back(m);
+  }
+  stage_sizes.push_back(scan.size());
+
+  Isometry3d T = T_model_scan_init;
+  IcpTermination termination = IcpTermination::max_iterations;
+  std::string message;
+  for (std::size_t stage = 0; stage < stage_sizes.size(); ++stage) {
+    select_points(scan.size(), stage_sizes[stage], o.subsample_seed + stage, b.ids);
+    b.resize(b.ids.size());
+    termination = IcpTermination::max_iterations;
+    message = "no convergence within max_iterations (" + std::to_string(o.max_iterations) + ")";
+    double previous_rms = std::numeric_limits<double>::quiet_NaN();
+    for (int iteration = 0; iteration < o.max_iterations; ++iteration) {
+      const auto t0 = Clock::now();
+      transform_points(T, scan, b, o.parallel);
+      find_correspondences(finder, o.max_correspondence_distance, o.parallel, b);
+      reject_outliers(o.max_correspondence_distance, o.keep_fraction, b);
+      IcpIteration it;
+      it.kernel_scale = compute_weights(o, L, b);
+      const Rejection kept = inlier_statistics(b);
+      it.stage = static_cast<int>(stage);
+      it.points = b.ids.size();
+      it.inliers = kept.inliers;
+      it.rms = kept.rms;
+      if (kept.inliers < o.min_correspondences) {
+        termination = IcpTermination::too_few_correspondences;
+        message = std::to_string(kept.inliers) + " inliers of " + std::to_string(b.ids.size()) +
+                  " points, fewer than min_correspondences (" +
+                  std::to_string(o.min_correspondences) + ")";
+        break;
+      }
+      const LinearSystem sys = linearize(L, o.parallel, b);
+      const Step step = solve(o.method, sys, o.degeneracy_threshold);
+      if (!step.finite) {
+        termination = IcpTermination::numerical_failure;
+        message = "non-finite or empty normal equations";
+        break;
+      }
+      T = update_pose(T, step, sys.center);
+      it.rotation_step = step.xi.head<3>().norm();
+      it.translation_step = step.xi.tail<3>().norm();
+      it.seconds = seconds_since(t0);
+      result.log.push_back(it);
+      ++result.iterations;
+      spdlog::debug("icp stage {} iteration {}: rms {:.6g}, inliers {}/{}, step {:.3g} rad {:.3g}",
+                    stage, iteration, it.rms, it.inliers, it.points, it.rotation_step,
+                    it.translation_step);
+      if (has_converged(o, translation_tolerance, it, previous_rms)) {
+        termination = IcpTermination::converged;
+        message = "increment or RMS change below tolerance";
+        break;
+      }
+      previous_rms = it.rms;
+    }
+    if (termination == IcpTermination::too_few_correspondences ||
+        termination == IcpTermination::numerical_failure) {
+      break;
+    }
+  }
+  result.T_model_scan = T;
+
+  // Final evaluation at the returned pose on all points: RMS, inliers, covariance and the
+  // degeneracy report describe the pose we return, not the one before the last update.
+  select_points(scan.size(), scan.size(), 0, b.ids);
+  b.resize(b.ids.size());
+  transform_points(T, scan, b, o.parallel);
+  find_correspondences(finder, o.max_correspondence_distance, o.parallel, b);
+  reject_outliers(o.max_correspondence_distance, o.keep_fraction, b);
+  compute_weights(o, L, b);
+  const Rejection kept = inlier_statistics(b);
+  result.inliers = kept.inliers;
+  result.rms = kept.rms;
+  if (kept.inliers > 0) {
+    const LinearSystem sys = linearize(L, o.parallel, b);
+    if (sys.m.sum_w > 0.0 && sys.m.H.allFinite()) {
+      result.covariance = pose_covariance(sys, o.degeneracy_threshold);
+      result.degeneracy = analyse_degeneracy(sys.m.H, sys.center, L, o.degeneracy_threshold);
+    }
+  }
+  if (termination == IcpTermination::converged && result.degeneracy.degenerate()) {
+    termination = IcpTermination::degenerate;
+    message = "converged in the constrained directions only; free: " + result.degeneracy.describe();
+  }
+  return finish(termination, message);
+}
+
+IcpResult align(CorrespondenceFinder& finder, std::span<const Vec3> scan,
+                const Isometry3d& T_model_scan_init, const IcpOptions& options) {
+  IcpSolver solver(options);
+  return solver.align(finder, scan, T_model_scan_init);
+}
+
+}  // namespace nurbsreg::icp

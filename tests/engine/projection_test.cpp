@@ -1,0 +1,204 @@
+// The batch projector over a prepared multi-surface model: exact (equal to the best of the
+// single-surface projectors, and to an independent brute force on a subset), the same for any
+// thread count and with or without hints (even wrong ones), and NaN points skipped.
+#include <gtest/gtest.h>
+#include <tbb/global_control.h>
+
+#include "nurbsreg/engine/projection.hpp"
+#include "nurbsreg/engine/shapes.hpp"
+#include "support/random_entities.hpp"
+
+namespace nurbsreg::engine {
+namespace {
+
+using test::uniform;
+
+// Three touching and overlapping surfaces: a freeform sheet, a sphere resting on it and a torus
+// around the sphere, so many points are nearly equidistant from two entities.
+Model mixed_model() {
+  Model m;
+  NurbsSurface sheet = test::random_surface(11, 3, 3, 8, 8, true);
+  for (Vec3& p : sheet.control_points)
+    p = Vec3(p.x() - 3.5, p.y() - 3.5, 0.3 * p.z());
+  sheet.name = "sheet";
+  m.surfaces.push_back(sheet);
+  m.surfaces.push_back(make_sphere(Vec3(0, 0, 1.5), 1.5));
+  m.surfaces.push_back(make_torus(Vec3(0, 0, 1.5), 2.5, 0.5));
+  m.curves.push_back(make_circle(Vec3(0, 0, 3.0), 2.0));
+  m.curves.push_back(test::random_curve(5, 3, 12, true));
+  return m;
+}
+
+std::vector<Vec3> query_points(const Aabb& box, std::size_t n, std::uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  const Vec3 lo = box.lo - 0.2 * (box.hi - box.lo);
+  const Vec3 hi = box.hi + 0.2 * (box.hi - box.lo);
+  std::vector<Vec3> points(n);
+  for (Vec3& p : points) {
+    p = Vec3(uniform(rng, lo.x(), hi.x()), uniform(rng, lo.y(), hi.y()),
+             uniform(rng, lo.z(), hi.z()));
+  }
+  return points;
+}
+
+class ProjectionTest : public ::testing::Test {
+ protected:
+  ProjectionTest() : prepared_(mixed_model()), points_(query_points(prepared_.bounds(), 3000, 7)) {}
+  PreparedModel prepared_;
+  std::vector<Vec3> points_;
+};
+
+TEST_F(ProjectionTest, EqualsTheBestSingleSurfaceProjection) {
+  Projector projector(prepared_);
+  ProjectionResults results;
+  projector.project(PointView::of(points_), {}, results);
+  std::vector<SurfaceProjector> singles;
+  for (const NurbsSurface& s : prepared_.model().surfaces)
+    singles.emplace_back(s);
+  SurfaceScratch scratch;
+  const double tolerance = 1e-9 * prepared_.bounds().diagonal();
+  for (std::size_t i = 0; i < points_.size(); ++i) {
+    ASSERT_EQ(results.status[i], ProjectionStatus::ok);
+    double best = std::numeric_limits<double>::infinity();
+    for (const SurfaceProjector& single : singles) {
+      best = std::min(
+          best, std::sqrt(single.project(points_[i], SurfaceStrategy::spherical_clipping, scratch)
+                              .distance_sq));
+    }
+    EXPECT_NEAR(results.distance[i], best, tolerance) << "point " << i;
+    // The reported foot is on the reported surface at the reported parameters.
+    const NurbsSurface& s = prepared_.model().surfaces[results.entity[i]];
+    EXPECT_LT((s.evaluate(results.u[i], results.v[i]) - results.foot[i]).norm(), tolerance);
+    EXPECT_NEAR((points_[i] - results.foot[i]).norm(), results.distance[i], tolerance);
+    EXPECT_NEAR(results.normal[i].norm(), 1.0, 1e-12);
+    EXPECT_NEAR(std::abs(results.signed_distance[i]), results.distance[i], 0.0);
+  }
+}
+
+TEST_F(ProjectionTest, SameResultsForAnyThreadCountAndSerial) {
+  ProjectionResults serial;
+  ProjectionResults one;
+  ProjectionResults two;
+  {
+    Projector projector(prepared_);
+    projector.project_serial(PointView::of(points_), {}, serial);
+  }
+  {
+    tbb::global_control limit(tbb::global_control::max_allowed_parallelism, 1);
+    Projector projector(prepared_);
+    projector.project(PointView::of(points_), {}, one);
+  }
+  {
+    tbb::global_control limit(tbb::global_control::max_allowed_parallelism, 2);
+    Projector projector(prepared_);
+    ProjectionOptions options;
+    options.grain = 7;  // many small tasks: maximal interleaving
+    projector.project(PointView::of(points_), options, two);
+  }
+  for (std::size_t i = 0; i < points_.size(); ++i) {
+    ASSERT_EQ(serial.distance[i], one.distance[i]);
+    ASSERT_EQ(serial.distance[i], two.distance[i]);
+    ASSERT_EQ(serial.u[i], two.u[i]);
+    ASSERT_EQ(serial.v[i], two.v[i]);
+    ASSERT_EQ(serial.entity[i], two.entity[i]);
+  }
+}
+
+TEST_F(ProjectionTest, WarmStartsStayExactEvenWithWrongHints) {
+  Projector projector(prepared_);
+  ProjectionResults cold;
+  projector.project(PointView::of(points_), {}, cold);
+  // Good hints: the feet of slightly perturbed points (as in ICP).
+  std::mt19937_64 rng(3);
+  std::vector<Vec3> moved(points_);
+  for (Vec3& p : moved)
+    p += Vec3(uniform(rng, -1, 1), uniform(rng, -1, 1), uniform(rng, -1, 1)) * 1e-3;
+  ProjectionResults previous;
+  projector.project(PointView::of(moved), {}, previous);
+  std::vector<ProjectionHint> good(points_.size());
+  std::vector<ProjectionHint> wrong(points_.size());
+  for (std::size_t i = 0; i < points_.size(); ++i) {
+    good[i] = previous.hint(i);
+    wrong[i] = {static_cast<std::int32_t>(rng() % 3), uniform(rng, 0, 1), uniform(rng, 0, 1)};
+  }
+  ProjectionCounters cold_counters;
+  ProjectionCounters warm_counters;
+  projector.project(PointView::of(points_), {}, cold, {}, &cold_counters);
+  ProjectionResults warm;
+  projector.project(PointView::of(points_), {}, warm, good, &warm_counters);
+  ProjectionResults misled;
+  projector.project(PointView::of(points_), {}, misled, wrong);
+  const double tolerance = 1e-9 * prepared_.bounds().diagonal();
+  for (std::size_t i = 0; i < points_.size(); ++i) {
+    EXPECT_NEAR(warm.distance[i], cold.distance[i], tolerance) << i;
+    EXPECT_NEAR(misled.distance[i], cold.distance[i], tolerance) << i;
+  }
+  EXPECT_LT(warm_counters.patches_visited, cold_counters.patches_visited);
+}
+
+TEST_F(ProjectionTest, NonFinitePointsAreSkippedAndCounted) {
+  std::vector<Vec3> points(points_.begin(), points_.begin() + 10);
+  points[3].x() = std::numeric_limits<double>::quiet_NaN();
+  points[7].z() = std::numeric_limits<double>::infinity();
+  Projector projector(prepared_);
+  ProjectionResults results;
+  ProjectionCounters counters;
+  projector.project(PointView::of(points), {}, results, {}, &counters);
+  EXPECT_EQ(counters.points, 10u);
+  EXPECT_EQ(counters.skipped, 2u);
+  EXPECT_EQ(results.status[3], ProjectionStatus::skipped_nonfinite);
+  EXPECT_EQ(results.status[7], ProjectionStatus::skipped_nonfinite);
+  EXPECT_EQ(results.status[4], ProjectionStatus::ok);
+}
+
+TEST_F(ProjectionTest, CurvesTargetEqualsBestSingleCurve) {
+  Projector projector(prepared_);
+  ProjectionOptions options;
+  options.target = ProjectionTarget::curves;
+  ProjectionResults results;
+  projector.project(PointView::of(points_), options, results);
+  std::vector<CurveProjector> singles;
+  for (const NurbsCurve& c : prepared_.model().curves)
+    singles.emplace_back(c);
+  const double tolerance = 1e-9 * prepared_.bounds().diagonal();
+  for (std::size_t i = 0; i < points_.size(); i += 3) {
+    double best = std::numeric_limits<double>::infinity();
+    for (const CurveProjector& single : singles) {
+      best = std::min(best, std::sqrt(single.project(points_[i]).distance_sq));
+    }
+    EXPECT_NEAR(results.distance[i], best, tolerance);
+    EXPECT_EQ(results.v[i], 0.0);
+  }
+}
+
+TEST_F(ProjectionTest, MaxDistanceLeavesFarPointsOut) {
+  Projector projector(prepared_);
+  ProjectionResults all;
+  projector.project(PointView::of(points_), {}, all);
+  ProjectionOptions options;
+  options.max_distance = 0.5;
+  ProjectionResults near;
+  std::vector<ProjectionHint> hints(points_.size());
+  for (std::size_t i = 0; i < points_.size(); ++i)
+    hints[i] = all.hint(i);  // hints beyond too
+  projector.project(PointView::of(points_), options, near, hints);
+  std::size_t beyond = 0;
+  for (std::size_t i = 0; i < points_.size(); ++i) {
+    if (all.distance[i] < 0.5 * (1 - 1e-9)) {
+      ASSERT_EQ(near.status[i], ProjectionStatus::ok) << i;
+      EXPECT_NEAR(near.distance[i], all.distance[i], 1e-9 * prepared_.bounds().diagonal());
+    } else if (all.distance[i] > 0.5 * (1 + 1e-9)) {
+      EXPECT_EQ(near.status[i], ProjectionStatus::beyond_max_distance) << i;
+      ++beyond;
+    }
+  }
+  EXPECT_GT(beyond, 100u);
+}
+
+TEST(PreparedModel, RejectsInvalidModels) {
+  Model empty;
+  EXPECT_THROW(PreparedModel{empty}, std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace nurbsreg::engine

@@ -1,0 +1,440 @@
+// ICP against analytic scenes whose closest points are exact (planes, spheres, cylinders), so
+// every error below is the solver's own. Scene size S = 100 model units; the known pose is a
+// 5 degree rotation and a 5 unit (5% of S) translation.
+#include <gtest/gtest.h>
+#include <tbb/global_control.h>
+
+#include <cmath>
+#include <numbers>
+#include <random>
+
+#include "nurbsreg/icp/analytic.hpp"
+#include "nurbsreg/icp/icp.hpp"
+
+namespace nurbsreg::icp {
+namespace {
+
+using Eigen::Isometry3d;
+using engine::Vec3;
+
+constexpr double kSize = 100.0;
+
+Isometry3d make_pose(const Vec3& axis, double degrees, const Vec3& translation) {
+  Isometry3d T = Isometry3d::Identity();
+  T.linear() = Eigen::AngleAxisd(degrees * std::numbers::pi / 180.0, axis.normalized()).matrix();
+  T.translation() = translation;
+  return T;
+}
+
+// The pose used throughout: 5 degrees about a generic axis, translation of length 5.
+Isometry3d true_pose() {
+  return make_pose(Vec3(1.0, 2.0, 3.0), 5.0, Vec3(3.0, -2.0, 4.0).normalized() * 0.05 * kSize);
+}
+
+// A plane with three spheres on it: every rigid motion changes some distance.
+std::vector<Primitive> scene() {
+  Rectangle floor;
+  floor.half_u = floor.half_v = 0.5 * kSize;
+  return {floor, Sphere{Vec3(-25, -20, 14), 12}, Sphere{Vec3(28, -15, 10), 8},
+          Sphere{Vec3(0, 28, 17), 15}};
+}
+
+// Model samples -> scan frame: scan = T_true^-1 * model, so model = T_true * scan.
+std::vector<Vec3> to_scan(const std::vector<Vec3>& model_points, const Isometry3d& T_true) {
+  std::vector<Vec3> scan;
+  scan.reserve(model_points.size());
+  const Isometry3d inverse = T_true.inverse();
+  for (const Vec3& p : model_points)
+    scan.push_back(inverse * p);
+  return scan;
+}
+
+// Box-Muller on std::mt19937_64 (platform-independent, unlike std::normal_distribution).
+double gaussian(std::mt19937_64& rng) {
+  const double u1 = (static_cast<double>(rng() >> 11) + 0.5) * 0x1.0p-53;
+  const double u2 = static_cast<double>(rng() >> 11) * 0x1.0p-53;
+  return std::sqrt(-2.0 * std::log(u1)) * std::cos(2.0 * std::numbers::pi * u2);
+}
+
+void add_noise(std::vector<Vec3>& points, double sigma, std::uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  for (Vec3& p : points) {
+    const double x = gaussian(rng), y = gaussian(rng), z = gaussian(rng);
+    p += sigma * Vec3(x, y, z);
+  }
+}
+
+// Error of an estimate as the left twist xi with T_true = exp(xi) T_est (model frame).
+Vec6 pose_error(const Isometry3d& T_est, const Isometry3d& T_true) {
+  return log_se3(T_true * T_est.inverse());
+}
+
+double rotation_error(const Isometry3d& T_est, const Isometry3d& T_true) {
+  return rotation_angle(T_true * T_est.inverse());
+}
+
+// Largest displacement of a scene point (|x| <= S) between the two poses' images.
+double translation_error(const Isometry3d& T_est, const Isometry3d& T_true) {
+  return (T_true * T_est.inverse()).translation().norm();
+}
+
+IcpOptions exact_options() {
+  IcpOptions o;
+  o.max_iterations = 60;
+  return o;
+}
+
+TEST(Icp, PointToPlaneRecoversThePoseExactly) {
+  const std::vector<Primitive> primitives = scene();
+  UnionFinder finder(primitives);
+  const std::vector<Vec3> scan = to_scan(sample_uniform(primitives, 4000, 7), true_pose());
+  const IcpResult r = align(finder, scan, Isometry3d::Identity(), exact_options());
+  ASSERT_EQ(r.termination, IcpTermination::converged) << r.brief_report();
+  EXPECT_LT(rotation_error(r.T_model_scan, true_pose()), 1e-9);
+  EXPECT_LT(translation_error(r.T_model_scan, true_pose()), 1e-9 * kSize);
+  EXPECT_LT(r.rms, 1e-9 * kSize);
+  EXPECT_EQ(r.inliers, scan.size());
+  EXPECT_EQ(r.points, scan.size());
+  EXPECT_FALSE(r.degeneracy.degenerate()) << r.degeneracy.describe();
+  EXPECT_LT(r.iterations, 20);
+  ASSERT_EQ(static_cast<int>(r.log.size()), r.iterations);
+  // Gauss-Newton on a zero-residual problem: the RMS falls by orders of magnitude per step.
+  EXPECT_LT(r.log[2].rms, 1e-2 * r.log[0].rms);
+  EXPECT_FALSE(r.brief_report().empty());
+}
+
+TEST(Icp, PointToPointRecoversThePose) {
+  const std::vector<Primitive> primitives = scene();
+  UnionFinder finder(primitives);
+  const std::vector<Vec3> scan = to_scan(sample_uniform(primitives, 4000, 8), true_pose());
+  IcpOptions o = exact_options();
+  o.method = IcpMethod::point_to_point;
+  o.max_iterations = 400;  // point-to-point converges linearly (Besl & McKay 1992, Thm. 1)
+  o.rotation_tolerance = 1e-12;
+  o.translation_tolerance = 1e-12 * kSize;
+  o.relative_rms_tolerance = 0.0;
+  const IcpResult r = align(finder, scan, Isometry3d::Identity(), o);
+  EXPECT_NE(r.termination, IcpTermination::numerical_failure) << r.brief_report();
+  EXPECT_LT(rotation_error(r.T_model_scan, true_pose()), 1e-7);
+  EXPECT_LT(translation_error(r.T_model_scan, true_pose()), 1e-7 * kSize);
+}
+
+// Independent reference for the noise test: the Fisher information of the point-to-plane
+// problem at the true pose, from the true geometry (normals computed here from the scene
+// definition, not by the finder). For isotropic noise of std sigma per coordinate the
+// residual n . (q - f) has std sigma, so the least-squares pose error xi (left twist about
+// the origin) has covariance sigma^2 (sum J J^T)^-1, J = [x x n ; n] (Gauss-Markov); each
+// component therefore lies within 5 of its standard deviations except with probability
+// < 6e-7, and xi^T Cov^-1 xi follows chi^2 with 6 degrees of freedom (99.99%: 27.86).
+Mat6 reference_covariance(const std::vector<Vec3>& model_points, double sigma) {
+  Mat6 H = Mat6::Zero();
+  for (const Vec3& x : model_points) {
+    Vec3 n = Vec3::UnitZ();
+    for (const Primitive& p : scene()) {
+      if (const Sphere* s = std::get_if<Sphere>(&p)) {
+        if (std::abs((x - s->center).norm() - s->radius) < 1e-9) n = (x - s->center).normalized();
+      }
+    }
+    Vec6 J;
+    J << x.cross(n), n;
+    H += J * J.transpose();
+  }
+  return sigma * sigma * H.inverse();
+}
+
+TEST(Icp, GaussianNoiseStaysWithinTheDerivedBound) {
+  const std::vector<Primitive> primitives = scene();
+  UnionFinder finder(primitives);
+  const double sigma = 1e-3 * kSize;
+  const std::vector<Vec3> model_points = sample_uniform(primitives, 4000, 9);
+  std::vector<Vec3> scan = to_scan(model_points, true_pose());
+  add_noise(scan, sigma, 10);
+  const IcpResult r = align(finder, scan, Isometry3d::Identity(), exact_options());
+  ASSERT_EQ(r.termination, IcpTermination::converged) << r.brief_report();
+  const Mat6 cov = reference_covariance(model_points, sigma);
+  const Vec6 xi = pose_error(r.T_model_scan, true_pose());
+  for (int j = 0; j < 6; ++j) {
+    EXPECT_LT(std::abs(xi(j)), 5.0 * std::sqrt(cov(j, j))) << "component " << j;
+    // The solver's own covariance estimate agrees with the reference (sigma^2 estimated
+    // from the residuals: relative error ~ 1/sqrt(2N) ~ 1%, plus small curvature effects).
+    EXPECT_NEAR(r.covariance(j, j), cov(j, j), 0.1 * cov(j, j)) << "component " << j;
+  }
+  EXPECT_LT(xi.dot(cov.ldlt().solve(xi)), 27.86);
+  // The RMS of the point-to-surface distance is the normal part of the noise: sigma.
+  EXPECT_NEAR(r.rms, sigma, 0.05 * sigma);
+}
+
+struct RobustCase {
+  const char* name;
+  RobustKernel kernel;
+  double keep_fraction;
+};
+
+class IcpOutliers : public ::testing::TestWithParam<RobustCase> {};
+
+// 10% of the points replaced by uniform points in a box around the scene. Outliers far from
+// the surfaces get weight ~0 (Tukey, Geman-McClure), bounded influence (Huber) or are trimmed;
+// the few that land within a few sigma of a surface act like extra noisy inliers. Bound:
+// 10 standard deviations of the clean problem (efficiency loss of the kernels <= 5%, the
+// rest is the bias of the near-surface outliers, which the test keeps few).
+TEST_P(IcpOutliers, RobustSettingsConverge) {
+  const RobustCase c = GetParam();
+  const std::vector<Primitive> primitives = scene();
+  UnionFinder finder(primitives);
+  const double sigma = 1e-3 * kSize;
+  std::vector<Vec3> model_points = sample_uniform(primitives, 4000, 11);
+  const Mat6 cov = reference_covariance(model_points, sigma);
+  std::mt19937_64 rng(12);
+  const auto uniform = [&](double lo, double hi) {
+    return lo + (hi - lo) * static_cast<double>(rng() >> 11) * 0x1.0p-53;
+  };
+  for (std::size_t i = 0; i < model_points.size(); i += 10) {
+    model_points[i] = Vec3(uniform(-60, 60), uniform(-60, 60), uniform(-20, 50));
+  }
+  std::vector<Vec3> scan = to_scan(model_points, true_pose());
+  add_noise(scan, sigma, 13);
+  IcpOptions o = exact_options();
+  o.kernel = c.kernel;
+  o.keep_fraction = c.keep_fraction;
+  o.max_iterations = 100;
+  const IcpResult r = align(finder, scan, Isometry3d::Identity(), o);
+  ASSERT_EQ(r.termination, IcpTermination::converged) << r.brief_report();
+  const Vec6 xi = pose_error(r.T_model_scan, true_pose());
+  for (int j = 0; j < 6; ++j) {
+    EXPECT_LT(std::abs(xi(j)), 10.0 * std::sqrt(cov(j, j))) << "component " << j;
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(Kernels, IcpOutliers,
+                         ::testing::Values(RobustCase{"tukey", RobustKernel::tukey, 1.0},
+                                           RobustCase{"huber_trimmed", RobustKernel::huber, 0.85},
+                                           RobustCase{"geman_mcclure", RobustKernel::geman_mcclure,
+                                                      1.0},
+                                           RobustCase{"trimmed", RobustKernel::none, 0.85}),
+                         [](const auto& info) { return std::string(info.param.name); });
+
+TEST(Icp, PartialViewConverges) {
+  const std::vector<Primitive> primitives = scene();
+  UnionFinder finder(primitives);
+  // The corner x >= 0, y >= -10 of the scene: half of one sphere, a cap of another and
+  // 30% of the floor, about 30% of the scene's area.
+  const std::vector<Vec3> all = sample_uniform(primitives, 10000, 14);
+  std::vector<Vec3> view;
+  for (const Vec3& p : all) {
+    if (p.x() >= 0.0 && p.y() >= -10.0) view.push_back(p);
+  }
+  const double fraction = static_cast<double>(view.size()) / static_cast<double>(all.size());
+  ASSERT_GT(fraction, 0.25);
+  ASSERT_LT(fraction, 0.35);
+  const std::vector<Vec3> scan = to_scan(view, true_pose());
+  const IcpResult r = align(finder, scan, Isometry3d::Identity(), exact_options());
+  ASSERT_EQ(r.termination, IcpTermination::converged) << r.brief_report();
+  EXPECT_LT(rotation_error(r.T_model_scan, true_pose()), 1e-9);
+  EXPECT_LT(translation_error(r.T_model_scan, true_pose()), 1e-9 * kSize);
+}
+
+bool mentions(const DegeneracyReport& d, FreeDirection::Kind kind, const Vec3& direction) {
+  for (const FreeDirection& f : d.free_directions) {
+    if (f.kind == kind && std::abs(std::abs(f.direction.dot(direction)) - 1.0) < 1e-9) return true;
+  }
+  return false;
+}
+
+TEST(IcpDegeneracy, PlaneReportsTwoTranslationsAndTheNormalRotationAndStaysPut) {
+  Rectangle patch;
+  patch.half_u = patch.half_v = 0.5 * kSize;
+  const Primitive patch_primitive = patch;
+  PlaneFinder finder(Plane{Vec3::Zero(), Vec3::UnitZ()});
+  const std::vector<Vec3> scan =
+      to_scan(sample_uniform(std::span(&patch_primitive, 1), 2000, 15), true_pose());
+  const IcpResult r = align(finder, scan, Isometry3d::Identity(), exact_options());
+  ASSERT_EQ(r.termination, IcpTermination::degenerate) << r.brief_report();
+  ASSERT_EQ(r.degeneracy.free_directions.size(), 3u) << r.degeneracy.describe();
+  EXPECT_EQ(r.degeneracy.free_directions[0].description, "translation along (1, 0, 0)");
+  EXPECT_EQ(r.degeneracy.free_directions[1].description, "translation along (0, 1, 0)");
+  EXPECT_TRUE(mentions(r.degeneracy, FreeDirection::Kind::rotation, Vec3::UnitZ()))
+      << r.degeneracy.describe();
+  EXPECT_NE(r.brief_report().find("translation along (1, 0, 0)"), std::string::npos);
+  EXPECT_LT(r.rms, 1e-9 * kSize);
+  // No motion along the free directions. The constrained steps rotate about axes in the
+  // plane and translate along its normal, so the result is the smallest rotation that lays
+  // the scan plane onto z = 0, and the scan centroid keeps its (x, y).
+  const Vec3 scan_normal = true_pose().linear().transpose() * Vec3::UnitZ();
+  const Eigen::Matrix3d R_expected =
+      Eigen::Quaterniond::FromTwoVectors(scan_normal, Vec3::UnitZ()).toRotationMatrix();
+  EXPECT_LT((r.T_model_scan.linear() - R_expected).norm(), 1e-9);
+  Vec3 centroid = Vec3::Zero();
+  for (const Vec3& p : scan)
+    centroid += p;
+  centroid /= static_cast<double>(scan.size());
+  const Vec3 moved = r.T_model_scan * centroid;
+  EXPECT_NEAR(moved.x(), centroid.x(), 1e-9 * kSize);
+  EXPECT_NEAR(moved.y(), centroid.y(), 1e-9 * kSize);
+  EXPECT_NEAR(moved.z(), 0.0, 1e-9 * kSize);
+}
+
+TEST(IcpDegeneracy, SphereReportsThreeRotationsAboutItsCentre) {
+  const Sphere ball{Vec3(10, -5, 20), 30};
+  SphereFinder finder(ball);
+  // Antipodal pairs: the scan centroid is the sphere centre, so the minimal constrained
+  // motion is the pure translation of the centre (rotations about it are free).
+  const Primitive unit_sphere = Sphere{Vec3::Zero(), 1.0};
+  std::vector<Vec3> model_points;
+  for (const Vec3& u : sample_uniform(std::span(&unit_sphere, 1), 1000, 16)) {
+    model_points.push_back(ball.center + ball.radius * u);
+    model_points.push_back(ball.center - ball.radius * u);
+  }
+  const Isometry3d T_true = true_pose();
+  const std::vector<Vec3> scan = to_scan(model_points, T_true);
+  const IcpResult r = align(finder, scan, Isometry3d::Identity(), exact_options());
+  ASSERT_EQ(r.termination, IcpTermination::degenerate) << r.brief_report();
+  ASSERT_EQ(r.degeneracy.free_directions.size(), 3u) << r.degeneracy.describe();
+  for (int axis = 0; axis < 3; ++axis) {
+    const FreeDirection& f = r.degeneracy.free_directions[axis];
+    EXPECT_EQ(f.kind, FreeDirection::Kind::rotation) << f.description;
+    EXPECT_NEAR(std::abs(f.direction(axis)), 1.0, 1e-9) << f.description;
+    // The axis passes through the centre.
+    EXPECT_LT((f.point - ball.center).cross(f.direction).norm(), 1e-6 * kSize) << f.description;
+  }
+  EXPECT_EQ(r.degeneracy.free_directions[2].description,
+            "rotation about axis (0, 0, 1) through (10, -5, 20)");
+  // The scan's sphere centre lands on the model's, without any rotation.
+  const Vec3 scan_center = T_true.inverse() * ball.center;
+  EXPECT_LT((r.T_model_scan * scan_center - ball.center).norm(), 1e-9 * kSize);
+  EXPECT_LT(rotation_angle(r.T_model_scan), 1e-9);
+}
+
+TEST(IcpDegeneracy, CylinderReportsItsAxisTranslationAndRotation) {
+  const Vec3 axis = Vec3(0.0, 1.0, 1.0).normalized();
+  const Cylinder tube{Vec3(5, 0, 0), axis, 20.0, 40.0};
+  const Primitive tube_primitive = tube;
+  UnionFinder finder({Cylinder{tube.origin, axis, tube.radius}});  // unbounded model
+  const std::vector<Vec3> scan =
+      to_scan(sample_uniform(std::span(&tube_primitive, 1), 2000, 17), true_pose());
+  const IcpResult r = align(finder, scan, Isometry3d::Identity(), exact_options());
+  ASSERT_EQ(r.termination, IcpTermination::degenerate) << r.brief_report();
+  ASSERT_EQ(r.degeneracy.free_directions.size(), 2u) << r.degeneracy.describe();
+  EXPECT_TRUE(mentions(r.degeneracy, FreeDirection::Kind::translation, axis));
+  EXPECT_TRUE(mentions(r.degeneracy, FreeDirection::Kind::rotation, axis));
+  const FreeDirection& rotation = r.degeneracy.free_directions[1];
+  EXPECT_LT((rotation.point - tube.origin).cross(axis).norm(), 1e-6 * kSize);
+  // Every scan point ends on the cylinder.
+  EXPECT_LT(r.rms, 1e-9 * kSize);
+}
+
+TEST(IcpDeterminism, SameBitsForOneAndTwoThreadsAndSerial) {
+  const std::vector<Primitive> primitives = scene();
+  UnionFinder finder(primitives);
+  // More points than a few reduction blocks so that the blocks really are split over threads.
+  std::vector<Vec3> scan =
+      to_scan(sample_uniform(primitives, 5 * kReductionBlock + 123, 18), true_pose());
+  add_noise(scan, 1e-3 * kSize, 19);
+  IcpOptions o = exact_options();
+  o.kernel = RobustKernel::huber;
+  o.max_iterations = 8;  // compare mid-run states too, not only a converged fixed point
+  const auto run = [&](int threads, bool parallel) {
+    tbb::global_control limit(tbb::global_control::max_allowed_parallelism, threads);
+    IcpOptions opt = o;
+    opt.parallel = parallel;
+    return align(finder, scan, Isometry3d::Identity(), opt);
+  };
+  const IcpResult one = run(1, true);
+  const IcpResult two = run(2, true);
+  const IcpResult serial = run(2, false);
+  for (const IcpResult* other : {&two, &serial}) {
+    EXPECT_TRUE(one.T_model_scan.matrix() == other->T_model_scan.matrix());
+    EXPECT_TRUE(one.covariance == other->covariance);
+    EXPECT_EQ(one.rms, other->rms);
+    ASSERT_EQ(one.log.size(), other->log.size());
+    for (std::size_t i = 0; i < one.log.size(); ++i)
+      EXPECT_EQ(one.log[i].rms, other->log[i].rms);
+  }
+}
+
+TEST(IcpCoarseToFine, ReachesTheSameAnswer) {
+  const std::vector<Primitive> primitives = scene();
+  UnionFinder finder(primitives);
+  std::vector<Vec3> scan = to_scan(sample_uniform(primitives, 6000, 20), true_pose());
+  add_noise(scan, 1e-3 * kSize, 21);
+  const IcpResult direct = align(finder, scan, Isometry3d::Identity(), exact_options());
+  IcpOptions o = exact_options();
+  o.coarse_sizes = {300, 1500};
+  const IcpResult staged = align(finder, scan, Isometry3d::Identity(), o);
+  ASSERT_EQ(staged.termination, IcpTermination::converged) << staged.brief_report();
+  ASSERT_EQ(direct.termination, IcpTermination::converged) << direct.brief_report();
+  EXPECT_LT(rotation_error(staged.T_model_scan, direct.T_model_scan), 1e-9);
+  EXPECT_LT(translation_error(staged.T_model_scan, direct.T_model_scan), 1e-9 * kSize);
+  // Three stages ran, on 300, 1500 and all points.
+  ASSERT_FALSE(staged.log.empty());
+  EXPECT_EQ(staged.log.front().points, 300u);
+  EXPECT_EQ(staged.log.back().points, scan.size());
+  EXPECT_EQ(staged.log.back().stage, 2);
+  // The fine stage starts close: fewer full-size iterations than without coarse stages.
+  int full_iterations = 0;
+  for (const IcpIteration& it : staged.log)
+    full_iterations += it.points == scan.size();
+  EXPECT_LT(full_iterations, direct.iterations);
+}
+
+TEST(IcpOptionsValidation, ErrorsNameTheField) {
+  const auto error_of = [](auto mutate) {
+    IcpOptions o;
+    mutate(o);
+    return o.validate().value_or("");
+  };
+  EXPECT_FALSE(IcpOptions{}.validate());
+  EXPECT_NE(error_of([](IcpOptions& o) { o.max_iterations = 0; }).find("max_iterations"),
+            std::string::npos);
+  EXPECT_NE(error_of([](IcpOptions& o) {
+              o.max_correspondence_distance = -1;
+            }).find("max_correspondence_distance"),
+            std::string::npos);
+  EXPECT_NE(error_of([](IcpOptions& o) { o.keep_fraction = 0.0; }).find("keep_fraction"),
+            std::string::npos);
+  EXPECT_NE(error_of([](IcpOptions& o) { o.kernel_scale = NAN; }).find("kernel_scale"),
+            std::string::npos);
+  EXPECT_NE(error_of([](IcpOptions& o) {
+              o.coarse_sizes = {500, 100};
+            }).find("coarse_sizes[1]"),
+            std::string::npos);
+  EXPECT_NE(error_of([](IcpOptions& o) { o.rotation_tolerance = -1; }).find("rotation_tolerance"),
+            std::string::npos);
+  EXPECT_NE(error_of([](IcpOptions& o) { o.min_correspondences = 2; }).find("min_correspondences"),
+            std::string::npos);
+  EXPECT_NE(
+      error_of([](IcpOptions& o) { o.degeneracy_threshold = 1.0; }).find("degeneracy_threshold"),
+      std::string::npos);
+  // align() reports bad options and bad points as invalid_input, naming them.
+  UnionFinder finder(scene());
+  std::vector<Vec3> scan = sample_uniform(scene(), 100, 22);
+  IcpOptions bad;
+  bad.keep_fraction = 2.0;
+  IcpResult r = align(finder, scan, Isometry3d::Identity(), bad);
+  EXPECT_EQ(r.termination, IcpTermination::invalid_input);
+  EXPECT_NE(r.message.find("keep_fraction"), std::string::npos) << r.message;
+  scan[42].y() = NAN;
+  r = align(finder, scan, Isometry3d::Identity(), IcpOptions{});
+  EXPECT_EQ(r.termination, IcpTermination::invalid_input);
+  EXPECT_NE(r.message.find("scan point 42"), std::string::npos) << r.message;
+}
+
+TEST(IcpTerminationCases, TooFewCorrespondencesAndIterationLimit) {
+  UnionFinder finder(scene());
+  const std::vector<Vec3> scan = to_scan(sample_uniform(scene(), 1000, 23), true_pose());
+  IcpOptions o;
+  o.max_correspondence_distance = 1e-6;  // nothing matches at the initial pose
+  IcpResult r = align(finder, scan, Isometry3d::Identity(), o);
+  EXPECT_EQ(r.termination, IcpTermination::too_few_correspondences) << r.brief_report();
+  EXPECT_TRUE(r.T_model_scan.isApprox(Isometry3d::Identity()));
+  o = IcpOptions{};
+  o.max_iterations = 2;
+  r = align(finder, scan, Isometry3d::Identity(), o);
+  EXPECT_EQ(r.termination, IcpTermination::max_iterations) << r.brief_report();
+  EXPECT_EQ(r.iterations, 2);
+  const std::vector<Vec3> two_points(2, Vec3::Zero());
+  r = align(finder, two_points, Isometry3d::Identity(), IcpOptions{});
+  EXPECT_EQ(r.termination, IcpTermination::too_few_correspondences);
+}
+
+}  // namespace
+}  // namespace nurbsreg::icp
