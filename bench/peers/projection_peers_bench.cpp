@@ -20,7 +20,6 @@
 #include <cstdio>
 #include <ctime>
 #include <functional>
-#include <map>
 #include <string>
 #include <vector>
 
@@ -41,7 +40,7 @@ struct Options {
   std::size_t check = 100000;   // prefix judged against the brute-force reference
   std::size_t occt_points = 3000;
   std::size_t sisl_points = 1000;
-  std::size_t sisl_points_large = 100;  // panel1369: s1954 takes ~10 ms per point there
+  std::size_t sisl_points_large = 100;  // panel1369: s1954 takes ~4 CPU-ms per point there
   std::size_t flann_points = 10000;     // exact kd-tree search is slow for far points
   std::size_t frame = 1000000;          // the 1,000,000-point frame on panel1369
   std::size_t flann_samples = 1000000;
