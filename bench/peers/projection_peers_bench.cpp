@@ -507,7 +507,7 @@ int main(int argc, char** argv) {
   app.add_option("--models", options.models, "panel49,panel1369,sphere,folded")->delimiter(',');
   app.add_option("--methods", options.methods, "nurbsreg,occt,occt-tree,sisl,flann")
       ->delimiter(',');
-  app.add_option("--points", options.points, "points per model (nurbsreg, FLANN)");
+  app.add_option("--points", options.points, "points per model for nurbsreg");
   app.add_option("--check", options.check, "points checked against the brute-force reference");
   app.add_option("--occt-points", options.occt_points, "points for each OCCT variant");
   app.add_option("--sisl-points", options.sisl_points, "points for SISL");
@@ -533,6 +533,18 @@ int main(int argc, char** argv) {
     quick_default("--frame", options.frame, 0);
     quick_default("--flann-samples", options.flann_samples, 100000);
     if (app.count("--repeat") == 0) options.repeat = 1;
+  }
+  for (const auto& m : options.models) {
+    if (m != "panel49" && m != "panel1369" && m != "sphere" && m != "folded") {
+      std::fprintf(stderr, "error: --models: unknown model \"%s\"\n", m.c_str());
+      return 2;
+    }
+  }
+  for (const auto& m : options.methods) {
+    if (m != "nurbsreg" && m != "occt" && m != "occt-tree" && m != "sisl" && m != "flann") {
+      std::fprintf(stderr, "error: --methods: unknown method \"%s\"\n", m.c_str());
+      return 2;
+    }
   }
   if (options.threads.empty() ||
       *std::min_element(options.threads.begin(), options.threads.end()) < 1) {
