@@ -113,6 +113,7 @@ void Projector::project_range(PointView points, const ProjectionOptions& options
         best_surface = -1;
       }
       double alpha = best.distance_sq;
+      std::int64_t best_patch = -1;
       model_.patch_hierarchy().nearest(
           p, alpha, state.bvh_scratch,
           [this](std::uint32_t k, const Vec3& x) { return model_.patch_lower_bound(k, x); },
@@ -121,6 +122,7 @@ void Projector::project_range(PointView points, const ProjectionOptions& options
             if (project_onto_patch(model_.patch(k), p, best, state.surface_scratch,
                                    &state.surface_stats)) {
               best_surface = model_.patch_surface(k);
+              best_patch = k;
               a = best.distance_sq;
             }
           });
@@ -130,7 +132,16 @@ void Projector::project_range(PointView points, const ProjectionOptions& options
       }
       const NurbsSurface& s = model.surfaces[best_surface];
       const double distance = std::sqrt(best.distance_sq);
-      const Vec3 n = surface_normal(s, best.u, best.v);
+      // The normal from the Bézier patch that holds the foot (its first derivatives), not via
+      // the NURBS surface (span search + basis functions). On a patch edge the NURBS
+      // evaluation picks its own side's span, which differs at a C0 crease: there, and where
+      // the patch normal is undefined (poles), the surface's own rule decides.
+      Vec3 n = Vec3::Zero();
+      if (best_patch >= 0 && best.s > 0.0 && best.s < 1.0 && best.t > 0.0 && best.t < 1.0) {
+        n = patch_unit_normal(model_.patch(static_cast<std::size_t>(best_patch)).patch, best.s,
+                              best.t);
+      }
+      if (n.isZero(0.0)) n = surface_normal(s, best.u, best.v);
       out.foot[i] = best.foot;
       out.distance[i] = distance;
       out.signed_distance[i] = (p - best.foot).dot(n) < 0.0 ? -distance : distance;

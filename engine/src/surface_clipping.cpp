@@ -132,6 +132,131 @@ int monotone_edge(const FDerivatives& f) {
   return -1;
 }
 
+// Polynomial F (D == 1) only: the termination test of `convex` on F's own second derivatives,
+// computed in one pass per derivative with an exit as soon as a bound shows the test fails
+// (min F_ss <= 0 or min F_tt <= 0 fails whatever the margin is). Same result as
+// convex(f_derivatives(...)) for a polynomial patch; the first-derivative ranges are not needed
+// there (monotone_edge is used for rational patches only).
+bool convex_polynomial(const double* a, int rows, int cols) {
+  if (rows < 3 || cols < 3) return false;  // F_ss or F_tt identically zero
+  const int m = rows - 1, n = cols - 1;
+  double ss_lo = std::numeric_limits<double>::infinity(), ss_hi = -ss_lo;
+  for (int i = 0; i + 2 < rows; ++i) {
+    const double* r0 = a + i * cols;
+    const double* r1 = r0 + cols;
+    const double* r2 = r1 + cols;
+    for (int j = 0; j < cols; ++j) {
+      const double x = r2[j] - 2.0 * r1[j] + r0[j];
+      ss_lo = std::min(ss_lo, x);
+      ss_hi = std::max(ss_hi, x);
+    }
+    if (!(ss_lo > 0.0)) return false;
+  }
+  double tt_lo = std::numeric_limits<double>::infinity(), tt_hi = -tt_lo;
+  for (int i = 0; i < rows; ++i) {
+    const double* r = a + i * cols;
+    for (int j = 0; j + 2 < cols; ++j) {
+      const double x = r[j + 2] - 2.0 * r[j + 1] + r[j];
+      tt_lo = std::min(tt_lo, x);
+      tt_hi = std::max(tt_hi, x);
+    }
+    if (!(tt_lo > 0.0)) return false;
+  }
+  double st_lo = std::numeric_limits<double>::infinity(), st_hi = -st_lo;
+  for (int i = 0; i + 1 < rows; ++i) {
+    const double* r0 = a + i * cols;
+    const double* r1 = r0 + cols;
+    for (int j = 0; j + 1 < cols; ++j) {
+      const double x = r1[j + 1] - r1[j] - r0[j + 1] + r0[j];
+      st_lo = std::min(st_lo, x);
+      st_hi = std::max(st_hi, x);
+    }
+  }
+  // The same scaling and margin as derivative_ranges + convex.
+  const double ks = double(m) * (m - 1), kt = double(n) * (n - 1), kst = double(m) * n;
+  FDerivatives f{};
+  f.ss = {ks * ss_lo, ks * ss_hi};
+  f.tt = {kt * tt_lo, kt * tt_hi};
+  f.st = {kst * st_lo, kst * st_hi};
+  return convex(f);
+}
+
+// Bernstein values and first and second derivatives of degree n at t in one triangular pass
+// (The NURBS Book A1.3, keeping the rows of degree n - 1 and n - 2 on the way; dB_i^n/dt =
+// n (B_{i-1}^{n-1} - B_i^{n-1}), eq. 1.9). Only entries 0..n are written.
+void bernstein_012(int n, double t, double* b0, double* b1, double* b2) {
+  double l1[kMaxDegree + 1], l2[kMaxDegree + 1];
+  const double u = 1.0 - t;
+  b0[0] = 1.0;
+  if (n == 1) l1[0] = 1.0;
+  if (n == 2) l2[0] = 1.0;
+  for (int k = 1; k <= n; ++k) {
+    double saved = 0.0;
+    for (int j = 0; j < k; ++j) {
+      const double tmp = b0[j];
+      b0[j] = saved + u * tmp;
+      saved = t * tmp;
+    }
+    b0[k] = saved;
+    if (k == n - 1) std::memcpy(l1, b0, sizeof(double) * (k + 1));
+    if (k == n - 2) std::memcpy(l2, b0, sizeof(double) * (k + 1));
+  }
+  for (int i = 0; i <= n; ++i) {
+    const double a = i >= 1 ? l1[i - 1] : 0.0;
+    const double c = i <= n - 1 ? l1[i] : 0.0;
+    b1[i] = n >= 1 ? n * (a - c) : 0.0;
+  }
+  for (int i = 0; i <= n; ++i) {
+    if (n < 2) {
+      b2[i] = 0.0;
+      continue;
+    }
+    const double a = i >= 2 ? l2[i - 2] : 0.0;
+    const double b = (i >= 1 && i - 1 <= n - 2) ? l2[i - 1] : 0.0;
+    const double c = i <= n - 2 ? l2[i] : 0.0;
+    b2[i] = n * (n - 1) * (a - 2.0 * b + c);
+  }
+}
+
+// S, S_s, S_t, S_ss, S_st, S_tt of a rational Bézier patch at local (s, t): homogeneous tensor
+// sums, then the quotient rule (The NURBS Book eq. 4.20). The same formulas as
+// BezierPatch::derivatives with one basis pass per direction and no zero-filled storage: the
+// Newton iteration's inner cost.
+void patch_derivatives(const BezierPatch& patch, double s, double t, Vec3* out) {
+  const int p = patch.degree_u, q = patch.degree_v;
+  double bu[3][kMaxDegree + 1], bv[3][kMaxDegree + 1];
+  bernstein_012(p, s, bu[0], bu[1], bu[2]);
+  bernstein_012(q, t, bv[0], bv[1], bv[2]);
+  Vec4 a00 = Vec4::Zero(), a01 = Vec4::Zero(), a02 = Vec4::Zero(), a10 = Vec4::Zero(),
+       a11 = Vec4::Zero(), a20 = Vec4::Zero();
+  const Vec4* cw = patch.cw.data();
+  for (int i = 0; i <= p; ++i) {
+    Vec4 r0 = Vec4::Zero(), r1 = Vec4::Zero(), r2 = Vec4::Zero();
+    const Vec4* row = cw + i * (q + 1);
+    for (int j = 0; j <= q; ++j) {
+      r0 += bv[0][j] * row[j];
+      r1 += bv[1][j] * row[j];
+      r2 += bv[2][j] * row[j];
+    }
+    a00 += bu[0][i] * r0;
+    a01 += bu[0][i] * r1;
+    a02 += bu[0][i] * r2;
+    a10 += bu[1][i] * r0;
+    a11 += bu[1][i] * r1;
+    a20 += bu[2][i] * r0;
+  }
+  const double inv_w = 1.0 / a00[3];
+  const Vec3 x = a00.head<3>() * inv_w;
+  const Vec3 xs = (a10.head<3>() - a10[3] * x) * inv_w;
+  const Vec3 xt = (a01.head<3>() - a01[3] * x) * inv_w;
+  out[0] = x;
+  out[1] = xs;
+  out[2] = xt;
+  out[3] = (a20.head<3>() - 2.0 * a10[3] * xs - a20[3] * x) * inv_w;
+  out[4] = (a11.head<3>() - a10[3] * xt - a01[3] * xs - a11[3] * x) * inv_w;
+  out[5] = (a02.head<3>() - 2.0 * a01[3] * xt - a02[3] * x) * inv_w;
+}
+
 // de Casteljau at 1/2 along s (rows): `low` (in place) gets [s0, mid], `high` [mid, s1].
 void split_rows(double* low, double* high, int rows, int cols) {
   double work[kMaxGridSide];
@@ -455,13 +580,19 @@ void Clipper::run() {
       newton(b.s0, b.s1, b.t0, b.t1);
       continue;
     }
-    const FDerivatives fd = f_derivatives(n, d, rows, cols, pp.rational, {b.lower, f_max});
-    if (convex(fd)) {
-      ++st.convex_terminations;
-      newton(b.s0, b.s1, b.t0, b.t1);
-      continue;
-    }
-    if (pp.rational) {
+    if (!pp.rational) {
+      if (convex_polynomial(n, rows, cols)) {
+        ++st.convex_terminations;
+        newton(b.s0, b.s1, b.t0, b.t1);
+        continue;
+      }
+    } else {
+      const FDerivatives fd = f_derivatives(n, d, rows, cols, true, {b.lower, f_max});
+      if (convex(fd)) {
+        ++st.convex_terminations;
+        newton(b.s0, b.s1, b.t0, b.t1);
+        continue;
+      }
       const int edge = monotone_edge(fd);
       if (edge >= 0) {
         reduce_to_edge(edge, n, d, b);
@@ -584,7 +715,7 @@ double newton_on_patch(const BezierPatch& patch, const Vec3& p, double s0, doubl
   s = std::clamp(s, s0, s1);
   t = std::clamp(t, t0, t1);
   Vec3 d[6];
-  patch.derivatives(s, t, d);
+  patch_derivatives(patch, s, t, d);
   Vec3 r = d[0] - p;
   double f = r.squaredNorm();
   long iterations = 0;
@@ -643,10 +774,14 @@ double newton_on_patch(const BezierPatch& patch, const Vec3& p, double s0, doubl
     double step = 1.0;
     bool accepted = false;
     double ns = s, nt = t;
+    // Trial points get all derivatives at once: the first trial is nearly always accepted and
+    // its derivatives are then those of the next iteration.
+    Vec3 trial[6];
     for (int ls = 0; ls < 60; ++ls) {
       ns = std::clamp(s + step * ds, s0, s1);
       nt = std::clamp(t + step * dt, t0, t1);
-      const double nf = (patch.evaluate(ns, nt) - p).squaredNorm();
+      patch_derivatives(patch, ns, nt, trial);
+      const double nf = (trial[0] - p).squaredNorm();
       const double predicted = 2.0 * (gs * (ns - s) + gt * (nt - t));
       const double moved = std::max(std::abs(ns - s), std::abs(nt - t));
       if (nf <= f + 1e-4 * predicted ||
@@ -662,7 +797,7 @@ double newton_on_patch(const BezierPatch& patch, const Vec3& p, double s0, doubl
     const double moved = std::max(std::abs(ns - s), std::abs(nt - t));
     s = ns;
     t = nt;
-    patch.derivatives(s, t, d);
+    std::copy(trial, trial + 6, d);
     r = d[0] - p;
     f = r.squaredNorm();
     if (moved <= 1e-15) break;
@@ -670,6 +805,16 @@ double newton_on_patch(const BezierPatch& patch, const Vec3& p, double s0, doubl
   if (stats) stats->newton_iterations += iterations;
   foot = d[0];
   return f;
+}
+
+Vec3 patch_unit_normal(const BezierPatch& patch, double s, double t) {
+  Vec3 d[6];
+  patch_derivatives(patch, s, t, d);
+  const Vec3 n = d[1].cross(d[2]);
+  const double scale = d[1].norm() * d[2].norm();
+  const double length = n.norm();
+  if (scale > 0.0 && length > 1e-12 * scale) return n / length;
+  return Vec3::Zero();
 }
 
 bool project_onto_patch(const PreparedPatch& pp, const Vec3& p, SurfaceHit& best,
@@ -698,6 +843,8 @@ bool project_onto_patch(const PreparedPatch& pp, const Vec3& p, SurfaceHit& best
       best.v = pp.patch.param_v.to_parent(t);
       best.distance_sq = value;
       best.foot = foot;
+      best.s = s;
+      best.t = t;
       improved = true;
     }
   }

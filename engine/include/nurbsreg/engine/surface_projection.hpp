@@ -35,6 +35,9 @@ struct SurfaceHit {
   double u = 0, v = 0;
   double distance_sq = std::numeric_limits<double>::infinity();
   Vec3 foot = Vec3::Zero();
+  // Local (s, t) in [0, 1]^2 of the Bézier patch that produced the hit (set by
+  // project_onto_patch; meaningless for a hit made elsewhere, e.g. from a hint).
+  double s = 0, t = 0;
 };
 
 // One Bézier patch with everything a query needs, built once (allocates) by prepare_patch.
@@ -127,6 +130,12 @@ bool project_onto_patch_ma_hewitt(const PreparedPatch& patch, const Vec3& p, Sur
 double newton_on_patch(const BezierPatch& patch, const Vec3& p, double s0, double s1, double t0,
                        double t1, double& s, double& t, Vec3& foot,
                        SurfaceProjectionStats* stats = nullptr);
+
+// Unit normal S_s x S_t of a Bézier patch at local (s, t), from the patch's own first
+// derivatives (same direction as the parent's S_u x S_v: the parameter maps are increasing
+// affine). Returns the zero vector where it is not defined within rounding (|S_s x S_t| <=
+// 1e-12 |S_s| |S_t|: poles, cusps), so the caller can fall back on engine::surface_normal.
+Vec3 patch_unit_normal(const BezierPatch& patch, double s, double t);
 
 // converged: the closest point was found; skipped_nan: the point has a NaN or infinite
 // coordinate; no_candidate: the strategy produced no point at all (only ma_hewitt can: its
