@@ -63,7 +63,7 @@ Fixture& fixture(const std::string& name) {
   }
   Projector projector(*f.model);
   ProjectionResults results;
-  projector.project(PointView::of(f.perturbed), {}, results);
+  projector.project_serial(PointView::of(f.perturbed), {}, results);  // not in profiles
   for (std::size_t i = 0; i < results.size(); ++i)
     f.hints.push_back(results.hint(i));
   return f;
@@ -89,6 +89,7 @@ void run(benchmark::State& state, const std::string& name, bool warm) {
   state.SetItemsProcessed(static_cast<std::int64_t>(state.iterations() * f.points.size()));
   state.counters["patches/pt"] = static_cast<double>(counters.patches_visited) / n;
   state.counters["subdiv/pt"] = static_cast<double>(counters.subdivisions) / n;
+  state.counters["newton/pt"] = static_cast<double>(counters.newton_iterations) / n;
   state.counters["failed"] = static_cast<double>(failed);
 }
 

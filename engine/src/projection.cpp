@@ -98,29 +98,50 @@ void Projector::project_range(PointView points, const ProjectionOptions& options
       // Seed alpha with the hint: an upper bound only, so the answer stays exact.
       SurfaceHit best;
       int best_surface = -1;
+      std::int64_t best_patch = -1;
+      // Warm start: the hint's patch (binary search over the surface's breakpoints) and a
+      // box-constrained Newton from the hint on it give a tight upper bound alpha at once, so
+      // the BVH walk and the clipping below eliminate almost everything else. The hint only
+      // lowers alpha (a true distance) and chooses Newton's start: the answer stays exact.
+      std::int64_t hint_patch = -1;
+      double hint_s = kNaN, hint_t = kNaN;
       if (valid_hint(hint, entities)) {
         const NurbsSurface& s = model.surfaces[hint->entity];
-        best.u = std::clamp(hint->u, s.domain_u().lo, s.domain_u().hi);
-        best.v = std::clamp(hint->v, s.domain_v().lo, s.domain_v().hi);
-        best.foot = s.evaluate(best.u, best.v);
-        best.distance_sq = (best.foot - p).squaredNorm();
-        best_surface = hint->entity;
+        const double u = std::clamp(hint->u, s.domain_u().lo, s.domain_u().hi);
+        const double v = std::clamp(hint->v, s.domain_v().lo, s.domain_v().hi);
+        hint_patch = model_.locate_patch(hint->entity, u, v);
+        if (hint_patch >= 0) {
+          const BezierPatch& bp = model_.patch(static_cast<std::size_t>(hint_patch)).patch;
+          hint_s = std::clamp(bp.param_u.to_local(u), 0.0, 1.0);
+          hint_t = std::clamp(bp.param_v.to_local(v), 0.0, 1.0);
+          double s_loc = hint_s, t_loc = hint_t;
+          best.distance_sq =
+              newton_on_patch(bp, p, 0.0, 1.0, 0.0, 1.0, s_loc, t_loc, best.foot, nullptr);
+          best.s = s_loc;
+          best.t = t_loc;
+          best.u = bp.param_u.to_parent(s_loc);
+          best.v = bp.param_v.to_parent(t_loc);
+          best_surface = hint->entity;
+          best_patch = hint_patch;
+        }
       }
       const double limit_sq = options.max_distance * options.max_distance;
       if (best.distance_sq >= limit_sq) {
         best = SurfaceHit{};
         best.distance_sq = limit_sq;
         best_surface = -1;
+        best_patch = -1;
       }
       double alpha = best.distance_sq;
-      std::int64_t best_patch = -1;
       model_.patch_hierarchy().nearest(
           p, alpha, state.bvh_scratch,
           [this](std::uint32_t k, const Vec3& x) { return model_.patch_lower_bound(k, x); },
           [&](std::uint32_t k, double& a) {
             ++state.counters.patches_visited;
+            const bool hinted = static_cast<std::int64_t>(k) == hint_patch;
             if (project_onto_patch(model_.patch(k), p, best, state.surface_scratch,
-                                   &state.surface_stats)) {
+                                   &state.surface_stats, hinted ? hint_s : kNaN,
+                                   hinted ? hint_t : kNaN)) {
               best_surface = model_.patch_surface(k);
               best_patch = k;
               a = best.distance_sq;
@@ -216,6 +237,7 @@ void Projector::project(PointView points, const ProjectionOptions& options, Proj
       counters->patches_visited += s.counters.patches_visited;
       counters->subdivisions += static_cast<std::uint64_t>(s.surface_stats.subdivisions) +
                                 static_cast<std::uint64_t>(s.curve_stats.subdivisions);
+      counters->newton_iterations += static_cast<std::uint64_t>(s.surface_stats.newton_iterations);
     }
   }
 }
@@ -233,6 +255,7 @@ void Projector::project_serial(PointView points, const ProjectionOptions& option
     *counters = state.counters;
     counters->subdivisions = static_cast<std::uint64_t>(state.surface_stats.subdivisions) +
                              static_cast<std::uint64_t>(state.curve_stats.subdivisions);
+    counters->newton_iterations = static_cast<std::uint64_t>(state.surface_stats.newton_iterations);
   }
 }
 

@@ -181,41 +181,58 @@ bool convex_polynomial(const double* a, int rows, int cols) {
   return convex(f);
 }
 
-// Bernstein values and first and second derivatives of degree n at t in one triangular pass
-// (The NURBS Book A1.3, keeping the rows of degree n - 1 and n - 2 on the way; dB_i^n/dt =
-// n (B_{i-1}^{n-1} - B_i^{n-1}), eq. 1.9). Only entries 0..n are written.
+// Binomial coefficients C(n, i), n <= kMaxDegree, exact in double.
+struct BinomialTable {
+  double c[kMaxDegree + 1][kMaxDegree + 1] = {};
+  constexpr BinomialTable() {
+    for (int n = 0; n <= kMaxDegree; ++n) {
+      c[n][0] = c[n][n] = 1.0;
+      for (int i = 1; i < n; ++i)
+        c[n][i] = c[n - 1][i - 1] + c[n - 1][i];
+    }
+  }
+};
+constexpr BinomialTable kBinomial;
+
+// Bernstein values and first and second derivatives of degree n at t in [0, 1]:
+// B_i^m = C(m, i) t^i (1 - t)^(m - i) for m = n, n - 1, n - 2 from one table of powers (all terms
+// positive: no cancellation), then dB_i^n/dt = n (B_{i-1}^{n-1} - B_i^{n-1}) and the second
+// difference for d2 (The NURBS Book eq. 1.9). Only entries 0..n are written.
 void bernstein_012(int n, double t, double* b0, double* b1, double* b2) {
-  double l1[kMaxDegree + 1], l2[kMaxDegree + 1];
+  double tp[kMaxDegree + 1], up[kMaxDegree + 1];
   const double u = 1.0 - t;
-  b0[0] = 1.0;
-  if (n == 1) l1[0] = 1.0;
-  if (n == 2) l2[0] = 1.0;
+  tp[0] = up[0] = 1.0;
   for (int k = 1; k <= n; ++k) {
-    double saved = 0.0;
-    for (int j = 0; j < k; ++j) {
-      const double tmp = b0[j];
-      b0[j] = saved + u * tmp;
-      saved = t * tmp;
-    }
-    b0[k] = saved;
-    if (k == n - 1) std::memcpy(l1, b0, sizeof(double) * (k + 1));
-    if (k == n - 2) std::memcpy(l2, b0, sizeof(double) * (k + 1));
+    tp[k] = tp[k - 1] * t;
+    up[k] = up[k - 1] * u;
   }
-  for (int i = 0; i <= n; ++i) {
-    const double a = i >= 1 ? l1[i - 1] : 0.0;
-    const double c = i <= n - 1 ? l1[i] : 0.0;
-    b1[i] = n >= 1 ? n * (a - c) : 0.0;
+  for (int i = 0; i <= n; ++i)
+    b0[i] = kBinomial.c[n][i] * tp[i] * up[n - i];
+  if (n < 1) {
+    b1[0] = b2[0] = 0.0;
+    return;
   }
-  for (int i = 0; i <= n; ++i) {
-    if (n < 2) {
-      b2[i] = 0.0;
-      continue;
-    }
-    const double a = i >= 2 ? l2[i - 2] : 0.0;
-    const double b = (i >= 1 && i - 1 <= n - 2) ? l2[i - 1] : 0.0;
-    const double c = i <= n - 2 ? l2[i] : 0.0;
-    b2[i] = n * (n - 1) * (a - 2.0 * b + c);
+  // l1[i] = B_i^{n-1}, with l1[-1] = l1[n] = 0.
+  double l1[kMaxDegree + 2];
+  l1[0] = 0.0;
+  for (int i = 0; i <= n - 1; ++i)
+    l1[i + 1] = kBinomial.c[n - 1][i] * tp[i] * up[n - 1 - i];
+  l1[n + 1] = 0.0;
+  for (int i = 0; i <= n; ++i)
+    b1[i] = n * (l1[i] - l1[i + 1]);
+  if (n < 2) {
+    b2[0] = b2[1] = 0.0;
+    return;
   }
+  // l2[i + 2] = B_i^{n-2}, zero-padded by two on each side.
+  double l2[kMaxDegree + 3];
+  l2[0] = l2[1] = 0.0;
+  for (int i = 0; i <= n - 2; ++i)
+    l2[i + 2] = kBinomial.c[n - 2][i] * tp[i] * up[n - 2 - i];
+  l2[n + 1] = l2[n + 2] = 0.0;
+  const double nn = double(n) * (n - 1);
+  for (int i = 0; i <= n; ++i)
+    b2[i] = nn * (l2[i] - 2.0 * l2[i + 1] + l2[i + 2]);
 }
 
 // S, S_s, S_t, S_ss, S_st, S_tt of a rational Bézier patch at local (s, t): homogeneous tensor
@@ -349,6 +366,9 @@ struct Clipper {
   double best_s = 0, best_t = 0;
   bool best_exact = false;  // the best candidate is a Newton result on the geometry
   Vec3 best_foot = Vec3::Zero();
+  // Caller's guess of the minimiser (e.g. the previous ICP foot), local; NaN: none.
+  double guess_s = std::numeric_limits<double>::quiet_NaN();
+  double guess_t = std::numeric_limits<double>::quiet_NaN();
 
   // Theorem 1 with an accuracy tolerance and a rounding margin: drop the box when its lower bound,
   // even lowered by the rounding bound, shows that no point of the box is closer than
@@ -379,13 +399,19 @@ struct Clipper {
     }
     alpha = std::min(alpha, value);
   }
-  void newton(double s0, double s1, double t0, double t1) {
-    double s = 0.5 * (s0 + s1), t = 0.5 * (t0 + t1);
-    // Neighbouring boxes often share the minimiser: start from the best point so far when it lies
-    // in this box (it is then usually already the answer and Newton stops at once).
+  // Box-constrained Newton on [s0, s1] x [t0, t1] from (s, t). Where it starts does not affect
+  // correctness (it is called where the minimiser on the box is unique, or as a safety net), only
+  // the number of iterations; the start is, in order of preference: the best Newton point so far
+  // when it lies in this box (neighbouring boxes often share the minimiser), the caller's guess
+  // when it lies in the box (warm start), else (s, t) from the caller (the abscissa of the
+  // smallest coefficient of F on the box).
+  void newton(double s0, double s1, double t0, double t1, double s, double t) {
     if (best_exact && best_s >= s0 && best_s <= s1 && best_t >= t0 && best_t <= t1) {
       s = best_s;
       t = best_t;
+    } else if (guess_s >= s0 && guess_s <= s1 && guess_t >= t0 && guess_t <= t1) {
+      s = guess_s;
+      t = guess_t;
     }
     Vec3 foot;
     const double value = newton_on_patch(pp.patch, p, s0, s1, t0, t1, s, t, foot, &st);
@@ -426,11 +452,22 @@ void Clipper::clip_boundary(const double* n_row, const double* d_row, int stride
       lo = std::min(lo, rational ? n[j] / d[j] : n[j]);
     return lo;
   };
-  auto newton_on = [&](double lo, double hi) {
+  // Newton on the edge from the abscissa of the row's smallest coefficient ratio.
+  auto newton_on = [&](double lo, double hi, const double* c, const double* w) {
+    int arg = 0;
+    double lo_value = std::numeric_limits<double>::infinity();
+    for (int j = 0; j < count; ++j) {
+      const double r = rational ? c[j] / w[j] : c[j];
+      if (r < lo_value) {
+        lo_value = r;
+        arg = j;
+      }
+    }
+    const double x = count > 1 ? lo + (hi - lo) * arg / (count - 1) : 0.5 * (lo + hi);
     if (along_t) {
-      newton(fixed, fixed, lo, hi);
+      newton(fixed, fixed, lo, hi, fixed, x);
     } else {
-      newton(lo, hi, fixed, fixed);
+      newton(lo, hi, fixed, fixed, x, fixed);
     }
   };
   int top = 0;
@@ -456,7 +493,7 @@ void Clipper::clip_boundary(const double* n_row, const double* d_row, int stride
       c_max = std::max(c_max, rational ? c[j] / w[j] : c[j]);
     if (c_max - iv.lower <= 4.0 * round_err) {  // below the coefficients' resolution
       ++st.resolution_terminations;
-      newton_on(iv.t0, iv.t1);
+      newton_on(iv.t0, iv.t1, c, w);
       continue;
     }
     if (!rational) {
@@ -474,7 +511,7 @@ void Clipper::clip_boundary(const double* n_row, const double* d_row, int stride
       if (changes == 0) continue;  // monotone: the minimum is an end value, already offered
       if (changes == 1 && falls_first) {
         ++st.convex_terminations;
-        newton_on(iv.t0, iv.t1);
+        newton_on(iv.t0, iv.t1, c, w);
         continue;
       }
     } else {
@@ -484,13 +521,13 @@ void Clipper::clip_boundary(const double* n_row, const double* d_row, int stride
       if (f.t.lo > margin || f.t.hi < -margin) continue;  // monotone: an end value
       if (f.tt.lo > 1e-12 * std::abs(f.tt.hi)) {
         ++st.convex_terminations;
-        newton_on(iv.t0, iv.t1);
+        newton_on(iv.t0, iv.t1, c, w);
         continue;
       }
     }
     if (iv.depth >= SurfaceScratch::kMaxDepth || top + 2 > SurfaceScratch::kStackCapacity) {
       ++st.depth_limit_hits;
-      newton_on(iv.t0, iv.t1);
+      newton_on(iv.t0, iv.t1, c, w);
       continue;
     }
     ++st.subdivisions;
@@ -534,6 +571,23 @@ void Clipper::run() {
     const SurfaceScratch::Box b = sc.boxes[--top];
     double* n = base + top * kSlot;
     double* d = n + SurfaceScratch::kGridCapacity;
+    // Newton on this box, started at the Greville abscissa (i / (rows - 1), j / (cols - 1)) of
+    // F's smallest coefficient: near the minimiser when the box is nearly convex.
+    auto newton_box = [&] {
+      int arg = 0;
+      double lo_value = std::numeric_limits<double>::infinity();
+      for (int k = 0; k < count; ++k) {
+        const double r = pp.rational ? n[k] / d[k] : n[k];
+        if (r < lo_value) {
+          lo_value = r;
+          arg = k;
+        }
+      }
+      const int i = arg / cols, j = arg % cols;
+      const double s = rows > 1 ? b.s0 + (b.s1 - b.s0) * i / (rows - 1) : 0.5 * (b.s0 + b.s1);
+      const double t = cols > 1 ? b.t0 + (b.t1 - b.t0) * j / (cols - 1) : 0.5 * (b.t0 + b.t1);
+      newton(b.s0, b.s1, b.t0, b.t1, s, t);
+    };
     if (eliminated(b.lower)) {
       ++st.eliminations;
       continue;
@@ -577,20 +631,20 @@ void Clipper::run() {
     // the surface, or a pole where F is flat across the box). The geometry can: Newton finishes.
     if (f_max - b.lower <= 4.0 * round_err) {
       ++st.resolution_terminations;
-      newton(b.s0, b.s1, b.t0, b.t1);
+      newton_box();
       continue;
     }
     if (!pp.rational) {
       if (convex_polynomial(n, rows, cols)) {
         ++st.convex_terminations;
-        newton(b.s0, b.s1, b.t0, b.t1);
+        newton_box();
         continue;
       }
     } else {
       const FDerivatives fd = f_derivatives(n, d, rows, cols, true, {b.lower, f_max});
       if (convex(fd)) {
         ++st.convex_terminations;
-        newton(b.s0, b.s1, b.t0, b.t1);
+        newton_box();
         continue;
       }
       const int edge = monotone_edge(fd);
@@ -601,7 +655,7 @@ void Clipper::run() {
     }
     if (b.depth >= SurfaceScratch::kMaxDepth || top + 2 > SurfaceScratch::kStackCapacity) {
       ++st.depth_limit_hits;
-      newton(b.s0, b.s1, b.t0, b.t1);
+      newton_box();
       continue;
     }
     ++st.subdivisions;
@@ -769,6 +823,9 @@ double newton_on_patch(const BezierPatch& patch, const Vec3& p, double s0, doubl
       ds /= reach;
       dt /= reach;
     }
+    // Converged: the step is below what a parameter in [0, 1] can resolve (the same threshold as
+    // `moved` below, without spending an evaluation on it).
+    if (std::max(std::abs(ds), std::abs(dt)) <= 1e-15) break;
     // Rounding in |S - p|^2: S carries ~eps |S| absolute error, so F carries ~2 |r| eps |S|.
     const double f_noise = 1e-14 * r.norm() * (d[0].norm() + p.norm()) + 1e-300;
     double step = 1.0;
@@ -801,6 +858,10 @@ double newton_on_patch(const BezierPatch& patch, const Vec3& p, double s0, doubl
     r = d[0] - p;
     f = r.squaredNorm();
     if (moved <= 1e-15) break;
+    // A full Newton step (positive definite Hessian) of size delta leaves an error of order
+    // delta^2 (quadratic convergence): below 1e-12 the next step would be under 1e-15 relative
+    // to the box up to the conditioning. We stop there instead of paying for that step.
+    if (newton_step && step == 1.0 && moved <= 1e-12 * std::max(s1 - s0, t1 - t0)) break;
   }
   if (stats) stats->newton_iterations += iterations;
   foot = d[0];
@@ -818,7 +879,8 @@ Vec3 patch_unit_normal(const BezierPatch& patch, double s, double t) {
 }
 
 bool project_onto_patch(const PreparedPatch& pp, const Vec3& p, SurfaceHit& best,
-                        SurfaceScratch& scratch, SurfaceProjectionStats* stats) {
+                        SurfaceScratch& scratch, SurfaceProjectionStats* stats, double guess_s,
+                        double guess_t) {
   if (!p.allFinite()) return false;  // NaN would defeat every elimination test
   SurfaceProjectionStats local;
   const double reach = pp.sphere.radius + (p - pp.origin).norm();
@@ -826,6 +888,8 @@ bool project_onto_patch(const PreparedPatch& pp, const Vec3& p, SurfaceHit& best
                // Each coefficient is G - 2 q.E + |q|^2 D with terms up to reach^2 D; de Casteljau
                // is a convex combination, so the error stays a small multiple of eps reach^2.
                1e-14 * reach * reach, 1e-11 * pp.sphere.radius};
+  clip.guess_s = guess_s;
+  clip.guess_t = guess_t;
   ++local.patches_visited;
   clip.run();
   bool improved = false;

@@ -115,8 +115,12 @@ enum class SurfaceStrategy { spherical_clipping, ma_hewitt };
 // rounding of the coefficients (1e-14 (R + |p - c|)^2, R and c the bounding sphere), shows it
 // cannot be closer than the best so far minus 1e-11 R in distance; the answer is a Newton
 // stationary point on the geometry. Improvements below 1e-11 R are not pursued.
+// (guess_s, guess_t): optional local guess of the minimiser (warm start, e.g. the previous foot);
+// it only chooses where Newton starts on a box that holds it, never what is eliminated. NaN: none.
 bool project_onto_patch(const PreparedPatch& patch, const Vec3& p, SurfaceHit& best,
-                        SurfaceScratch& scratch, SurfaceProjectionStats* stats = nullptr);
+                        SurfaceScratch& scratch, SurfaceProjectionStats* stats = nullptr,
+                        double guess_s = std::numeric_limits<double>::quiet_NaN(),
+                        double guess_t = std::numeric_limits<double>::quiet_NaN());
 
 // Ma & Hewitt (seed 000) on one patch: Algorithm 6 with Algorithms 2 and 4, candidates refined
 // by Newton on the flat sub-patch (§9). Not exact (see header comment). Same contract otherwise.
