@@ -115,14 +115,17 @@ void Projector::project_range(PointView points, const ProjectionOptions& options
           hint_s = std::clamp(bp.param_u.to_local(u), 0.0, 1.0);
           hint_t = std::clamp(bp.param_v.to_local(v), 0.0, 1.0);
           double s_loc = hint_s, t_loc = hint_t;
-          best.distance_sq =
-              newton_on_patch(bp, p, 0.0, 1.0, 0.0, 1.0, s_loc, t_loc, best.foot, nullptr);
+          best.distance_sq = newton_on_patch(bp, p, 0.0, 1.0, 0.0, 1.0, s_loc, t_loc, best.foot,
+                                             nullptr, &best.normal);
           best.s = s_loc;
           best.t = t_loc;
           best.u = bp.param_u.to_parent(s_loc);
           best.v = bp.param_v.to_parent(t_loc);
           best_surface = hint->entity;
           best_patch = hint_patch;
+          // The clipping of this patch restarts Newton from the converged point (one step).
+          hint_s = s_loc;
+          hint_t = t_loc;
         }
       }
       const double limit_sq = options.max_distance * options.max_distance;
@@ -158,9 +161,14 @@ void Projector::project_range(PointView points, const ProjectionOptions& options
       // evaluation picks its own side's span, which differs at a C0 crease: there, and where
       // the patch normal is undefined (poles), the surface's own rule decides.
       Vec3 n = Vec3::Zero();
-      if (best_patch >= 0 && best.s > 0.0 && best.s < 1.0 && best.t > 0.0 && best.t < 1.0) {
-        n = patch_unit_normal(model_.patch(static_cast<std::size_t>(best_patch)).patch, best.s,
-                              best.t);
+      if (best_patch >= 0) {
+        // A patch edge that is the domain's own edge has no neighbour span: the patch decides.
+        const BezierPatch& bp = model_.patch(static_cast<std::size_t>(best_patch)).patch;
+        const bool inner_s = (best.s > 0.0 || bp.param_u.lo <= s.domain_u().lo) &&
+                             (best.s < 1.0 || bp.param_u.hi >= s.domain_u().hi);
+        const bool inner_t = (best.t > 0.0 || bp.param_v.lo <= s.domain_v().lo) &&
+                             (best.t < 1.0 || bp.param_v.hi >= s.domain_v().hi);
+        if (inner_s && inner_t) n = best.normal;
       }
       if (n.isZero(0.0)) n = surface_normal(s, best.u, best.v);
       out.foot[i] = best.foot;

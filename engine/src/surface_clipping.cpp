@@ -366,6 +366,7 @@ struct Clipper {
   double best_s = 0, best_t = 0;
   bool best_exact = false;  // the best candidate is a Newton result on the geometry
   Vec3 best_foot = Vec3::Zero();
+  Vec3 best_normal = Vec3::Zero();
   // Caller's guess of the minimiser (e.g. the previous ICP foot), local; NaN: none.
   double guess_s = std::numeric_limits<double>::quiet_NaN();
   double guess_t = std::numeric_limits<double>::quiet_NaN();
@@ -389,13 +390,14 @@ struct Clipper {
     alpha = std::min(alpha, value + round_err);
   }
   // A value of the real geometry (Newton result).
-  void offer_exact(double value, double s, double t, const Vec3& foot) {
+  void offer_exact(double value, double s, double t, const Vec3& foot, const Vec3& normal) {
     if (value < best_value) {
       best_value = value;
       best_s = s;
       best_t = t;
       best_exact = true;
       best_foot = foot;
+      best_normal = normal;
     }
     alpha = std::min(alpha, value);
   }
@@ -413,9 +415,9 @@ struct Clipper {
       s = guess_s;
       t = guess_t;
     }
-    Vec3 foot;
-    const double value = newton_on_patch(pp.patch, p, s0, s1, t0, t1, s, t, foot, &st);
-    offer_exact(value, s, t, foot);
+    Vec3 foot, normal;
+    const double value = newton_on_patch(pp.patch, p, s0, s1, t0, t1, s, t, foot, &st, &normal);
+    offer_exact(value, s, t, foot, normal);
   }
 
   // The row (stride 1) or column (stride cols) of N and D along an edge of the current box.
@@ -764,8 +766,19 @@ PreparedPatch prepare_patch(const BezierPatch& patch) {
   return pp;
 }
 
+namespace {
+Vec3 unit_normal(const Vec3& su, const Vec3& sv) {
+  const Vec3 n = su.cross(sv);
+  const double scale = su.norm() * sv.norm();
+  const double length = n.norm();
+  if (scale > 0.0 && length > 1e-12 * scale) return n / length;
+  return Vec3::Zero();
+}
+}  // namespace
+
 double newton_on_patch(const BezierPatch& patch, const Vec3& p, double s0, double s1, double t0,
-                       double t1, double& s, double& t, Vec3& foot, SurfaceProjectionStats* stats) {
+                       double t1, double& s, double& t, Vec3& foot, SurfaceProjectionStats* stats,
+                       Vec3* normal) {
   s = std::clamp(s, s0, s1);
   t = std::clamp(t, t0, t1);
   Vec3 d[6];
@@ -865,17 +878,14 @@ double newton_on_patch(const BezierPatch& patch, const Vec3& p, double s0, doubl
   }
   if (stats) stats->newton_iterations += iterations;
   foot = d[0];
+  if (normal) *normal = unit_normal(d[1], d[2]);
   return f;
 }
 
 Vec3 patch_unit_normal(const BezierPatch& patch, double s, double t) {
   Vec3 d[6];
   patch_derivatives(patch, s, t, d);
-  const Vec3 n = d[1].cross(d[2]);
-  const double scale = d[1].norm() * d[2].norm();
-  const double length = n.norm();
-  if (scale > 0.0 && length > 1e-12 * scale) return n / length;
-  return Vec3::Zero();
+  return unit_normal(d[1], d[2]);
 }
 
 bool project_onto_patch(const PreparedPatch& pp, const Vec3& p, SurfaceHit& best,
@@ -898,9 +908,10 @@ bool project_onto_patch(const PreparedPatch& pp, const Vec3& p, SurfaceHit& best
     // over the whole patch (descent only: it can only improve). Newton results already are.
     double s = clip.best_s, t = clip.best_t;
     Vec3 foot = clip.best_foot;
+    Vec3 normal = clip.best_normal;
     double value = clip.best_value;
     if (!clip.best_exact) {
-      value = newton_on_patch(pp.patch, p, 0.0, 1.0, 0.0, 1.0, s, t, foot, &local);
+      value = newton_on_patch(pp.patch, p, 0.0, 1.0, 0.0, 1.0, s, t, foot, &local, &normal);
     }
     if (value < best.distance_sq) {
       best.u = pp.patch.param_u.to_parent(s);
@@ -909,6 +920,7 @@ bool project_onto_patch(const PreparedPatch& pp, const Vec3& p, SurfaceHit& best
       best.foot = foot;
       best.s = s;
       best.t = t;
+      best.normal = normal;
       improved = true;
     }
   }

@@ -38,6 +38,9 @@ struct SurfaceHit {
   // Local (s, t) in [0, 1]^2 of the Bézier patch that produced the hit (set by
   // project_onto_patch; meaningless for a hit made elsewhere, e.g. from a hint).
   double s = 0, t = 0;
+  // Unit S_s x S_t of that patch at the foot (from the last Newton evaluation), zero where it is
+  // undefined within rounding (poles) or unknown.
+  Vec3 normal = Vec3::Zero();
 };
 
 // One Bézier patch with everything a query needs, built once (allocates) by prepare_patch.
@@ -131,9 +134,11 @@ bool project_onto_patch_ma_hewitt(const PreparedPatch& patch, const Vec3& p, Sur
 // [s0, s1] x [t0, t1] (s0 == s1 or t0 == t1 allowed: a boundary curve), starting at (s, t).
 // Returns the squared distance; (s, t) and foot are updated. Descent only: never returns a value
 // above the start value.
+// normal (optional): the unit normal S_s x S_t at the result, or zero where undefined
+// (|S_s x S_t| <= 1e-12 |S_s| |S_t|), from the derivatives Newton already has.
 double newton_on_patch(const BezierPatch& patch, const Vec3& p, double s0, double s1, double t0,
                        double t1, double& s, double& t, Vec3& foot,
-                       SurfaceProjectionStats* stats = nullptr);
+                       SurfaceProjectionStats* stats = nullptr, Vec3* normal = nullptr);
 
 // Unit normal S_s x S_t of a Bézier patch at local (s, t), from the patch's own first
 // derivatives (same direction as the parent's S_u x S_v: the parameter maps are increasing
