@@ -310,16 +310,24 @@ void split_cols(double* low, double* high, int rows, int cols) {
     split_line(low + i * cols, high + i * cols, cols);
 }
 
-double lower_bound(const double* n, const double* d, int count, bool rational) {
-  double lo = std::numeric_limits<double>::infinity();
-  if (rational) {
-    for (int k = 0; k < count; ++k)
-      lo = std::min(lo, n[k] / d[k]);
-  } else {
-    for (int k = 0; k < count; ++k)
-      lo = std::min(lo, n[k]);
+// Smallest and largest coefficient ratio N_k / D_k and the index of the smallest, in one pass.
+struct CoefficientRange {
+  double lo, hi;
+  int arg;
+};
+
+CoefficientRange coefficient_range(const double* n, const double* d, int count, bool rational) {
+  CoefficientRange r{std::numeric_limits<double>::infinity(),
+                     -std::numeric_limits<double>::infinity(), 0};
+  for (int k = 0; k < count; ++k) {
+    const double f = rational ? n[k] / d[k] : n[k];
+    if (f < r.lo) {
+      r.lo = f;
+      r.arg = k;
+    }
+    r.hi = std::max(r.hi, f);
   }
-  return lo;
+  return r;
 }
 
 // Theorem 2 of seed 001 for a polynomial F: if the coefficients of one boundary row (column) are
@@ -562,30 +570,24 @@ void Clipper::run() {
   double* base = sc.grids.data();
   int top = 0;
   pp.numerator(p, base);
-  std::memcpy(base + SurfaceScratch::kGridCapacity, pp.d.data(), sizeof(double) * count);
-  sc.boxes[top++] = {0.0,
-                     1.0,
-                     0.0,
-                     1.0,
-                     lower_bound(base, base + SurfaceScratch::kGridCapacity, count, pp.rational),
-                     0};
+  // A polynomial patch has D == 1 everywhere and never splits it: every box reads the patch's
+  // own array instead of a copy.
+  if (pp.rational) {
+    std::memcpy(base + SurfaceScratch::kGridCapacity, pp.d.data(), sizeof(double) * count);
+  }
+  auto d_of = [&](double* n) {
+    return pp.rational ? n + SurfaceScratch::kGridCapacity : pp.d.data();
+  };
+  const CoefficientRange root = coefficient_range(base, d_of(base), count, pp.rational);
+  sc.boxes[top++] = {0.0, 1.0, 0.0, 1.0, root.lo, root.hi, root.arg, 0};
   while (top > 0) {
     const SurfaceScratch::Box b = sc.boxes[--top];
     double* n = base + top * kSlot;
-    double* d = n + SurfaceScratch::kGridCapacity;
+    const double* d = d_of(n);
     // Newton on this box, started at the Greville abscissa (i / (rows - 1), j / (cols - 1)) of
     // F's smallest coefficient: near the minimiser when the box is nearly convex.
     auto newton_box = [&] {
-      int arg = 0;
-      double lo_value = std::numeric_limits<double>::infinity();
-      for (int k = 0; k < count; ++k) {
-        const double r = pp.rational ? n[k] / d[k] : n[k];
-        if (r < lo_value) {
-          lo_value = r;
-          arg = k;
-        }
-      }
-      const int i = arg / cols, j = arg % cols;
+      const int i = b.arg / cols, j = b.arg % cols;
       const double s = rows > 1 ? b.s0 + (b.s1 - b.s0) * i / (rows - 1) : 0.5 * (b.s0 + b.s1);
       const double t = cols > 1 ? b.t0 + (b.t1 - b.t0) * j / (cols - 1) : 0.5 * (b.t0 + b.t1);
       newton(b.s0, b.s1, b.t0, b.t1, s, t);
@@ -611,23 +613,7 @@ void Clipper::run() {
         continue;
       }
     }
-    double f_max = -std::numeric_limits<double>::infinity();
-    double var_s = 0.0, var_t = 0.0;
-    for (int i = 0; i < rows; ++i) {
-      for (int j = 0; j < cols; ++j) {
-        const int k = i * cols + j;
-        const double f = pp.rational ? n[k] / d[k] : n[k];
-        f_max = std::max(f_max, f);
-        if (i + 1 < rows) {
-          const double g = pp.rational ? n[k + cols] / d[k + cols] : n[k + cols];
-          var_s = std::max(var_s, std::abs(g - f));
-        }
-        if (j + 1 < cols) {
-          const double g = pp.rational ? n[k + 1] / d[k + 1] : n[k + 1];
-          var_t = std::max(var_t, std::abs(g - f));
-        }
-      }
-    }
+    const double f_max = b.upper;
     // F is known to +-round_err only: once its whole range on the box is within a few round_err
     // the coefficients cannot resolve the box further (a point on or within ~sqrt(round_err) of
     // the surface, or a pole where F is flat across the box). The geometry can: Newton finishes.
@@ -662,26 +648,47 @@ void Clipper::run() {
     }
     ++st.subdivisions;
     // Split across the direction in which F varies most: that is where the box is "long".
+    double var_s = 0.0, var_t = 0.0;
+    for (int i = 0; i < rows; ++i) {
+      for (int j = 0; j < cols; ++j) {
+        const int k = i * cols + j;
+        const double f = pp.rational ? n[k] / d[k] : n[k];
+        if (i + 1 < rows) {
+          const double g = pp.rational ? n[k + cols] / d[k + cols] : n[k + cols];
+          var_s = std::max(var_s, std::abs(g - f));
+        }
+        if (j + 1 < cols) {
+          const double g = pp.rational ? n[k + 1] / d[k + 1] : n[k + 1];
+          var_t = std::max(var_t, std::abs(g - f));
+        }
+      }
+    }
     double* high = n + kSlot;
+    double* dn = n + SurfaceScratch::kGridCapacity;  // this box's own D (rational patches)
     double* high_d = high + SurfaceScratch::kGridCapacity;
     SurfaceScratch::Box lo = b, hi = b;
     lo.depth = hi.depth = b.depth + 1;
     if (var_s >= var_t) {
       split_rows(n, high, rows, cols);
-      if (pp.rational) split_rows(d, high_d, rows, cols);
+      if (pp.rational) split_rows(dn, high_d, rows, cols);
       lo.s1 = hi.s0 = 0.5 * (b.s0 + b.s1);
     } else {
       split_cols(n, high, rows, cols);
-      if (pp.rational) split_cols(d, high_d, rows, cols);
+      if (pp.rational) split_cols(dn, high_d, rows, cols);
       lo.t1 = hi.t0 = 0.5 * (b.t0 + b.t1);
     }
-    if (!pp.rational) std::memcpy(high_d, d, sizeof(double) * count);
-    lo.lower = lower_bound(n, d, count, pp.rational);
-    hi.lower = lower_bound(high, high_d, count, pp.rational);
+    const CoefficientRange lo_range = coefficient_range(n, d_of(n), count, pp.rational);
+    const CoefficientRange hi_range = coefficient_range(high, d_of(high), count, pp.rational);
+    lo.lower = lo_range.lo;
+    lo.upper = lo_range.hi;
+    lo.arg = lo_range.arg;
+    hi.lower = hi_range.lo;
+    hi.upper = hi_range.hi;
+    hi.arg = hi_range.arg;
     // Depth first, the more promising half on top (it shrinks alpha soonest).
     if (lo.lower < hi.lower) {
       std::swap_ranges(n, n + count, high);
-      std::swap_ranges(d, d + count, high_d);
+      if (pp.rational) std::swap_ranges(dn, dn + count, high_d);
       std::swap(lo, hi);
     }
     sc.boxes[top++] = lo;
@@ -714,8 +721,13 @@ void PreparedPatch::numerator(const Vec3& point, double* out) const {
   const Vec3 q = point - origin;
   const double qq = q.squaredNorm();
   const int count = rows * cols;
+  // Structure-of-arrays copy of E: the loop vectorises.
+  const double* ex = e_soa.data();
+  const double* ey = ex + count;
+  const double* ez = ey + count;
+  const double qx = 2.0 * q.x(), qy = 2.0 * q.y(), qz = 2.0 * q.z();
   for (int k = 0; k < count; ++k)
-    out[k] = g[k] - 2.0 * q.dot(e[k]) + qq * d[k];
+    out[k] = g[k] - (qx * ex[k] + qy * ey[k] + qz * ez[k]) + qq * d[k];
 }
 
 PreparedPatch prepare_patch(const BezierPatch& patch) {
@@ -763,6 +775,11 @@ PreparedPatch prepare_patch(const BezierPatch& patch) {
     }
   }
   if (!pp.rational) std::fill(pp.d.begin(), pp.d.end(), 1.0);
+  pp.e_soa.resize(3 * static_cast<std::size_t>(count));
+  for (int k = 0; k < count; ++k) {
+    for (int c = 0; c < 3; ++c)
+      pp.e_soa[static_cast<std::size_t>(c * count + k)] = pp.e[k][c];
+  }
   return pp;
 }
 

@@ -53,12 +53,13 @@ struct PreparedPatch {
   Aabb box;
   BoundingSphere sphere;
   Vec3 origin = Vec3::Zero();
-  bool rational = false;  // false: all weights equal, D_ij == 1 exactly (F is a polynomial)
-  int rows = 0;           // 2 * degree_u + 1
-  int cols = 0;           // 2 * degree_v + 1
-  std::vector<double> d;  // D_ij at [i * cols + j]
-  std::vector<double> g;  // G_ij
-  std::vector<Vec3> e;    // E_ij
+  bool rational = false;      // false: all weights equal, D_ij == 1 exactly (F is a polynomial)
+  int rows = 0;               // 2 * degree_u + 1
+  int cols = 0;               // 2 * degree_v + 1
+  std::vector<double> d;      // D_ij at [i * cols + j]
+  std::vector<double> g;      // G_ij
+  std::vector<Vec3> e;        // E_ij
+  std::vector<double> e_soa;  // E_ij again as x block, y block, z block (vectorised numerator)
 
   const BezierPatch& bezier() const { return patch; }
   // N_ij for the point p into out[rows * cols].
@@ -80,6 +81,8 @@ struct SurfaceScratch {
   struct Box {
     double s0, s1, t0, t1;  // local box in the prepared patch's [0, 1]^2
     double lower;           // lower bound of F on the box (min of the ratio coefficients)
+    double upper;           // max of the ratio coefficients
+    int arg;                // index of the smallest ratio coefficient
     int depth;
   };
   std::vector<double> grids;  // kStackCapacity entries of 2 * kGridCapacity doubles (N then D)
