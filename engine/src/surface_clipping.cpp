@@ -239,8 +239,82 @@ void bernstein_012(int n, double t, double* b0, double* b1, double* b2) {
 // sums, then the quotient rule (The NURBS Book eq. 4.20). The same formulas as
 // BezierPatch::derivatives with one basis pass per direction and no zero-filled storage: the
 // Newton iteration's inner cost.
+// The quotient rule from the six homogeneous sums a_kl = d^(k+l) A / ds^k dt^l (A = Σ B B P^w).
+void rational_from_homogeneous(const Vec4& a00, const Vec4& a10, const Vec4& a01, const Vec4& a20,
+                               const Vec4& a11, const Vec4& a02, Vec3* out) {
+  const double inv_w = 1.0 / a00[3];
+  const Vec3 x = a00.head<3>() * inv_w;
+  const Vec3 xs = (a10.head<3>() - a10[3] * x) * inv_w;
+  const Vec3 xt = (a01.head<3>() - a01[3] * x) * inv_w;
+  out[0] = x;
+  out[1] = xs;
+  out[2] = xt;
+  out[3] = (a20.head<3>() - 2.0 * a10[3] * xs - a20[3] * x) * inv_w;
+  out[4] = (a11.head<3>() - a10[3] * xt - a01[3] * xs - a11[3] * x) * inv_w;
+  out[5] = (a02.head<3>() - 2.0 * a01[3] * xt - a02[3] * x) * inv_w;
+}
+
+// Fixed degree N: Bernstein values and derivatives with compile-time loop bounds (unrolled).
+template <int N>
+void bernstein_012_fixed(double t, double* b0, double* b1, double* b2) {
+  static_assert(N >= 2 && N <= kMaxDegree);
+  const double u = 1.0 - t;
+  double tp[N + 1], up[N + 1];
+  tp[0] = up[0] = 1.0;
+  for (int k = 1; k <= N; ++k) {
+    tp[k] = tp[k - 1] * t;
+    up[k] = up[k - 1] * u;
+  }
+  for (int i = 0; i <= N; ++i)
+    b0[i] = kBinomial.c[N][i] * tp[i] * up[N - i];
+  double l1[N + 2];
+  l1[0] = l1[N + 1] = 0.0;
+  for (int i = 0; i <= N - 1; ++i)
+    l1[i + 1] = kBinomial.c[N - 1][i] * tp[i] * up[N - 1 - i];
+  for (int i = 0; i <= N; ++i)
+    b1[i] = N * (l1[i] - l1[i + 1]);
+  double l2[N + 3];
+  l2[0] = l2[1] = l2[N + 1] = l2[N + 2] = 0.0;
+  for (int i = 0; i <= N - 2; ++i)
+    l2[i + 2] = kBinomial.c[N - 2][i] * tp[i] * up[N - 2 - i];
+  for (int i = 0; i <= N; ++i)
+    b2[i] = double(N * (N - 1)) * (l2[i] - 2.0 * l2[i + 1] + l2[i + 2]);
+}
+
+// patch_derivatives for fixed degrees (P, Q): the same sums, fully unrolled by the compiler.
+template <int P, int Q>
+void patch_derivatives_fixed(const BezierPatch& patch, double s, double t, Vec3* out) {
+  double bu[3][P + 1], bv[3][Q + 1];
+  bernstein_012_fixed<P>(s, bu[0], bu[1], bu[2]);
+  bernstein_012_fixed<Q>(t, bv[0], bv[1], bv[2]);
+  Vec4 a00 = Vec4::Zero(), a01 = Vec4::Zero(), a02 = Vec4::Zero(), a10 = Vec4::Zero(),
+       a11 = Vec4::Zero(), a20 = Vec4::Zero();
+  const Vec4* cw = patch.cw.data();
+  for (int i = 0; i <= P; ++i) {
+    Vec4 r0 = Vec4::Zero(), r1 = Vec4::Zero(), r2 = Vec4::Zero();
+    const Vec4* row = cw + i * (Q + 1);
+    for (int j = 0; j <= Q; ++j) {
+      r0 += bv[0][j] * row[j];
+      r1 += bv[1][j] * row[j];
+      r2 += bv[2][j] * row[j];
+    }
+    a00 += bu[0][i] * r0;
+    a01 += bu[0][i] * r1;
+    a02 += bu[0][i] * r2;
+    a10 += bu[1][i] * r0;
+    a11 += bu[1][i] * r1;
+    a20 += bu[2][i] * r0;
+  }
+  rational_from_homogeneous(a00, a10, a01, a20, a11, a02, out);
+}
+
 void patch_derivatives(const BezierPatch& patch, double s, double t, Vec3* out) {
   const int p = patch.degree_u, q = patch.degree_v;
+  // The common degrees of CAD surfaces get unrolled code; any other takes the generic loops.
+  if (p == 3 && q == 3) return patch_derivatives_fixed<3, 3>(patch, s, t, out);
+  if (p == 2 && q == 2) return patch_derivatives_fixed<2, 2>(patch, s, t, out);
+  if (p == 2 && q == 3) return patch_derivatives_fixed<2, 3>(patch, s, t, out);
+  if (p == 3 && q == 2) return patch_derivatives_fixed<3, 2>(patch, s, t, out);
   double bu[3][kMaxDegree + 1], bv[3][kMaxDegree + 1];
   bernstein_012(p, s, bu[0], bu[1], bu[2]);
   bernstein_012(q, t, bv[0], bv[1], bv[2]);
@@ -262,16 +336,7 @@ void patch_derivatives(const BezierPatch& patch, double s, double t, Vec3* out) 
     a11 += bu[1][i] * r1;
     a20 += bu[2][i] * r0;
   }
-  const double inv_w = 1.0 / a00[3];
-  const Vec3 x = a00.head<3>() * inv_w;
-  const Vec3 xs = (a10.head<3>() - a10[3] * x) * inv_w;
-  const Vec3 xt = (a01.head<3>() - a01[3] * x) * inv_w;
-  out[0] = x;
-  out[1] = xs;
-  out[2] = xt;
-  out[3] = (a20.head<3>() - 2.0 * a10[3] * xs - a20[3] * x) * inv_w;
-  out[4] = (a11.head<3>() - a10[3] * xt - a01[3] * xs - a11[3] * x) * inv_w;
-  out[5] = (a02.head<3>() - 2.0 * a01[3] * xt - a02[3] * x) * inv_w;
+  rational_from_homogeneous(a00, a10, a01, a20, a11, a02, out);
 }
 
 // de Casteljau at 1/2 along s (rows): `low` (in place) gets [s0, mid], `high` [mid, s1].
