@@ -14,6 +14,10 @@ namespace {
 
 constexpr int kMaxGridSide = 2 * kMaxDegree + 1;
 
+double newton_core(const BezierPatch& patch, const Vec3& p, double s0, double s1, double t0,
+                   double t1, double& s, double& t, Vec3& foot, SurfaceProjectionStats* stats,
+                   Vec3* normal, double abort_at);
+
 double binomial(int n, int k) {
   double r = 1.0;
   for (int i = 1; i <= k; ++i)
@@ -480,7 +484,9 @@ struct Clipper {
   // when it lies in this box (neighbouring boxes often share the minimiser), the caller's guess
   // when it lies in the box (warm start), else (s, t) from the caller (the abscissa of the
   // smallest coefficient of F on the box).
-  void newton(double s0, double s1, double t0, double t1, double s, double t) {
+  // convex: F is proven convex on the box (polynomial patch): Newton may stop as soon as its
+  // tangent plane shows the box cannot hold a point that survives `eliminated`.
+  void newton(double s0, double s1, double t0, double t1, double s, double t, bool convex = false) {
     if (best_exact && best_s >= s0 && best_s <= s1 && best_t >= t0 && best_t <= t1) {
       s = best_s;
       t = best_t;
@@ -488,9 +494,16 @@ struct Clipper {
       s = guess_s;
       t = guess_t;
     }
+    double abort_at = std::numeric_limits<double>::infinity();
+    if (convex && std::isfinite(alpha)) {
+      // The same threshold as `eliminated` (a lower bound >= it drops a box).
+      const double target = std::max(std::sqrt(alpha) - eps_d, 0.0);
+      abort_at = target * target + round_err;
+    }
     Vec3 foot, normal;
-    const double value = newton_on_patch(pp.patch, p, s0, s1, t0, t1, s, t, foot, &st, &normal);
-    offer_exact(value, s, t, foot, normal);
+    const double value =
+        newton_core(pp.patch, p, s0, s1, t0, t1, s, t, foot, &st, &normal, abort_at);
+    if (std::isfinite(value)) offer_exact(value, s, t, foot, normal);
   }
 
   // The row (stride 1) or column (stride cols) of N and D along an edge of the current box.
@@ -651,11 +664,11 @@ void Clipper::run() {
     const double* d = d_of(n);
     // Newton on this box, started at the Greville abscissa (i / (rows - 1), j / (cols - 1)) of
     // F's smallest coefficient: near the minimiser when the box is nearly convex.
-    auto newton_box = [&] {
+    auto newton_box = [&](bool convex = false) {
       const int i = b.arg / cols, j = b.arg % cols;
       const double s = rows > 1 ? b.s0 + (b.s1 - b.s0) * i / (rows - 1) : 0.5 * (b.s0 + b.s1);
       const double t = cols > 1 ? b.t0 + (b.t1 - b.t0) * j / (cols - 1) : 0.5 * (b.t0 + b.t1);
-      newton(b.s0, b.s1, b.t0, b.t1, s, t);
+      newton(b.s0, b.s1, b.t0, b.t1, s, t, convex);
     };
     if (eliminated(b.lower)) {
       ++st.eliminations;
@@ -690,7 +703,7 @@ void Clipper::run() {
     if (!pp.rational) {
       if (convex_polynomial(n, rows, cols)) {
         ++st.convex_terminations;
-        newton_box();
+        newton_box(true);
         continue;
       }
     } else {
@@ -858,9 +871,31 @@ Vec3 unit_normal(const Vec3& su, const Vec3& sv) {
 }
 }  // namespace
 
+namespace {
+
+// newton_on_patch with an optional early exit for a box on which F = |S - p|^2 is known to be
+// convex (`abort_at` finite, polynomial patches only): a convex F lies above its tangent plane,
+// so F >= F(x) + grad F(x) . (y - x) >= F(x) + Σ min over the box's ends, for every y in the box.
+// When that bound reaches abort_at the box cannot beat the caller's best: Newton stops and
+// returns +infinity (nothing to offer; s, t and foot are then meaningless).
+double newton_core(const BezierPatch& patch, const Vec3& p, double s0, double s1, double t0,
+                   double t1, double& s, double& t, Vec3& foot, SurfaceProjectionStats* stats,
+                   Vec3* normal, double abort_at);
+
+}  // namespace
+
 double newton_on_patch(const BezierPatch& patch, const Vec3& p, double s0, double s1, double t0,
                        double t1, double& s, double& t, Vec3& foot, SurfaceProjectionStats* stats,
                        Vec3* normal) {
+  return newton_core(patch, p, s0, s1, t0, t1, s, t, foot, stats, normal,
+                     std::numeric_limits<double>::infinity());
+}
+
+namespace {
+
+double newton_core(const BezierPatch& patch, const Vec3& p, double s0, double s1, double t0,
+                   double t1, double& s, double& t, Vec3& foot, SurfaceProjectionStats* stats,
+                   Vec3* normal, double abort_at) {
   s = std::clamp(s, s0, s1);
   t = std::clamp(t, t0, t1);
   Vec3 d[6];
@@ -873,6 +908,15 @@ double newton_on_patch(const BezierPatch& patch, const Vec3& p, double s0, doubl
     const Vec3 &su = d[1], &sv = d[2];
     // Half gradient and half Hessian of F = |S - p|^2.
     const double gs = r.dot(su), gt = r.dot(sv);
+    if (abort_at < std::numeric_limits<double>::infinity()) {
+      // Tangent-plane lower bound of the convex F over the box (F_s = 2 gs, F_t = 2 gt).
+      const double below = f + 2.0 * (std::min(gs * (s0 - s), gs * (s1 - s)) +
+                                      std::min(gt * (t0 - t), gt * (t1 - t)));
+      if (below >= abort_at) {
+        if (stats) stats->newton_iterations += iterations;
+        return std::numeric_limits<double>::infinity();
+      }
+    }
     const double hss = su.dot(su) + r.dot(d[3]);
     const double hst = su.dot(sv) + r.dot(d[4]);
     const double htt = sv.dot(sv) + r.dot(d[5]);
@@ -964,6 +1008,8 @@ double newton_on_patch(const BezierPatch& patch, const Vec3& p, double s0, doubl
   return f;
 }
 
+}  // namespace
+
 Vec3 patch_unit_normal(const BezierPatch& patch, double s, double t) {
   Vec3 d[6];
   patch_derivatives(patch, s, t, d);
@@ -985,7 +1031,11 @@ bool project_onto_patch(const PreparedPatch& pp, const Vec3& p, SurfaceHit& best
   ++local.patches_visited;
   clip.run();
   bool improved = false;
-  if (std::isfinite(clip.best_value)) {
+  // A best candidate known only as a corner coefficient that does not beat the caller's best
+  // needs no polishing: every box of the patch was eliminated against alpha <= that best or
+  // finished by Newton, so the patch holds nothing closer (up to the accepted 1e-11 R).
+  const bool worth_polishing = clip.best_exact || clip.best_value < best.distance_sq;
+  if (std::isfinite(clip.best_value) && worth_polishing) {
     // A candidate known only through coefficients (a corner value) is polished on the geometry
     // over the whole patch (descent only: it can only improve). Newton results already are.
     double s = clip.best_s, t = clip.best_t;
