@@ -98,19 +98,42 @@ void Projector::project_range(PointView points, const ProjectionOptions& options
       // Seed alpha with the hint: an upper bound only, so the answer stays exact.
       SurfaceHit best;
       int best_surface = -1;
+      std::int64_t best_patch = -1;
+      // Warm start: the hint's patch (binary search over the surface's breakpoints) and a
+      // box-constrained Newton from the hint on it give a tight upper bound alpha at once, so
+      // the BVH walk and the clipping below eliminate almost everything else. The hint only
+      // lowers alpha (a true distance) and chooses Newton's start: the answer stays exact.
+      std::int64_t hint_patch = -1;
+      double hint_s = kNaN, hint_t = kNaN;
       if (valid_hint(hint, entities)) {
         const NurbsSurface& s = model.surfaces[hint->entity];
-        best.u = std::clamp(hint->u, s.domain_u().lo, s.domain_u().hi);
-        best.v = std::clamp(hint->v, s.domain_v().lo, s.domain_v().hi);
-        best.foot = s.evaluate(best.u, best.v);
-        best.distance_sq = (best.foot - p).squaredNorm();
-        best_surface = hint->entity;
+        const double u = std::clamp(hint->u, s.domain_u().lo, s.domain_u().hi);
+        const double v = std::clamp(hint->v, s.domain_v().lo, s.domain_v().hi);
+        hint_patch = model_.locate_patch(hint->entity, u, v);
+        if (hint_patch >= 0) {
+          const BezierPatch& bp = model_.patch(static_cast<std::size_t>(hint_patch)).patch;
+          hint_s = std::clamp(bp.param_u.to_local(u), 0.0, 1.0);
+          hint_t = std::clamp(bp.param_v.to_local(v), 0.0, 1.0);
+          double s_loc = hint_s, t_loc = hint_t;
+          best.distance_sq = newton_on_patch(bp, p, 0.0, 1.0, 0.0, 1.0, s_loc, t_loc, best.foot,
+                                             nullptr, &best.normal);
+          best.s = s_loc;
+          best.t = t_loc;
+          best.u = bp.param_u.to_parent(s_loc);
+          best.v = bp.param_v.to_parent(t_loc);
+          best_surface = hint->entity;
+          best_patch = hint_patch;
+          // The clipping of this patch restarts Newton from the converged point (one step).
+          hint_s = s_loc;
+          hint_t = t_loc;
+        }
       }
       const double limit_sq = options.max_distance * options.max_distance;
       if (best.distance_sq >= limit_sq) {
         best = SurfaceHit{};
         best.distance_sq = limit_sq;
         best_surface = -1;
+        best_patch = -1;
       }
       double alpha = best.distance_sq;
       model_.patch_hierarchy().nearest(
@@ -118,9 +141,12 @@ void Projector::project_range(PointView points, const ProjectionOptions& options
           [this](std::uint32_t k, const Vec3& x) { return model_.patch_lower_bound(k, x); },
           [&](std::uint32_t k, double& a) {
             ++state.counters.patches_visited;
+            const bool hinted = static_cast<std::int64_t>(k) == hint_patch;
             if (project_onto_patch(model_.patch(k), p, best, state.surface_scratch,
-                                   &state.surface_stats)) {
+                                   &state.surface_stats, hinted ? hint_s : kNaN,
+                                   hinted ? hint_t : kNaN)) {
               best_surface = model_.patch_surface(k);
+              best_patch = k;
               a = best.distance_sq;
             }
           });
@@ -130,7 +156,21 @@ void Projector::project_range(PointView points, const ProjectionOptions& options
       }
       const NurbsSurface& s = model.surfaces[best_surface];
       const double distance = std::sqrt(best.distance_sq);
-      const Vec3 n = surface_normal(s, best.u, best.v);
+      // The normal from the Bézier patch that holds the foot (its first derivatives), not via
+      // the NURBS surface (span search + basis functions). On a patch edge the NURBS
+      // evaluation picks its own side's span, which differs at a C0 crease: there, and where
+      // the patch normal is undefined (poles), the surface's own rule decides.
+      Vec3 n = Vec3::Zero();
+      if (best_patch >= 0) {
+        // A patch edge that is the domain's own edge has no neighbour span: the patch decides.
+        const BezierPatch& bp = model_.patch(static_cast<std::size_t>(best_patch)).patch;
+        const bool inner_s = (best.s > 0.0 || bp.param_u.lo <= s.domain_u().lo) &&
+                             (best.s < 1.0 || bp.param_u.hi >= s.domain_u().hi);
+        const bool inner_t = (best.t > 0.0 || bp.param_v.lo <= s.domain_v().lo) &&
+                             (best.t < 1.0 || bp.param_v.hi >= s.domain_v().hi);
+        if (inner_s && inner_t) n = best.normal;
+      }
+      if (n.isZero(0.0)) n = surface_normal(s, best.u, best.v);
       out.foot[i] = best.foot;
       out.distance[i] = distance;
       out.signed_distance[i] = (p - best.foot).dot(n) < 0.0 ? -distance : distance;
@@ -205,6 +245,7 @@ void Projector::project(PointView points, const ProjectionOptions& options, Proj
       counters->patches_visited += s.counters.patches_visited;
       counters->subdivisions += static_cast<std::uint64_t>(s.surface_stats.subdivisions) +
                                 static_cast<std::uint64_t>(s.curve_stats.subdivisions);
+      counters->newton_iterations += static_cast<std::uint64_t>(s.surface_stats.newton_iterations);
     }
   }
 }
@@ -222,6 +263,7 @@ void Projector::project_serial(PointView points, const ProjectionOptions& option
     *counters = state.counters;
     counters->subdivisions = static_cast<std::uint64_t>(state.surface_stats.subdivisions) +
                              static_cast<std::uint64_t>(state.curve_stats.subdivisions);
+    counters->newton_iterations = static_cast<std::uint64_t>(state.surface_stats.newton_iterations);
   }
 }
 

@@ -14,6 +14,10 @@ namespace {
 
 constexpr int kMaxGridSide = 2 * kMaxDegree + 1;
 
+double newton_core(const BezierPatch& patch, const Vec3& p, double s0, double s1, double t0,
+                   double t1, double& s, double& t, Vec3& foot, SurfaceProjectionStats* stats,
+                   Vec3* normal, double abort_at);
+
 double binomial(int n, int k) {
   double r = 1.0;
   for (int i = 1; i <= k; ++i)
@@ -132,6 +136,213 @@ int monotone_edge(const FDerivatives& f) {
   return -1;
 }
 
+// Polynomial F (D == 1) only: the termination test of `convex` on F's own second derivatives,
+// computed in one pass per derivative with an exit as soon as a bound shows the test fails
+// (min F_ss <= 0 or min F_tt <= 0 fails whatever the margin is). Same result as
+// convex(f_derivatives(...)) for a polynomial patch; the first-derivative ranges are not needed
+// there (monotone_edge is used for rational patches only).
+bool convex_polynomial(const double* a, int rows, int cols) {
+  if (rows < 3 || cols < 3) return false;  // F_ss or F_tt identically zero
+  const int m = rows - 1, n = cols - 1;
+  double ss_lo = std::numeric_limits<double>::infinity(), ss_hi = -ss_lo;
+  for (int i = 0; i + 2 < rows; ++i) {
+    const double* r0 = a + i * cols;
+    const double* r1 = r0 + cols;
+    const double* r2 = r1 + cols;
+    for (int j = 0; j < cols; ++j) {
+      const double x = r2[j] - 2.0 * r1[j] + r0[j];
+      ss_lo = std::min(ss_lo, x);
+      ss_hi = std::max(ss_hi, x);
+    }
+    if (!(ss_lo > 0.0)) return false;
+  }
+  double tt_lo = std::numeric_limits<double>::infinity(), tt_hi = -tt_lo;
+  for (int i = 0; i < rows; ++i) {
+    const double* r = a + i * cols;
+    for (int j = 0; j + 2 < cols; ++j) {
+      const double x = r[j + 2] - 2.0 * r[j + 1] + r[j];
+      tt_lo = std::min(tt_lo, x);
+      tt_hi = std::max(tt_hi, x);
+    }
+    if (!(tt_lo > 0.0)) return false;
+  }
+  double st_lo = std::numeric_limits<double>::infinity(), st_hi = -st_lo;
+  for (int i = 0; i + 1 < rows; ++i) {
+    const double* r0 = a + i * cols;
+    const double* r1 = r0 + cols;
+    for (int j = 0; j + 1 < cols; ++j) {
+      const double x = r1[j + 1] - r1[j] - r0[j + 1] + r0[j];
+      st_lo = std::min(st_lo, x);
+      st_hi = std::max(st_hi, x);
+    }
+  }
+  // The same scaling and margin as derivative_ranges + convex.
+  const double ks = double(m) * (m - 1), kt = double(n) * (n - 1), kst = double(m) * n;
+  FDerivatives f{};
+  f.ss = {ks * ss_lo, ks * ss_hi};
+  f.tt = {kt * tt_lo, kt * tt_hi};
+  f.st = {kst * st_lo, kst * st_hi};
+  return convex(f);
+}
+
+// Binomial coefficients C(n, i), n <= kMaxDegree, exact in double.
+struct BinomialTable {
+  double c[kMaxDegree + 1][kMaxDegree + 1] = {};
+  constexpr BinomialTable() {
+    for (int n = 0; n <= kMaxDegree; ++n) {
+      c[n][0] = c[n][n] = 1.0;
+      for (int i = 1; i < n; ++i)
+        c[n][i] = c[n - 1][i - 1] + c[n - 1][i];
+    }
+  }
+};
+constexpr BinomialTable kBinomial;
+
+// Bernstein values and first and second derivatives of degree n at t in [0, 1]:
+// B_i^m = C(m, i) t^i (1 - t)^(m - i) for m = n, n - 1, n - 2 from one table of powers (all terms
+// positive: no cancellation), then dB_i^n/dt = n (B_{i-1}^{n-1} - B_i^{n-1}) and the second
+// difference for d2 (The NURBS Book eq. 1.9). Only entries 0..n are written.
+void bernstein_012(int n, double t, double* b0, double* b1, double* b2) {
+  double tp[kMaxDegree + 1], up[kMaxDegree + 1];
+  const double u = 1.0 - t;
+  tp[0] = up[0] = 1.0;
+  for (int k = 1; k <= n; ++k) {
+    tp[k] = tp[k - 1] * t;
+    up[k] = up[k - 1] * u;
+  }
+  for (int i = 0; i <= n; ++i)
+    b0[i] = kBinomial.c[n][i] * tp[i] * up[n - i];
+  if (n < 1) {
+    b1[0] = b2[0] = 0.0;
+    return;
+  }
+  // l1[i] = B_i^{n-1}, with l1[-1] = l1[n] = 0.
+  double l1[kMaxDegree + 2];
+  l1[0] = 0.0;
+  for (int i = 0; i <= n - 1; ++i)
+    l1[i + 1] = kBinomial.c[n - 1][i] * tp[i] * up[n - 1 - i];
+  l1[n + 1] = 0.0;
+  for (int i = 0; i <= n; ++i)
+    b1[i] = n * (l1[i] - l1[i + 1]);
+  if (n < 2) {
+    b2[0] = b2[1] = 0.0;
+    return;
+  }
+  // l2[i + 2] = B_i^{n-2}, zero-padded by two on each side.
+  double l2[kMaxDegree + 3];
+  l2[0] = l2[1] = 0.0;
+  for (int i = 0; i <= n - 2; ++i)
+    l2[i + 2] = kBinomial.c[n - 2][i] * tp[i] * up[n - 2 - i];
+  l2[n + 1] = l2[n + 2] = 0.0;
+  const double nn = double(n) * (n - 1);
+  for (int i = 0; i <= n; ++i)
+    b2[i] = nn * (l2[i] - 2.0 * l2[i + 1] + l2[i + 2]);
+}
+
+// S, S_s, S_t, S_ss, S_st, S_tt of a rational Bézier patch at local (s, t): homogeneous tensor
+// sums, then the quotient rule (The NURBS Book eq. 4.20). The same formulas as
+// BezierPatch::derivatives with one basis pass per direction and no zero-filled storage: the
+// Newton iteration's inner cost.
+// The quotient rule from the six homogeneous sums a_kl = d^(k+l) A / ds^k dt^l (A = Σ B B P^w).
+void rational_from_homogeneous(const Vec4& a00, const Vec4& a10, const Vec4& a01, const Vec4& a20,
+                               const Vec4& a11, const Vec4& a02, Vec3* out) {
+  const double inv_w = 1.0 / a00[3];
+  const Vec3 x = a00.head<3>() * inv_w;
+  const Vec3 xs = (a10.head<3>() - a10[3] * x) * inv_w;
+  const Vec3 xt = (a01.head<3>() - a01[3] * x) * inv_w;
+  out[0] = x;
+  out[1] = xs;
+  out[2] = xt;
+  out[3] = (a20.head<3>() - 2.0 * a10[3] * xs - a20[3] * x) * inv_w;
+  out[4] = (a11.head<3>() - a10[3] * xt - a01[3] * xs - a11[3] * x) * inv_w;
+  out[5] = (a02.head<3>() - 2.0 * a01[3] * xt - a02[3] * x) * inv_w;
+}
+
+// Fixed degree N: Bernstein values and derivatives with compile-time loop bounds (unrolled).
+template <int N>
+void bernstein_012_fixed(double t, double* b0, double* b1, double* b2) {
+  static_assert(N >= 2 && N <= kMaxDegree);
+  const double u = 1.0 - t;
+  double tp[N + 1], up[N + 1];
+  tp[0] = up[0] = 1.0;
+  for (int k = 1; k <= N; ++k) {
+    tp[k] = tp[k - 1] * t;
+    up[k] = up[k - 1] * u;
+  }
+  for (int i = 0; i <= N; ++i)
+    b0[i] = kBinomial.c[N][i] * tp[i] * up[N - i];
+  double l1[N + 2];
+  l1[0] = l1[N + 1] = 0.0;
+  for (int i = 0; i <= N - 1; ++i)
+    l1[i + 1] = kBinomial.c[N - 1][i] * tp[i] * up[N - 1 - i];
+  for (int i = 0; i <= N; ++i)
+    b1[i] = N * (l1[i] - l1[i + 1]);
+  double l2[N + 3];
+  l2[0] = l2[1] = l2[N + 1] = l2[N + 2] = 0.0;
+  for (int i = 0; i <= N - 2; ++i)
+    l2[i + 2] = kBinomial.c[N - 2][i] * tp[i] * up[N - 2 - i];
+  for (int i = 0; i <= N; ++i)
+    b2[i] = double(N * (N - 1)) * (l2[i] - 2.0 * l2[i + 1] + l2[i + 2]);
+}
+
+// patch_derivatives for fixed degrees (P, Q): the same sums, fully unrolled by the compiler.
+template <int P, int Q>
+void patch_derivatives_fixed(const BezierPatch& patch, double s, double t, Vec3* out) {
+  double bu[3][P + 1], bv[3][Q + 1];
+  bernstein_012_fixed<P>(s, bu[0], bu[1], bu[2]);
+  bernstein_012_fixed<Q>(t, bv[0], bv[1], bv[2]);
+  Vec4 a00 = Vec4::Zero(), a01 = Vec4::Zero(), a02 = Vec4::Zero(), a10 = Vec4::Zero(),
+       a11 = Vec4::Zero(), a20 = Vec4::Zero();
+  const Vec4* cw = patch.cw.data();
+  for (int i = 0; i <= P; ++i) {
+    Vec4 r0 = Vec4::Zero(), r1 = Vec4::Zero(), r2 = Vec4::Zero();
+    const Vec4* row = cw + i * (Q + 1);
+    for (int j = 0; j <= Q; ++j) {
+      r0 += bv[0][j] * row[j];
+      r1 += bv[1][j] * row[j];
+      r2 += bv[2][j] * row[j];
+    }
+    a00 += bu[0][i] * r0;
+    a01 += bu[0][i] * r1;
+    a02 += bu[0][i] * r2;
+    a10 += bu[1][i] * r0;
+    a11 += bu[1][i] * r1;
+    a20 += bu[2][i] * r0;
+  }
+  rational_from_homogeneous(a00, a10, a01, a20, a11, a02, out);
+}
+
+void patch_derivatives(const BezierPatch& patch, double s, double t, Vec3* out) {
+  const int p = patch.degree_u, q = patch.degree_v;
+  // The common degrees of CAD surfaces get unrolled code; any other takes the generic loops.
+  if (p == 3 && q == 3) return patch_derivatives_fixed<3, 3>(patch, s, t, out);
+  if (p == 2 && q == 2) return patch_derivatives_fixed<2, 2>(patch, s, t, out);
+  if (p == 2 && q == 3) return patch_derivatives_fixed<2, 3>(patch, s, t, out);
+  if (p == 3 && q == 2) return patch_derivatives_fixed<3, 2>(patch, s, t, out);
+  double bu[3][kMaxDegree + 1], bv[3][kMaxDegree + 1];
+  bernstein_012(p, s, bu[0], bu[1], bu[2]);
+  bernstein_012(q, t, bv[0], bv[1], bv[2]);
+  Vec4 a00 = Vec4::Zero(), a01 = Vec4::Zero(), a02 = Vec4::Zero(), a10 = Vec4::Zero(),
+       a11 = Vec4::Zero(), a20 = Vec4::Zero();
+  const Vec4* cw = patch.cw.data();
+  for (int i = 0; i <= p; ++i) {
+    Vec4 r0 = Vec4::Zero(), r1 = Vec4::Zero(), r2 = Vec4::Zero();
+    const Vec4* row = cw + i * (q + 1);
+    for (int j = 0; j <= q; ++j) {
+      r0 += bv[0][j] * row[j];
+      r1 += bv[1][j] * row[j];
+      r2 += bv[2][j] * row[j];
+    }
+    a00 += bu[0][i] * r0;
+    a01 += bu[0][i] * r1;
+    a02 += bu[0][i] * r2;
+    a10 += bu[1][i] * r0;
+    a11 += bu[1][i] * r1;
+    a20 += bu[2][i] * r0;
+  }
+  rational_from_homogeneous(a00, a10, a01, a20, a11, a02, out);
+}
+
 // de Casteljau at 1/2 along s (rows): `low` (in place) gets [s0, mid], `high` [mid, s1].
 void split_rows(double* low, double* high, int rows, int cols) {
   double work[kMaxGridSide];
@@ -168,16 +379,24 @@ void split_cols(double* low, double* high, int rows, int cols) {
     split_line(low + i * cols, high + i * cols, cols);
 }
 
-double lower_bound(const double* n, const double* d, int count, bool rational) {
-  double lo = std::numeric_limits<double>::infinity();
-  if (rational) {
-    for (int k = 0; k < count; ++k)
-      lo = std::min(lo, n[k] / d[k]);
-  } else {
-    for (int k = 0; k < count; ++k)
-      lo = std::min(lo, n[k]);
+// Smallest and largest coefficient ratio N_k / D_k and the index of the smallest, in one pass.
+struct CoefficientRange {
+  double lo, hi;
+  int arg;
+};
+
+CoefficientRange coefficient_range(const double* n, const double* d, int count, bool rational) {
+  CoefficientRange r{std::numeric_limits<double>::infinity(),
+                     -std::numeric_limits<double>::infinity(), 0};
+  for (int k = 0; k < count; ++k) {
+    const double f = rational ? n[k] / d[k] : n[k];
+    if (f < r.lo) {
+      r.lo = f;
+      r.arg = k;
+    }
+    r.hi = std::max(r.hi, f);
   }
-  return lo;
+  return r;
 }
 
 // Theorem 2 of seed 001 for a polynomial F: if the coefficients of one boundary row (column) are
@@ -224,6 +443,10 @@ struct Clipper {
   double best_s = 0, best_t = 0;
   bool best_exact = false;  // the best candidate is a Newton result on the geometry
   Vec3 best_foot = Vec3::Zero();
+  Vec3 best_normal = Vec3::Zero();
+  // Caller's guess of the minimiser (e.g. the previous ICP foot), local; NaN: none.
+  double guess_s = std::numeric_limits<double>::quiet_NaN();
+  double guess_t = std::numeric_limits<double>::quiet_NaN();
 
   // Theorem 1 with an accuracy tolerance and a rounding margin: drop the box when its lower bound,
   // even lowered by the rounding bound, shows that no point of the box is closer than
@@ -244,27 +467,43 @@ struct Clipper {
     alpha = std::min(alpha, value + round_err);
   }
   // A value of the real geometry (Newton result).
-  void offer_exact(double value, double s, double t, const Vec3& foot) {
+  void offer_exact(double value, double s, double t, const Vec3& foot, const Vec3& normal) {
     if (value < best_value) {
       best_value = value;
       best_s = s;
       best_t = t;
       best_exact = true;
       best_foot = foot;
+      best_normal = normal;
     }
     alpha = std::min(alpha, value);
   }
-  void newton(double s0, double s1, double t0, double t1) {
-    double s = 0.5 * (s0 + s1), t = 0.5 * (t0 + t1);
-    // Neighbouring boxes often share the minimiser: start from the best point so far when it lies
-    // in this box (it is then usually already the answer and Newton stops at once).
+  // Box-constrained Newton on [s0, s1] x [t0, t1] from (s, t). Where it starts does not affect
+  // correctness (it is called where the minimiser on the box is unique, or as a safety net), only
+  // the number of iterations; the start is, in order of preference: the best Newton point so far
+  // when it lies in this box (neighbouring boxes often share the minimiser), the caller's guess
+  // when it lies in the box (warm start), else (s, t) from the caller (the abscissa of the
+  // smallest coefficient of F on the box).
+  // convex: F is proven convex on the box (polynomial patch): Newton may stop as soon as its
+  // tangent plane shows the box cannot hold a point that survives `eliminated`.
+  void newton(double s0, double s1, double t0, double t1, double s, double t, bool convex = false) {
     if (best_exact && best_s >= s0 && best_s <= s1 && best_t >= t0 && best_t <= t1) {
       s = best_s;
       t = best_t;
+    } else if (guess_s >= s0 && guess_s <= s1 && guess_t >= t0 && guess_t <= t1) {
+      s = guess_s;
+      t = guess_t;
     }
-    Vec3 foot;
-    const double value = newton_on_patch(pp.patch, p, s0, s1, t0, t1, s, t, foot, &st);
-    offer_exact(value, s, t, foot);
+    double abort_at = std::numeric_limits<double>::infinity();
+    if (convex && std::isfinite(alpha)) {
+      // The same threshold as `eliminated` (a lower bound >= it drops a box).
+      const double target = std::max(std::sqrt(alpha) - eps_d, 0.0);
+      abort_at = target * target + round_err;
+    }
+    Vec3 foot, normal;
+    const double value =
+        newton_core(pp.patch, p, s0, s1, t0, t1, s, t, foot, &st, &normal, abort_at);
+    if (std::isfinite(value)) offer_exact(value, s, t, foot, normal);
   }
 
   // The row (stride 1) or column (stride cols) of N and D along an edge of the current box.
@@ -301,11 +540,22 @@ void Clipper::clip_boundary(const double* n_row, const double* d_row, int stride
       lo = std::min(lo, rational ? n[j] / d[j] : n[j]);
     return lo;
   };
-  auto newton_on = [&](double lo, double hi) {
+  // Newton on the edge from the abscissa of the row's smallest coefficient ratio.
+  auto newton_on = [&](double lo, double hi, const double* c, const double* w) {
+    int arg = 0;
+    double lo_value = std::numeric_limits<double>::infinity();
+    for (int j = 0; j < count; ++j) {
+      const double r = rational ? c[j] / w[j] : c[j];
+      if (r < lo_value) {
+        lo_value = r;
+        arg = j;
+      }
+    }
+    const double x = count > 1 ? lo + (hi - lo) * arg / (count - 1) : 0.5 * (lo + hi);
     if (along_t) {
-      newton(fixed, fixed, lo, hi);
+      newton(fixed, fixed, lo, hi, fixed, x);
     } else {
-      newton(lo, hi, fixed, fixed);
+      newton(lo, hi, fixed, fixed, x, fixed);
     }
   };
   int top = 0;
@@ -331,7 +581,7 @@ void Clipper::clip_boundary(const double* n_row, const double* d_row, int stride
       c_max = std::max(c_max, rational ? c[j] / w[j] : c[j]);
     if (c_max - iv.lower <= 4.0 * round_err) {  // below the coefficients' resolution
       ++st.resolution_terminations;
-      newton_on(iv.t0, iv.t1);
+      newton_on(iv.t0, iv.t1, c, w);
       continue;
     }
     if (!rational) {
@@ -349,7 +599,7 @@ void Clipper::clip_boundary(const double* n_row, const double* d_row, int stride
       if (changes == 0) continue;  // monotone: the minimum is an end value, already offered
       if (changes == 1 && falls_first) {
         ++st.convex_terminations;
-        newton_on(iv.t0, iv.t1);
+        newton_on(iv.t0, iv.t1, c, w);
         continue;
       }
     } else {
@@ -359,13 +609,13 @@ void Clipper::clip_boundary(const double* n_row, const double* d_row, int stride
       if (f.t.lo > margin || f.t.hi < -margin) continue;  // monotone: an end value
       if (f.tt.lo > 1e-12 * std::abs(f.tt.hi)) {
         ++st.convex_terminations;
-        newton_on(iv.t0, iv.t1);
+        newton_on(iv.t0, iv.t1, c, w);
         continue;
       }
     }
     if (iv.depth >= SurfaceScratch::kMaxDepth || top + 2 > SurfaceScratch::kStackCapacity) {
       ++st.depth_limit_hits;
-      newton_on(iv.t0, iv.t1);
+      newton_on(iv.t0, iv.t1, c, w);
       continue;
     }
     ++st.subdivisions;
@@ -398,17 +648,28 @@ void Clipper::run() {
   double* base = sc.grids.data();
   int top = 0;
   pp.numerator(p, base);
-  std::memcpy(base + SurfaceScratch::kGridCapacity, pp.d.data(), sizeof(double) * count);
-  sc.boxes[top++] = {0.0,
-                     1.0,
-                     0.0,
-                     1.0,
-                     lower_bound(base, base + SurfaceScratch::kGridCapacity, count, pp.rational),
-                     0};
+  // A polynomial patch has D == 1 everywhere and never splits it: every box reads the patch's
+  // own array instead of a copy.
+  if (pp.rational) {
+    std::memcpy(base + SurfaceScratch::kGridCapacity, pp.d.data(), sizeof(double) * count);
+  }
+  auto d_of = [&](double* n) {
+    return pp.rational ? n + SurfaceScratch::kGridCapacity : pp.d.data();
+  };
+  const CoefficientRange root = coefficient_range(base, d_of(base), count, pp.rational);
+  sc.boxes[top++] = {0.0, 1.0, 0.0, 1.0, root.lo, root.hi, root.arg, 0};
   while (top > 0) {
     const SurfaceScratch::Box b = sc.boxes[--top];
     double* n = base + top * kSlot;
-    double* d = n + SurfaceScratch::kGridCapacity;
+    const double* d = d_of(n);
+    // Newton on this box, started at the Greville abscissa (i / (rows - 1), j / (cols - 1)) of
+    // F's smallest coefficient: near the minimiser when the box is nearly convex.
+    auto newton_box = [&](bool convex = false) {
+      const int i = b.arg / cols, j = b.arg % cols;
+      const double s = rows > 1 ? b.s0 + (b.s1 - b.s0) * i / (rows - 1) : 0.5 * (b.s0 + b.s1);
+      const double t = cols > 1 ? b.t0 + (b.t1 - b.t0) * j / (cols - 1) : 0.5 * (b.t0 + b.t1);
+      newton(b.s0, b.s1, b.t0, b.t1, s, t, convex);
+    };
     if (eliminated(b.lower)) {
       ++st.eliminations;
       continue;
@@ -430,13 +691,46 @@ void Clipper::run() {
         continue;
       }
     }
-    double f_max = -std::numeric_limits<double>::infinity();
+    const double f_max = b.upper;
+    // F is known to +-round_err only: once its whole range on the box is within a few round_err
+    // the coefficients cannot resolve the box further (a point on or within ~sqrt(round_err) of
+    // the surface, or a pole where F is flat across the box). The geometry can: Newton finishes.
+    if (f_max - b.lower <= 4.0 * round_err) {
+      ++st.resolution_terminations;
+      newton_box();
+      continue;
+    }
+    if (!pp.rational) {
+      if (convex_polynomial(n, rows, cols)) {
+        ++st.convex_terminations;
+        newton_box(true);
+        continue;
+      }
+    } else {
+      const FDerivatives fd = f_derivatives(n, d, rows, cols, true, {b.lower, f_max});
+      if (convex(fd)) {
+        ++st.convex_terminations;
+        newton_box();
+        continue;
+      }
+      const int edge = monotone_edge(fd);
+      if (edge >= 0) {
+        reduce_to_edge(edge, n, d, b);
+        continue;
+      }
+    }
+    if (b.depth >= SurfaceScratch::kMaxDepth || top + 2 > SurfaceScratch::kStackCapacity) {
+      ++st.depth_limit_hits;
+      newton_box();
+      continue;
+    }
+    ++st.subdivisions;
+    // Split across the direction in which F varies most: that is where the box is "long".
     double var_s = 0.0, var_t = 0.0;
     for (int i = 0; i < rows; ++i) {
       for (int j = 0; j < cols; ++j) {
         const int k = i * cols + j;
         const double f = pp.rational ? n[k] / d[k] : n[k];
-        f_max = std::max(f_max, f);
         if (i + 1 < rows) {
           const double g = pp.rational ? n[k + cols] / d[k + cols] : n[k + cols];
           var_s = std::max(var_s, std::abs(g - f));
@@ -447,54 +741,32 @@ void Clipper::run() {
         }
       }
     }
-    // F is known to +-round_err only: once its whole range on the box is within a few round_err
-    // the coefficients cannot resolve the box further (a point on or within ~sqrt(round_err) of
-    // the surface, or a pole where F is flat across the box). The geometry can: Newton finishes.
-    if (f_max - b.lower <= 4.0 * round_err) {
-      ++st.resolution_terminations;
-      newton(b.s0, b.s1, b.t0, b.t1);
-      continue;
-    }
-    const FDerivatives fd = f_derivatives(n, d, rows, cols, pp.rational, {b.lower, f_max});
-    if (convex(fd)) {
-      ++st.convex_terminations;
-      newton(b.s0, b.s1, b.t0, b.t1);
-      continue;
-    }
-    if (pp.rational) {
-      const int edge = monotone_edge(fd);
-      if (edge >= 0) {
-        reduce_to_edge(edge, n, d, b);
-        continue;
-      }
-    }
-    if (b.depth >= SurfaceScratch::kMaxDepth || top + 2 > SurfaceScratch::kStackCapacity) {
-      ++st.depth_limit_hits;
-      newton(b.s0, b.s1, b.t0, b.t1);
-      continue;
-    }
-    ++st.subdivisions;
-    // Split across the direction in which F varies most: that is where the box is "long".
     double* high = n + kSlot;
+    double* dn = n + SurfaceScratch::kGridCapacity;  // this box's own D (rational patches)
     double* high_d = high + SurfaceScratch::kGridCapacity;
     SurfaceScratch::Box lo = b, hi = b;
     lo.depth = hi.depth = b.depth + 1;
     if (var_s >= var_t) {
       split_rows(n, high, rows, cols);
-      if (pp.rational) split_rows(d, high_d, rows, cols);
+      if (pp.rational) split_rows(dn, high_d, rows, cols);
       lo.s1 = hi.s0 = 0.5 * (b.s0 + b.s1);
     } else {
       split_cols(n, high, rows, cols);
-      if (pp.rational) split_cols(d, high_d, rows, cols);
+      if (pp.rational) split_cols(dn, high_d, rows, cols);
       lo.t1 = hi.t0 = 0.5 * (b.t0 + b.t1);
     }
-    if (!pp.rational) std::memcpy(high_d, d, sizeof(double) * count);
-    lo.lower = lower_bound(n, d, count, pp.rational);
-    hi.lower = lower_bound(high, high_d, count, pp.rational);
+    const CoefficientRange lo_range = coefficient_range(n, d_of(n), count, pp.rational);
+    const CoefficientRange hi_range = coefficient_range(high, d_of(high), count, pp.rational);
+    lo.lower = lo_range.lo;
+    lo.upper = lo_range.hi;
+    lo.arg = lo_range.arg;
+    hi.lower = hi_range.lo;
+    hi.upper = hi_range.hi;
+    hi.arg = hi_range.arg;
     // Depth first, the more promising half on top (it shrinks alpha soonest).
     if (lo.lower < hi.lower) {
       std::swap_ranges(n, n + count, high);
-      std::swap_ranges(d, d + count, high_d);
+      if (pp.rational) std::swap_ranges(dn, dn + count, high_d);
       std::swap(lo, hi);
     }
     sc.boxes[top++] = lo;
@@ -527,8 +799,13 @@ void PreparedPatch::numerator(const Vec3& point, double* out) const {
   const Vec3 q = point - origin;
   const double qq = q.squaredNorm();
   const int count = rows * cols;
+  // Structure-of-arrays copy of E: the loop vectorises.
+  const double* ex = e_soa.data();
+  const double* ey = ex + count;
+  const double* ez = ey + count;
+  const double qx = 2.0 * q.x(), qy = 2.0 * q.y(), qz = 2.0 * q.z();
   for (int k = 0; k < count; ++k)
-    out[k] = g[k] - 2.0 * q.dot(e[k]) + qq * d[k];
+    out[k] = g[k] - (qx * ex[k] + qy * ey[k] + qz * ez[k]) + qq * d[k];
 }
 
 PreparedPatch prepare_patch(const BezierPatch& patch) {
@@ -576,15 +853,53 @@ PreparedPatch prepare_patch(const BezierPatch& patch) {
     }
   }
   if (!pp.rational) std::fill(pp.d.begin(), pp.d.end(), 1.0);
+  pp.e_soa.resize(3 * static_cast<std::size_t>(count));
+  for (int k = 0; k < count; ++k) {
+    for (int c = 0; c < 3; ++c)
+      pp.e_soa[static_cast<std::size_t>(c * count + k)] = pp.e[k][c];
+  }
   return pp;
 }
 
+namespace {
+Vec3 unit_normal(const Vec3& su, const Vec3& sv) {
+  const Vec3 n = su.cross(sv);
+  const double scale = su.norm() * sv.norm();
+  const double length = n.norm();
+  if (scale > 0.0 && length > 1e-12 * scale) return n / length;
+  return Vec3::Zero();
+}
+}  // namespace
+
+namespace {
+
+// newton_on_patch with an optional early exit for a box on which F = |S - p|^2 is known to be
+// convex (`abort_at` finite, polynomial patches only): a convex F lies above its tangent plane,
+// so F >= F(x) + grad F(x) . (y - x) >= F(x) + Σ min over the box's ends, for every y in the box.
+// When that bound reaches abort_at the box cannot beat the caller's best: Newton stops and
+// returns +infinity (nothing to offer; s, t and foot are then meaningless).
+double newton_core(const BezierPatch& patch, const Vec3& p, double s0, double s1, double t0,
+                   double t1, double& s, double& t, Vec3& foot, SurfaceProjectionStats* stats,
+                   Vec3* normal, double abort_at);
+
+}  // namespace
+
 double newton_on_patch(const BezierPatch& patch, const Vec3& p, double s0, double s1, double t0,
-                       double t1, double& s, double& t, Vec3& foot, SurfaceProjectionStats* stats) {
+                       double t1, double& s, double& t, Vec3& foot, SurfaceProjectionStats* stats,
+                       Vec3* normal) {
+  return newton_core(patch, p, s0, s1, t0, t1, s, t, foot, stats, normal,
+                     std::numeric_limits<double>::infinity());
+}
+
+namespace {
+
+double newton_core(const BezierPatch& patch, const Vec3& p, double s0, double s1, double t0,
+                   double t1, double& s, double& t, Vec3& foot, SurfaceProjectionStats* stats,
+                   Vec3* normal, double abort_at) {
   s = std::clamp(s, s0, s1);
   t = std::clamp(t, t0, t1);
   Vec3 d[6];
-  patch.derivatives(s, t, d);
+  patch_derivatives(patch, s, t, d);
   Vec3 r = d[0] - p;
   double f = r.squaredNorm();
   long iterations = 0;
@@ -593,6 +908,15 @@ double newton_on_patch(const BezierPatch& patch, const Vec3& p, double s0, doubl
     const Vec3 &su = d[1], &sv = d[2];
     // Half gradient and half Hessian of F = |S - p|^2.
     const double gs = r.dot(su), gt = r.dot(sv);
+    if (abort_at < std::numeric_limits<double>::infinity()) {
+      // Tangent-plane lower bound of the convex F over the box (F_s = 2 gs, F_t = 2 gt).
+      const double below = f + 2.0 * (std::min(gs * (s0 - s), gs * (s1 - s)) +
+                                      std::min(gt * (t0 - t), gt * (t1 - t)));
+      if (below >= abort_at) {
+        if (stats) stats->newton_iterations += iterations;
+        return std::numeric_limits<double>::infinity();
+      }
+    }
     const double hss = su.dot(su) + r.dot(d[3]);
     const double hst = su.dot(sv) + r.dot(d[4]);
     const double htt = sv.dot(sv) + r.dot(d[5]);
@@ -638,15 +962,22 @@ double newton_on_patch(const BezierPatch& patch, const Vec3& p, double s0, doubl
       ds /= reach;
       dt /= reach;
     }
+    // Converged: the step is below what a parameter in [0, 1] can resolve (the same threshold as
+    // `moved` below, without spending an evaluation on it).
+    if (std::max(std::abs(ds), std::abs(dt)) <= 1e-15) break;
     // Rounding in |S - p|^2: S carries ~eps |S| absolute error, so F carries ~2 |r| eps |S|.
     const double f_noise = 1e-14 * r.norm() * (d[0].norm() + p.norm()) + 1e-300;
     double step = 1.0;
     bool accepted = false;
     double ns = s, nt = t;
+    // Trial points get all derivatives at once: the first trial is nearly always accepted and
+    // its derivatives are then those of the next iteration.
+    Vec3 trial[6];
     for (int ls = 0; ls < 60; ++ls) {
       ns = std::clamp(s + step * ds, s0, s1);
       nt = std::clamp(t + step * dt, t0, t1);
-      const double nf = (patch.evaluate(ns, nt) - p).squaredNorm();
+      patch_derivatives(patch, ns, nt, trial);
+      const double nf = (trial[0] - p).squaredNorm();
       const double predicted = 2.0 * (gs * (ns - s) + gt * (nt - t));
       const double moved = std::max(std::abs(ns - s), std::abs(nt - t));
       if (nf <= f + 1e-4 * predicted ||
@@ -662,18 +993,26 @@ double newton_on_patch(const BezierPatch& patch, const Vec3& p, double s0, doubl
     const double moved = std::max(std::abs(ns - s), std::abs(nt - t));
     s = ns;
     t = nt;
-    patch.derivatives(s, t, d);
+    std::copy(trial, trial + 6, d);
     r = d[0] - p;
     f = r.squaredNorm();
     if (moved <= 1e-15) break;
+    // A full Newton step (positive definite Hessian) of size delta leaves an error of order
+    // delta^2 (quadratic convergence): below 1e-12 the next step would be under 1e-15 relative
+    // to the box up to the conditioning. We stop there instead of paying for that step.
+    if (newton_step && step == 1.0 && moved <= 1e-12 * std::max(s1 - s0, t1 - t0)) break;
   }
   if (stats) stats->newton_iterations += iterations;
   foot = d[0];
+  if (normal) *normal = unit_normal(d[1], d[2]);
   return f;
 }
 
+}  // namespace
+
 bool project_onto_patch(const PreparedPatch& pp, const Vec3& p, SurfaceHit& best,
-                        SurfaceScratch& scratch, SurfaceProjectionStats* stats) {
+                        SurfaceScratch& scratch, SurfaceProjectionStats* stats, double guess_s,
+                        double guess_t) {
   if (!p.allFinite()) return false;  // NaN would defeat every elimination test
   SurfaceProjectionStats local;
   const double reach = pp.sphere.radius + (p - pp.origin).norm();
@@ -681,23 +1020,33 @@ bool project_onto_patch(const PreparedPatch& pp, const Vec3& p, SurfaceHit& best
                // Each coefficient is G - 2 q.E + |q|^2 D with terms up to reach^2 D; de Casteljau
                // is a convex combination, so the error stays a small multiple of eps reach^2.
                1e-14 * reach * reach, 1e-11 * pp.sphere.radius};
+  clip.guess_s = guess_s;
+  clip.guess_t = guess_t;
   ++local.patches_visited;
   clip.run();
   bool improved = false;
-  if (std::isfinite(clip.best_value)) {
+  // A best candidate known only as a corner coefficient that does not beat the caller's best
+  // needs no polishing: every box of the patch was eliminated against alpha <= that best or
+  // finished by Newton, so the patch holds nothing closer (up to the accepted 1e-11 R).
+  const bool worth_polishing = clip.best_exact || clip.best_value < best.distance_sq;
+  if (std::isfinite(clip.best_value) && worth_polishing) {
     // A candidate known only through coefficients (a corner value) is polished on the geometry
     // over the whole patch (descent only: it can only improve). Newton results already are.
     double s = clip.best_s, t = clip.best_t;
     Vec3 foot = clip.best_foot;
+    Vec3 normal = clip.best_normal;
     double value = clip.best_value;
     if (!clip.best_exact) {
-      value = newton_on_patch(pp.patch, p, 0.0, 1.0, 0.0, 1.0, s, t, foot, &local);
+      value = newton_on_patch(pp.patch, p, 0.0, 1.0, 0.0, 1.0, s, t, foot, &local, &normal);
     }
     if (value < best.distance_sq) {
       best.u = pp.patch.param_u.to_parent(s);
       best.v = pp.patch.param_v.to_parent(t);
       best.distance_sq = value;
       best.foot = foot;
+      best.s = s;
+      best.t = t;
+      best.normal = normal;
       improved = true;
     }
   }

@@ -28,6 +28,9 @@ class PreparedModel {
   // Index of the surface patch i belongs to.
   int patch_surface(std::size_t i) const { return patch_surface_[i]; }
   const Bvh& patch_hierarchy() const { return patch_bvh_; }
+  // The patch of surface `surface` whose parameter box holds (u, v) (clamped to the domain), by
+  // binary search over the surface's patch breakpoints; -1 if the surface has no patches.
+  std::int64_t locate_patch(int surface, double u, double v) const;
   // Squared-distance lower bound from p to patch i (box and sphere).
   double patch_lower_bound(std::size_t i, const Vec3& p) const;
 
@@ -44,6 +47,15 @@ class PreparedModel {
   Model model_;
   std::vector<PreparedPatch> patches_;
   std::vector<int> patch_surface_;
+  // Per surface: its patches are [first, first + spans_u * spans_v), laid out [a * spans_v + b]
+  // for u span a and v span b (decompose's order, checked at construction), with the spans'
+  // lower parameter bounds in breaks_u / breaks_v.
+  struct SurfacePatches {
+    std::size_t first = 0;
+    int spans_u = 0, spans_v = 0;
+    std::vector<double> breaks_u, breaks_v;
+  };
+  std::vector<SurfacePatches> surface_patches_;
   std::vector<Aabb> patch_boxes_;
   std::vector<BoundingSphere> patch_spheres_;
   Bvh patch_bvh_;

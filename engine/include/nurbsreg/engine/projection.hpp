@@ -75,6 +75,7 @@ struct ProjectionCounters {
   std::uint64_t skipped = 0;
   std::uint64_t patches_visited = 0;
   std::uint64_t subdivisions = 0;
+  std::uint64_t newton_iterations = 0;  // of the per-patch box-constrained Newton (surfaces)
 };
 
 // A frame of points without copying: any container that can hand out point i.

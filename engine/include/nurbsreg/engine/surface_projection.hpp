@@ -35,6 +35,12 @@ struct SurfaceHit {
   double u = 0, v = 0;
   double distance_sq = std::numeric_limits<double>::infinity();
   Vec3 foot = Vec3::Zero();
+  // Local (s, t) in [0, 1]^2 of the Bézier patch that produced the hit (set by
+  // project_onto_patch; meaningless for a hit made elsewhere, e.g. from a hint).
+  double s = 0, t = 0;
+  // Unit S_s x S_t of that patch at the foot (from the last Newton evaluation), zero where it is
+  // undefined within rounding (poles) or unknown.
+  Vec3 normal = Vec3::Zero();
 };
 
 // One Bézier patch with everything a query needs, built once (allocates) by prepare_patch.
@@ -47,12 +53,13 @@ struct PreparedPatch {
   Aabb box;
   BoundingSphere sphere;
   Vec3 origin = Vec3::Zero();
-  bool rational = false;  // false: all weights equal, D_ij == 1 exactly (F is a polynomial)
-  int rows = 0;           // 2 * degree_u + 1
-  int cols = 0;           // 2 * degree_v + 1
-  std::vector<double> d;  // D_ij at [i * cols + j]
-  std::vector<double> g;  // G_ij
-  std::vector<Vec3> e;    // E_ij
+  bool rational = false;      // false: all weights equal, D_ij == 1 exactly (F is a polynomial)
+  int rows = 0;               // 2 * degree_u + 1
+  int cols = 0;               // 2 * degree_v + 1
+  std::vector<double> d;      // D_ij at [i * cols + j]
+  std::vector<double> g;      // G_ij
+  std::vector<Vec3> e;        // E_ij
+  std::vector<double> e_soa;  // E_ij again as x block, y block, z block (vectorised numerator)
 
   const BezierPatch& bezier() const { return patch; }
   // N_ij for the point p into out[rows * cols].
@@ -74,6 +81,8 @@ struct SurfaceScratch {
   struct Box {
     double s0, s1, t0, t1;  // local box in the prepared patch's [0, 1]^2
     double lower;           // lower bound of F on the box (min of the ratio coefficients)
+    double upper;           // max of the ratio coefficients
+    int arg;                // index of the smallest ratio coefficient
     int depth;
   };
   std::vector<double> grids;  // kStackCapacity entries of 2 * kGridCapacity doubles (N then D)
@@ -112,8 +121,12 @@ enum class SurfaceStrategy { spherical_clipping, ma_hewitt };
 // rounding of the coefficients (1e-14 (R + |p - c|)^2, R and c the bounding sphere), shows it
 // cannot be closer than the best so far minus 1e-11 R in distance; the answer is a Newton
 // stationary point on the geometry. Improvements below 1e-11 R are not pursued.
+// (guess_s, guess_t): optional local guess of the minimiser (warm start, e.g. the previous foot);
+// it only chooses where Newton starts on a box that holds it, never what is eliminated. NaN: none.
 bool project_onto_patch(const PreparedPatch& patch, const Vec3& p, SurfaceHit& best,
-                        SurfaceScratch& scratch, SurfaceProjectionStats* stats = nullptr);
+                        SurfaceScratch& scratch, SurfaceProjectionStats* stats = nullptr,
+                        double guess_s = std::numeric_limits<double>::quiet_NaN(),
+                        double guess_t = std::numeric_limits<double>::quiet_NaN());
 
 // Ma & Hewitt (seed 000) on one patch: Algorithm 6 with Algorithms 2 and 4, candidates refined
 // by Newton on the flat sub-patch (§9). Not exact (see header comment). Same contract otherwise.
@@ -124,9 +137,12 @@ bool project_onto_patch_ma_hewitt(const PreparedPatch& patch, const Vec3& p, Sur
 // [s0, s1] x [t0, t1] (s0 == s1 or t0 == t1 allowed: a boundary curve), starting at (s, t).
 // Returns the squared distance; (s, t) and foot are updated. Descent only: never returns a value
 // above the start value.
+// normal (optional): the unit normal S_s x S_t at the result, or zero where undefined
+// (|S_s x S_t| <= 1e-12 |S_s| |S_t|), from the derivatives Newton already has.
 double newton_on_patch(const BezierPatch& patch, const Vec3& p, double s0, double s1, double t0,
                        double t1, double& s, double& t, Vec3& foot,
-                       SurfaceProjectionStats* stats = nullptr);
+                       SurfaceProjectionStats* stats = nullptr, Vec3* normal = nullptr);
+
 
 // converged: the closest point was found; skipped_nan: the point has a NaN or infinite
 // coordinate; no_candidate: the strategy produced no point at all (only ma_hewitt can: its
