@@ -196,6 +196,7 @@ void configure_pcl(Icp& icp, int max_iterations) {
 
 int main(int argc, char** argv) try {
   const Settings settings = parse(argc, argv);
+  std::setvbuf(stdout, nullptr, _IOLBF, 0);  // progress visible when redirected
   tbb::global_control threads(tbb::global_control::max_allowed_parallelism, settings.threads);
   namespace engine = nurbsreg::engine;
   namespace icp = nurbsreg::icp;
@@ -268,6 +269,10 @@ int main(int argc, char** argv) try {
           it.stage, it.points, it.inliers, it.rms, it.rotation_step, it.translation_step,
           it.seconds);
     }
+    // Projection work of the last (full, warm-started) correspondence step.
+    const engine::ProjectionCounters& c = finder.last_counters();
+    std::printf("  last projection: %.2f patches visited per point (49-patch panel)\n",
+                static_cast<double>(c.patches_visited) / static_cast<double>(c.points));
     // The statistical accuracy the noise allows (solver's covariance, about the model origin).
     std::printf(
         "  1-sigma from the covariance: rotation %.3g deg, translation %.3g mm "
