@@ -12,5 +12,6 @@ void add_info_command(CLI::App& app);
 void add_project_command(CLI::App& app);
 void add_synth_command(CLI::App& app);
 void add_align_command(CLI::App& app);
+void add_batch_command(CLI::App& app);
 
 }  // namespace nurbsreg::cli
