@@ -513,8 +513,11 @@ void run_batch(const BatchArgs& args) {
           token->cloud = io::read_point_cloud(frame.input);
           token->row.points = token->cloud.size();
           token->row.skipped = token->cloud.skipped_nonfinite;
-          if (align && token->cloud.size() == 0) {
-            throw io::InputError(frame.input, "no finite points to align");
+          // An inspection frame without points is a fault of the scanner or the transfer, in
+          // both modes (a single `project` would write an empty table).
+          if (token->cloud.size() == 0) {
+            throw io::InputError(
+                frame.input, align ? "no finite points to align" : "no finite points to project");
           }
         } catch (const std::exception& e) {
           fail(*token, frame, e.what());
