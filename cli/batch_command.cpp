@@ -413,13 +413,6 @@ void run_batch(const BatchArgs& args) {
   }
 
   const fs::path out_dir(args.out);
-  {
-    std::error_code ec;
-    fs::create_directories(out_dir, ec);
-    if (ec || !fs::is_directory(out_dir)) {
-      throw io::OutputError(args.out, "cannot create the output directory");
-    }
-  }
   std::vector<Frame> frames;
   for (std::size_t k = shard.index; k < inputs.size(); k += shard.count) {
     Frame f;
@@ -455,6 +448,13 @@ void run_batch(const BatchArgs& args) {
   spdlog::info("{}: {} Bézier patches prepared in {:.3f} s (shared by all frames)", args.model,
                prepared.patch_count(), prepare.seconds());
 
+  {
+    std::error_code ec;
+    fs::create_directories(out_dir, ec);
+    if (ec || !fs::is_directory(out_dir)) {
+      throw io::OutputError(args.out, "cannot create the output directory");
+    }
+  }
   // ---- rows: resumed frames are filled from their markers ----
   std::vector<Row> rows(frames.size());
   std::vector<std::size_t> todo;
