@@ -1,7 +1,7 @@
 // nurbsreg: exact projection of scans onto NURBS models and scan-to-CAD alignment.
 // Thin: parse, call the library, report. Exit status per CONTRACT.md: 0 success, 2 usage
-// error, 3 bad input, 1 any other failure, 4 (batch) some frames failed, with exactly one `error:
-// ...` line on stderr.
+// error, 3 bad input, 1 any other failure, with exactly one `error: ...` line on stderr; and
+// 4 for `batch` when some frames failed while the others were processed (README "Batch jobs").
 
 #include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
