@@ -57,9 +57,7 @@ void run_align(const AlignArgs& args) {
   const engine::PreparedModel prepared(std::move(model));
   icp::ModelCorrespondenceFinder finder(prepared);
   icp::IcpSolver solver(options);
-  const AlignFrameResult frame =
-      align_frame(finder, solver, cloud, init, args.icp,
-                  AlignOutputs{args.out_pose, args.aligned, args.report}, total);
+  const AlignFrameResult frame = align_frame(finder, solver, cloud, init, args.icp);
   const icp::IcpResult& result = frame.icp;
   const Deviation& dev = frame.deviation;
   spdlog::info("{}", result.brief_report());
@@ -79,6 +77,8 @@ void run_align(const AlignArgs& args) {
   if (result.degeneracy.degenerate()) {
     std::cout << "degenerate: unconstrained " << result.degeneracy.describe() << "\n";
   }
+  write_align_outputs(frame, finder.last_results(), cloud, args.icp,
+                      AlignOutputs{args.out_pose, args.aligned, args.report}, total);
   spdlog::info("aligned {} points in {:.2f} s", cloud.size(), total.seconds());
 }
 

@@ -533,8 +533,10 @@ void run_batch(const BatchArgs& args) {
           // Worker's per-thread scratch is used by one frame at a time).
           tbb::this_task_arena::isolate([&] {
             if (align) {
-              const AlignFrameResult r = align_frame(*worker->finder, *worker->solver, token->cloud,
-                                                     init, args.icp, frame.align, token->clock);
+              const AlignFrameResult r =
+                  align_frame(*worker->finder, *worker->solver, token->cloud, init, args.icp);
+              write_align_outputs(r, worker->finder->last_results(), token->cloud, args.icp,
+                                  frame.align, token->clock);
               token->row.rms = fmt::format("{}", r.icp.rms);
               token->row.iterations = std::to_string(r.icp.iterations);
               token->row.pose = pose_field(r.icp.T_model_scan.matrix());

@@ -160,8 +160,7 @@ icp::IcpOptions icp_options(const IcpArgs& args) {
 
 AlignFrameResult align_frame(icp::ModelCorrespondenceFinder& finder, icp::IcpSolver& solver,
                              const io::PointCloud& cloud, const Eigen::Isometry3d& init,
-                             const IcpArgs& args, const AlignOutputs& outputs,
-                             const Stopwatch& clock) {
+                             const IcpArgs& args) {
   AlignFrameResult frame;
   frame.icp = solver.align(finder, cloud.points, init);
   const icp::IcpResult& result = frame.icp;
@@ -174,7 +173,8 @@ AlignFrameResult align_frame(icp::ModelCorrespondenceFinder& finder, icp::IcpSol
   }
 
   // Final per-point deviations at the solved pose (exact projections, warm-started).
-  std::vector<engine::Vec3> aligned(cloud.size());
+  std::vector<engine::Vec3>& aligned = frame.aligned;
+  aligned.resize(cloud.size());
   for (std::size_t i = 0; i < cloud.size(); ++i)
     aligned[i] = result.T_model_scan * cloud.points[i];
   std::vector<icp::Correspondence> correspondences(cloud.size());
@@ -187,6 +187,14 @@ AlignFrameResult align_frame(icp::ModelCorrespondenceFinder& finder, icp::IcpSol
     if (proj.distance[i] <= args.max_distance) inlier_distances.push_back(proj.distance[i]);
   }
   frame.deviation = summarise(std::move(inlier_distances));
+  return frame;
+}
+
+void write_align_outputs(const AlignFrameResult& frame, const engine::ProjectionResults& proj,
+                         const io::PointCloud& cloud, const IcpArgs& args,
+                         const AlignOutputs& outputs, const Stopwatch& clock) {
+  const icp::IcpResult& result = frame.icp;
+  const std::vector<engine::Vec3>& aligned = frame.aligned;
 
   if (!outputs.pose.empty()) io::write_pose(outputs.pose, result.T_model_scan.matrix());
   if (!outputs.aligned.empty()) {
@@ -235,7 +243,6 @@ AlignFrameResult align_frame(icp::ModelCorrespondenceFinder& finder, icp::IcpSol
     }
     io::write_alignment_report(outputs.report, report);
   }
-  return frame;
 }
 
 }  // namespace nurbsreg::cli

@@ -83,15 +83,22 @@ struct Deviation {
 struct AlignFrameResult {
   icp::IcpResult icp;
   Deviation deviation;
+  std::vector<engine::Vec3> aligned;  // T * scan point, for the aligned cloud
 };
 
-// Aligns `cloud` (must be non-empty: the caller reports an empty scan) from `init`, computes
-// the final deviations and writes the requested outputs. The report's "seconds" is read from
-// `clock` (the single command: started with the command; batch: with the frame). Throws UsageError
-// when ICP rejects the input (IcpTermination::invalid_input).
+// Aligns `cloud` (must be non-empty: the caller reports an empty scan) from `init` and computes
+// the final deviations; afterwards `finder.last_results()` holds the exact projections of
+// `aligned` (for write_align_outputs). Throws UsageError when ICP rejects the input
+// (IcpTermination::invalid_input).
 AlignFrameResult align_frame(icp::ModelCorrespondenceFinder& finder, icp::IcpSolver& solver,
                              const io::PointCloud& cloud, const Eigen::Isometry3d& init,
-                             const IcpArgs& args, const AlignOutputs& outputs,
-                             const Stopwatch& clock);
+                             const IcpArgs& args);
+
+// Writes the requested outputs of an aligned frame; `projections` are the final ones
+// (finder.last_results() right after align_frame). The report's "seconds" is read from `clock`
+// (the single command: started with the command; batch: with the frame).
+void write_align_outputs(const AlignFrameResult& frame,
+                         const engine::ProjectionResults& projections, const io::PointCloud& cloud,
+                         const IcpArgs& args, const AlignOutputs& outputs, const Stopwatch& clock);
 
 }  // namespace nurbsreg::cli
