@@ -13,5 +13,6 @@ void add_project_command(CLI::App& app);
 void add_synth_command(CLI::App& app);
 void add_align_command(CLI::App& app);
 void add_modify_command(CLI::App& app);
+void add_batch_command(CLI::App& app);
 
 }  // namespace nurbsreg::cli

@@ -18,6 +18,13 @@ class UsageError : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
+// Some frames of a batch failed while the others were processed: exit status 4 (README
+// "Batch jobs"). The message says how many and where the summary is.
+class FramesFailed : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
 // Limits TBB to `threads` workers for the lifetime of the returned object (0 = all hardware
 // threads). The thread count belongs to the application, never to the library.
 std::unique_ptr<tbb::global_control> limit_threads(int threads);

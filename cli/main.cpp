@@ -1,6 +1,7 @@
 // nurbsreg: exact projection of scans onto NURBS models and scan-to-CAD alignment.
 // Thin: parse, call the library, report. Exit status per CONTRACT.md: 0 success, 2 usage
-// error, 3 bad input, 1 any other failure, with exactly one `error: ...` line on stderr.
+// error, 3 bad input, 1 any other failure, with exactly one `error: ...` line on stderr; and
+// 4 for `batch` when some frames failed while the others were processed (README "Batch jobs").
 
 #include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
@@ -19,6 +20,7 @@ namespace {
 constexpr int kExitFailure = 1;
 constexpr int kExitUsage = 2;
 constexpr int kExitBadInput = 3;
+constexpr int kExitFramesFailed = 4;  // batch: some frames failed, the others are done
 
 void set_up_logging(bool verbose, bool quiet) {
   auto logger = spdlog::stderr_color_mt("nurbsreg");
@@ -44,6 +46,7 @@ int main(int argc, char** argv) {
   nurbsreg::cli::add_synth_command(app);
   nurbsreg::cli::add_align_command(app);
   nurbsreg::cli::add_modify_command(app);
+  nurbsreg::cli::add_batch_command(app);
 
   try {
     app.parse(argc, argv);
@@ -54,6 +57,9 @@ int main(int argc, char** argv) {
   } catch (const nurbsreg::cli::UsageError& e) {
     std::cerr << "error: " << e.what() << "\nRun with --help for more information.\n";
     return kExitUsage;
+  } catch (const nurbsreg::cli::FramesFailed& e) {
+    std::cerr << "error: " << e.what() << "\n";
+    return kExitFramesFailed;
   } catch (const nurbsreg::io::InputError& e) {
     std::cerr << "error: " << e.what() << "\n";
     return kExitBadInput;

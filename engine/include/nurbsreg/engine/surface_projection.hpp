@@ -143,7 +143,6 @@ double newton_on_patch(const BezierPatch& patch, const Vec3& p, double s0, doubl
                        double t1, double& s, double& t, Vec3& foot,
                        SurfaceProjectionStats* stats = nullptr, Vec3* normal = nullptr);
 
-
 // converged: the closest point was found; skipped_nan: the point has a NaN or infinite
 // coordinate; no_candidate: the strategy produced no point at all (only ma_hewitt can: its
 // Theorem 1 may discard every patch of a closed surface).

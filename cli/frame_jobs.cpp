@@ -1,0 +1,248 @@
+#include "frame_jobs.hpp"
+
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <span>
+
+#include "nurbsreg/io/alignment_report.hpp"
+#include "nurbsreg/io/point_table.hpp"
+#include "nurbsreg/io/pose.hpp"
+#include "nurbsreg/io/projection_results.hpp"
+
+namespace nurbsreg::cli {
+namespace {
+
+// Frames are projected in blocks so long runs show progress; the block size keeps logging to a
+// few lines a second without costing parallelism.
+constexpr std::size_t kProgressBlock = 1 << 18;
+
+Deviation summarise(std::vector<double> distances) {
+  Deviation d;
+  d.count = distances.size();
+  if (distances.empty()) return d;
+  double sum = 0.0;
+  double sum_sq = 0.0;
+  for (double x : distances) {
+    sum += x;
+    sum_sq += x * x;
+  }
+  std::sort(distances.begin(), distances.end());
+  auto quantile = [&](double q) {
+    return distances[static_cast<std::size_t>(q * static_cast<double>(distances.size() - 1))];
+  };
+  d.mean = sum / static_cast<double>(distances.size());
+  d.rms = std::sqrt(sum_sq / static_cast<double>(distances.size()));
+  d.p50 = quantile(0.5);
+  d.p95 = quantile(0.95);
+  d.p99 = quantile(0.99);
+  d.max = distances.back();
+  return d;
+}
+
+}  // namespace
+
+engine::ProjectionTarget parse_projection_target(const std::string& target) {
+  if (target == "surfaces") return engine::ProjectionTarget::surfaces;
+  if (target == "curves") return engine::ProjectionTarget::curves;
+  throw UsageError("--target: expected surfaces or curves, got \"" + target + "\"");
+}
+
+void check_projection_target(const engine::PreparedModel& model, engine::ProjectionTarget target,
+                             const std::string& model_path) {
+  if (target == engine::ProjectionTarget::surfaces && model.model().surfaces.empty()) {
+    throw UsageError(model_path + ": the model has no surfaces; use --target curves");
+  }
+  if (target == engine::ProjectionTarget::curves && model.model().curves.empty()) {
+    throw UsageError(model_path + ": the model has no curves; use --target surfaces");
+  }
+}
+
+ProjectFrameResult project_frame(engine::Projector& projector, const io::PointCloud& cloud,
+                                 engine::ProjectionTarget target, const std::string& out,
+                                 bool log_progress) {
+  engine::ProjectionOptions options;
+  options.target = target;
+  engine::ProjectionResults results;
+  results.resize(cloud.size());
+  engine::ProjectionResults block;
+  const Stopwatch compute;
+  for (std::size_t begin = 0; begin < cloud.size(); begin += kProgressBlock) {
+    const std::size_t end = std::min(cloud.size(), begin + kProgressBlock);
+    const std::span<const engine::Vec3> part(cloud.points.data() + begin, end - begin);
+    projector.project(engine::PointView::of(part), options, block);
+    results.copy_from(block, begin);
+    if (log_progress && cloud.size() > kProgressBlock) {
+      spdlog::info("projected {}/{} points ({:.0f} points/s)", end, cloud.size(),
+                   static_cast<double>(end) / compute.seconds());
+    }
+  }
+  ProjectFrameResult summary;
+  summary.compute_seconds = compute.seconds();
+  summary.points = cloud.size();
+  summary.skipped = cloud.skipped_nonfinite;
+
+  std::vector<double> normal_x(cloud.size());
+  std::vector<double> normal_y(cloud.size());
+  std::vector<double> normal_z(cloud.size());
+  double min_d = std::numeric_limits<double>::infinity();
+  double max_d = 0.0;
+  double sum_d = 0.0;
+  double sum_sq = 0.0;
+  for (std::size_t i = 0; i < cloud.size(); ++i) {
+    normal_x[i] = results.normal[i].x();
+    normal_y[i] = results.normal[i].y();
+    normal_z[i] = results.normal[i].z();
+    min_d = std::min(min_d, results.distance[i]);
+    max_d = std::max(max_d, results.distance[i]);
+    sum_d += results.distance[i];
+    sum_sq += results.distance[i] * results.distance[i];
+  }
+  io::ProjectionColumns columns;
+  columns.index = cloud.source_index;
+  columns.point = cloud.points;
+  columns.foot = results.foot;
+  columns.distance = results.distance;
+  columns.entity = results.entity;
+  columns.u = results.u;
+  columns.v = results.v;
+  if (target == engine::ProjectionTarget::surfaces) {
+    columns.extra = {{"signed_distance", results.signed_distance},
+                     {"normal_x", normal_x},
+                     {"normal_y", normal_y},
+                     {"normal_z", normal_z}};
+  }
+  io::write_projection_results(out, columns);
+  const double n = static_cast<double>(cloud.size());
+  summary.min_distance = cloud.size() ? min_d : 0.0;
+  summary.max_distance = max_d;
+  summary.mean_distance = cloud.size() ? sum_d / n : 0.0;
+  summary.rms_distance = cloud.size() ? std::sqrt(sum_sq / n) : 0.0;
+  return summary;
+}
+
+void add_icp_options(CLI::App& cmd, IcpArgs& args) {
+  cmd.add_option("--method", args.method, "point-to-plane (default) or point-to-point")
+      ->check(CLI::IsMember({"point-to-plane", "point-to-point"}));
+  cmd.add_option("--max-iterations", args.max_iterations, "Per stage")->check(CLI::PositiveNumber);
+  cmd.add_option("--max-distance", args.max_distance,
+                 "Reject correspondences farther apart (model units)")
+      ->check(CLI::PositiveNumber);
+  cmd.add_option("--keep-fraction", args.keep_fraction,
+                 "Trimmed ICP: keep this fraction of the closest correspondences")
+      ->check(CLI::Range(0.0, 1.0));
+  cmd.add_option("--kernel", args.kernel, "Robust kernel: none, huber, tukey, geman-mcclure");
+  cmd.add_option("--kernel-scale", args.kernel_scale, "Kernel scale (0: from the MAD)")
+      ->check(CLI::NonNegativeNumber);
+  cmd.add_option("--coarse", args.coarse,
+                 "Coarse-to-fine subsample sizes, increasing (e.g. --coarse 2000 20000)");
+}
+
+icp::IcpOptions icp_options(const IcpArgs& args) {
+  icp::IcpOptions options;
+  const auto method = icp::parse_icp_method(args.method);
+  if (!method) throw UsageError("--method: expected point-to-plane or point-to-point");
+  options.method = *method;
+  const auto kernel = icp::parse_robust_kernel(args.kernel);
+  if (!kernel) throw UsageError("--kernel: expected none, huber, tukey or geman-mcclure");
+  options.kernel = *kernel;
+  options.kernel_scale = args.kernel_scale;
+  options.max_iterations = args.max_iterations;
+  options.max_correspondence_distance = args.max_distance;
+  options.keep_fraction = args.keep_fraction;
+  options.coarse_sizes = args.coarse;
+  if (auto error = options.validate()) throw UsageError(*error);
+  return options;
+}
+
+AlignFrameResult align_frame(icp::ModelCorrespondenceFinder& finder, icp::IcpSolver& solver,
+                             const io::PointCloud& cloud, const Eigen::Isometry3d& init,
+                             const IcpArgs& args) {
+  AlignFrameResult frame;
+  frame.icp = solver.align(finder, cloud.points, init);
+  const icp::IcpResult& result = frame.icp;
+  for (const icp::IcpIteration& it : result.log) {
+    spdlog::debug("stage {} rms {:.6g} inliers {}/{} step {:.3g} rad {:.3g}", it.stage, it.rms,
+                  it.inliers, it.points, it.rotation_step, it.translation_step);
+  }
+  if (result.termination == icp::IcpTermination::invalid_input) {
+    throw UsageError("align: " + result.message);
+  }
+
+  // Final per-point deviations at the solved pose (exact projections, warm-started).
+  std::vector<engine::Vec3>& aligned = frame.aligned;
+  aligned.resize(cloud.size());
+  for (std::size_t i = 0; i < cloud.size(); ++i)
+    aligned[i] = result.T_model_scan * cloud.points[i];
+  std::vector<icp::Correspondence> correspondences(cloud.size());
+  icp::CorrespondenceQuery query;
+  query.points = aligned;
+  finder.find(query, correspondences);
+  const engine::ProjectionResults& proj = finder.last_results();
+  std::vector<double> inlier_distances;
+  for (std::size_t i = 0; i < cloud.size(); ++i) {
+    if (proj.distance[i] <= args.max_distance) inlier_distances.push_back(proj.distance[i]);
+  }
+  frame.deviation = summarise(std::move(inlier_distances));
+  return frame;
+}
+
+void write_align_outputs(const AlignFrameResult& frame, const engine::ProjectionResults& proj,
+                         const io::PointCloud& cloud, const IcpArgs& args,
+                         const AlignOutputs& outputs, const Stopwatch& clock) {
+  const icp::IcpResult& result = frame.icp;
+  const std::vector<engine::Vec3>& aligned = frame.aligned;
+
+  if (!outputs.pose.empty()) io::write_pose(outputs.pose, result.T_model_scan.matrix());
+  if (!outputs.aligned.empty()) {
+    io::PointTable table;
+    auto& x = table.add_column<float>("x");
+    auto& y = table.add_column<float>("y");
+    auto& z = table.add_column<float>("z");
+    auto& signed_distance = table.add_column<float>("signed_distance");
+    auto& entity = table.add_column<std::int32_t>("entity");
+    auto& u = table.add_column<double>("u");
+    auto& v = table.add_column<double>("v");
+    auto& index = table.add_column<std::uint64_t>("index");
+    for (std::size_t i = 0; i < cloud.size(); ++i) {
+      x.push_back(static_cast<float>(aligned[i].x()));
+      y.push_back(static_cast<float>(aligned[i].y()));
+      z.push_back(static_cast<float>(aligned[i].z()));
+      signed_distance.push_back(static_cast<float>(proj.signed_distance[i]));
+      entity.push_back(proj.entity[i]);
+      u.push_back(proj.u[i]);
+      v.push_back(proj.v[i]);
+      index.push_back(cloud.source_index[i]);
+    }
+    io::write_point_table(outputs.aligned, table);
+  }
+  if (!outputs.report.empty()) {
+    io::AlignmentReport report;
+    report.pose = result.T_model_scan.matrix();
+    report.rms = result.rms;
+    report.iterations = result.iterations;
+    // A degenerate scan converges within the directions it constrains; the termination text
+    // names the free ones.
+    report.converged = result.converged() || result.termination == icp::IcpTermination::degenerate;
+    report.inliers = result.inliers;
+    report.points = result.points;
+    report.skipped_points = cloud.skipped_nonfinite;
+    report.seconds = clock.seconds();
+    report.method = args.method;
+    report.termination = std::string(icp::to_string(result.termination)) + ": " + result.message;
+    if (result.degeneracy.degenerate()) {
+      report.termination += "; free directions: " + result.degeneracy.describe();
+    }
+    int k = 0;
+    for (const icp::IcpIteration& it : result.log) {
+      report.history.push_back(
+          {++k, it.rms, it.inliers, it.rotation_step, it.translation_step, it.seconds});
+    }
+    io::write_alignment_report(outputs.report, report);
+  }
+}
+
+}  // namespace nurbsreg::cli
