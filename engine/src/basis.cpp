@@ -12,7 +12,8 @@ int find_span(int degree, std::span<const double> knots, int count, double u) {
   if (u >= hi) {
     // The domain end belongs to the last non-empty span.
     int span = count - 1;
-    while (span > degree && knots[span] >= knots[span + 1]) --span;
+    while (span > degree && knots[span] >= knots[span + 1])
+      --span;
     return span;
   }
   // Binary search for knots[span] <= u < knots[span + 1] over [degree, count - 1].
@@ -67,7 +68,8 @@ void basis_derivatives(int span, double u, int degree, std::span<const double> k
     }
     ndu[j][j] = saved;
   }
-  for (int j = 0; j <= degree; ++j) ders[0][j] = ndu[j][degree];
+  for (int j = 0; j <= degree; ++j)
+    ders[0][j] = ndu[j][degree];
   const int orders = std::min(n, degree);
   for (int r = 0; r <= degree; ++r) {
     int s1 = 0;
@@ -97,12 +99,14 @@ void basis_derivatives(int span, double u, int degree, std::span<const double> k
   }
   int factor = degree;
   for (int k = 1; k <= orders; ++k) {
-    for (int j = 0; j <= degree; ++j) ders[k][j] *= factor;
+    for (int j = 0; j <= degree; ++j)
+      ders[k][j] *= factor;
     factor *= degree - k;
   }
   // Orders above the degree vanish; A2.3 leaves them unset.
   for (int k = orders + 1; k <= n; ++k) {
-    for (int j = 0; j <= degree; ++j) ders[k][j] = 0.0;
+    for (int j = 0; j <= degree; ++j)
+      ders[k][j] = 0.0;
   }
 }
 

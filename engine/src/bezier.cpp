@@ -11,7 +11,8 @@ constexpr int kMaxBernstein = 2 * kMaxDegree;
 void bernstein_derivatives(int n, double t, double (*d)[kMaxDegree + 1]) {
   double lower[kMaxDegree + 1];
   for (int k = 0; k <= 2; ++k) {
-    for (int i = 0; i <= n; ++i) d[k][i] = 0.0;
+    for (int i = 0; i <= n; ++i)
+      d[k][i] = 0.0;
   }
   bernstein(n, t, d[0]);
   if (n >= 1) {
@@ -40,14 +41,16 @@ void rational_curve_derivatives(const Vec4* a, int order, Vec3* out) {
   }
 }
 
-void de_casteljau_split(const Vec4* points, int stride, int n, double t, Vec4* left,
-                        Vec4* right, int out_stride) {
+void de_casteljau_split(const Vec4* points, int stride, int n, double t, Vec4* left, Vec4* right,
+                        int out_stride) {
   Vec4 work[kMaxDegree + 1];
-  for (int i = 0; i <= n; ++i) work[i] = points[i * stride];
+  for (int i = 0; i <= n; ++i)
+    work[i] = points[i * stride];
   left[0] = work[0];
   right[n * out_stride] = work[n];
   for (int r = 1; r <= n; ++r) {
-    for (int i = 0; i <= n - r; ++i) work[i] = (1.0 - t) * work[i] + t * work[i + 1];
+    for (int i = 0; i <= n - r; ++i)
+      work[i] = (1.0 - t) * work[i] + t * work[i + 1];
     left[r * out_stride] = work[0];
     right[(n - r) * out_stride] = work[n - r];
   }
@@ -83,7 +86,8 @@ void BezierCurve::derivatives(double t, int order, Vec3* derivs) const {
   Vec4 a[3] = {Vec4::Zero(), Vec4::Zero(), Vec4::Zero()};
   for (int k = 0; k <= order; ++k) {
     a[k].setZero();
-    for (int i = 0; i <= degree; ++i) a[k] += b[k][i] * cw[i];
+    for (int i = 0; i <= degree; ++i)
+      a[k] += b[k][i] * cw[i];
   }
   rational_curve_derivatives(a, order, derivs);
 }
@@ -106,7 +110,8 @@ Vec3 BezierPatch::evaluate(double s, double t) const {
   Vec4 sum = Vec4::Zero();
   for (int i = 0; i <= degree_u; ++i) {
     Vec4 row = Vec4::Zero();
-    for (int j = 0; j <= degree_v; ++j) row += bv[j] * at(i, j);
+    for (int j = 0; j <= degree_v; ++j)
+      row += bv[j] * at(i, j);
     sum += bu[i] * row;
   }
   return sum.head<3>() / sum[3];
@@ -119,15 +124,18 @@ void BezierPatch::derivatives(double s, double t, Vec3* out) const {
   bernstein_derivatives(degree_v, t, bv);
   Vec4 a[3][3];
   for (int k = 0; k <= 2; ++k) {
-    for (int l = 0; l <= 2; ++l) a[k][l].setZero();
+    for (int l = 0; l <= 2; ++l)
+      a[k][l].setZero();
   }
   for (int i = 0; i <= degree_u; ++i) {
     Vec4 row[3] = {Vec4::Zero(), Vec4::Zero(), Vec4::Zero()};
     for (int j = 0; j <= degree_v; ++j) {
-      for (int l = 0; l <= 2; ++l) row[l] += bv[l][j] * at(i, j);
+      for (int l = 0; l <= 2; ++l)
+        row[l] += bv[l][j] * at(i, j);
     }
     for (int k = 0; k <= 2; ++k) {
-      for (int l = 0; l + k <= 2; ++l) a[k][l] += bu[k][i] * row[l];
+      for (int l = 0; l + k <= 2; ++l)
+        a[k][l] += bu[k][i] * row[l];
     }
   }
   const double w = a[0][0][3];
@@ -136,8 +144,7 @@ void BezierPatch::derivatives(double s, double t, Vec3* out) const {
   const Vec3 pt = (a[0][1].head<3>() - a[0][1][3] * p) / w;
   const Vec3 pss = (a[2][0].head<3>() - 2.0 * a[1][0][3] * ps - a[2][0][3] * p) / w;
   const Vec3 ptt = (a[0][2].head<3>() - 2.0 * a[0][1][3] * pt - a[0][2][3] * p) / w;
-  const Vec3 pst =
-      (a[1][1].head<3>() - a[1][0][3] * pt - a[0][1][3] * ps - a[1][1][3] * p) / w;
+  const Vec3 pst = (a[1][1].head<3>() - a[1][0][3] * pt - a[0][1][3] * ps - a[1][1][3] * p) / w;
   out[0] = p;
   out[1] = ps;
   out[2] = pt;
@@ -174,8 +181,8 @@ void BezierPatch::split_v(double t, BezierPatch& low, BezierPatch& high) const {
   }
   const int stride = self.stride();
   for (int i = 0; i <= self.degree_u; ++i) {
-    de_casteljau_split(self.cw.data() + i * stride, 1, self.degree_v, t,
-                       low.cw.data() + i * stride, high.cw.data() + i * stride, 1);
+    de_casteljau_split(self.cw.data() + i * stride, 1, self.degree_v, t, low.cw.data() + i * stride,
+                       high.cw.data() + i * stride, 1);
   }
   const double mid = self.param_v.to_parent(t);
   low.param_v = {self.param_v.lo, mid};

@@ -11,7 +11,8 @@ BoundingSphere sphere_around(const Aabb& box, int count, PointAt point_at) {
   BoundingSphere s;
   s.center = box.center();
   double r2 = 0.0;
-  for (int i = 0; i < count; ++i) r2 = std::max(r2, (point_at(i) - s.center).squaredNorm());
+  for (int i = 0; i < count; ++i)
+    r2 = std::max(r2, (point_at(i) - s.center).squaredNorm());
   s.radius = std::sqrt(r2);
   return s;
 }
@@ -20,13 +21,15 @@ BoundingSphere sphere_around(const Aabb& box, int count, PointAt point_at) {
 
 Aabb bounding_box(const BezierCurve& piece) {
   Aabb box;
-  for (int i = 0; i <= piece.degree; ++i) box.extend(piece.point(i));
+  for (int i = 0; i <= piece.degree; ++i)
+    box.extend(piece.point(i));
   return box;
 }
 
 Aabb bounding_box(const BezierPatch& patch) {
   Aabb box;
-  for (const Vec4& c : patch.cw) box.extend(Vec3(c.head<3>() / c[3]));
+  for (const Vec4& c : patch.cw)
+    box.extend(Vec3(c.head<3>() / c[3]));
   return box;
 }
 

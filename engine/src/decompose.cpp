@@ -25,10 +25,14 @@ void refine(int degree, const std::vector<double>& knots, const std::vector<Vec4
   const int b = find_span(p, knots, n + 1, insert[r]) + 1;
   knots_out.assign(m + r + 2, 0.0);
   pw_out.assign(n + r + 2, Vec4::Zero());
-  for (int j = 0; j <= a - p; ++j) pw_out[j] = pw[j];
-  for (int j = b - 1; j <= n; ++j) pw_out[j + r + 1] = pw[j];
-  for (int j = 0; j <= a; ++j) knots_out[j] = knots[j];
-  for (int j = b + p; j <= m; ++j) knots_out[j + r + 1] = knots[j];
+  for (int j = 0; j <= a - p; ++j)
+    pw_out[j] = pw[j];
+  for (int j = b - 1; j <= n; ++j)
+    pw_out[j + r + 1] = pw[j];
+  for (int j = 0; j <= a; ++j)
+    knots_out[j] = knots[j];
+  for (int j = b + p; j <= m; ++j)
+    knots_out[j + r + 1] = knots[j];
   int i = b + p - 1;
   int k = b + p + r;
   for (int j = r; j >= 0; --j) {
@@ -63,7 +67,8 @@ std::vector<double> to_reach(const std::vector<double>& knots, const std::vector
                              int wanted) {
   std::vector<double> insert;
   for (double u : targets) {
-    for (int s = multiplicity(knots, u); s < wanted; ++s) insert.push_back(u);
+    for (int s = multiplicity(knots, u); s < wanted; ++s)
+      insert.push_back(u);
   }
   std::sort(insert.begin(), insert.end());
   return insert;
@@ -80,10 +85,10 @@ void clamp_polygon(int degree, std::vector<double>& knots, std::vector<Vec4>& pw
   refine(degree, knots, pw, to_reach(knots, {lo, hi}, degree), new_knots, new_pw);
   // With `lo` at indices [first, last] (multiplicity >= degree), the clamped vector starts
   // at last - degree with value lo; likewise it ends at first_hi + degree.
-  const auto lo_last = static_cast<int>(
-      std::upper_bound(new_knots.begin(), new_knots.end(), lo) - new_knots.begin() - 1);
-  const auto hi_first = static_cast<int>(
-      std::lower_bound(new_knots.begin(), new_knots.end(), hi) - new_knots.begin());
+  const auto lo_last = static_cast<int>(std::upper_bound(new_knots.begin(), new_knots.end(), lo) -
+                                        new_knots.begin() - 1);
+  const auto hi_first = static_cast<int>(std::lower_bound(new_knots.begin(), new_knots.end(), hi) -
+                                         new_knots.begin());
   const int start = lo_last - degree;
   const int end = hi_first + degree;  // inclusive knot index
   assert(start >= 0 && end < static_cast<int>(new_knots.size()));
@@ -106,7 +111,8 @@ std::vector<double> distinct_interior(const std::vector<double>& knots, int degr
 
 std::vector<Vec4> homogeneous_points(const NurbsCurve& c) {
   std::vector<Vec4> pw(c.count());
-  for (int i = 0; i < c.count(); ++i) pw[i] = c.homogeneous(i);
+  for (int i = 0; i < c.count(); ++i)
+    pw[i] = c.homogeneous(i);
   return pw;
 }
 
@@ -136,7 +142,8 @@ struct HomogeneousGrid {
 HomogeneousGrid grid_of(const NurbsSurface& s) {
   HomogeneousGrid g{s.count_u, s.count_v, std::vector<Vec4>(s.control_points.size())};
   for (int i = 0; i < s.count_u; ++i) {
-    for (int j = 0; j < s.count_v; ++j) g.pw[i * s.count_v + j] = s.homogeneous(i, j);
+    for (int j = 0; j < s.count_v; ++j)
+      g.pw[i * s.count_v + j] = s.homogeneous(i, j);
   }
   return g;
 }
@@ -267,7 +274,8 @@ std::vector<BezierCurve> decompose(const NurbsCurve& curve) {
   std::vector<BezierCurve> pieces(breaks.size() - 1);
   for (std::size_t k = 0; k < pieces.size(); ++k) {
     pieces[k].degree = p;
-    for (int i = 0; i <= p; ++i) pieces[k].cw[i] = pw[k * p + i];
+    for (int i = 0; i <= p; ++i)
+      pieces[k].cw[i] = pw[k * p + i];
     pieces[k].param = {breaks[k], breaks[k + 1]};
   }
   return pieces;
@@ -277,9 +285,8 @@ std::vector<BezierPatch> decompose(const NurbsSurface& surface, int* spans_u, in
   const NurbsSurface s = clamp(surface);
   const std::vector<double> inner_u = distinct_interior(s.knots_u, s.degree_u, s.count_u);
   const std::vector<double> inner_v = distinct_interior(s.knots_v, s.degree_v, s.count_v);
-  const NurbsSurface r = refine_knots_v(
-      refine_knots_u(s, to_reach(s.knots_u, inner_u, s.degree_u)),
-      to_reach(s.knots_v, inner_v, s.degree_v));
+  const NurbsSurface r = refine_knots_v(refine_knots_u(s, to_reach(s.knots_u, inner_u, s.degree_u)),
+                                        to_reach(s.knots_v, inner_v, s.degree_v));
   auto breaks_of = [](const std::vector<double>& knots, const std::vector<double>& inner) {
     std::vector<double> b{knots.front()};
     b.insert(b.end(), inner.begin(), inner.end());
@@ -302,7 +309,8 @@ std::vector<BezierPatch> decompose(const NurbsSurface& surface, int* spans_u, in
       patch.degree_v = q;
       patch.cw.resize((p + 1) * (q + 1));
       for (int i = 0; i <= p; ++i) {
-        for (int j = 0; j <= q; ++j) patch.cw[i * (q + 1) + j] = r.homogeneous(a * p + i, b * q + j);
+        for (int j = 0; j <= q; ++j)
+          patch.cw[i * (q + 1) + j] = r.homogeneous(a * p + i, b * q + j);
       }
       patch.param_u = {bu[a], bu[a + 1]};
       patch.param_v = {bv[b], bv[b + 1]};

@@ -12,7 +12,9 @@ Vec4 NurbsCurve::homogeneous(int i) const {
   return Vec4(w * control_points[i].x(), w * control_points[i].y(), w * control_points[i].z(), w);
 }
 
-ParamInterval NurbsCurve::domain() const { return {knots[degree], knots[count()]}; }
+ParamInterval NurbsCurve::domain() const {
+  return {knots[degree], knots[count()]};
+}
 
 std::optional<std::string> NurbsCurve::validate() const {
   if (auto e = detail::check_degree("degree", degree)) return e;
@@ -30,8 +32,8 @@ std::optional<std::string> NurbsCurve::validate() const {
   }
   if (!weights.empty()) {
     if (weights.size() != control_points.size()) {
-      return "weights: expected " + std::to_string(count()) + " values (one per control point), got " +
-             std::to_string(weights.size());
+      return "weights: expected " + std::to_string(count()) +
+             " values (one per control point), got " + std::to_string(weights.size());
     }
     for (int i = 0; i < count(); ++i) {
       if (!std::isfinite(weights[i]) || !(weights[i] > 0.0)) {
@@ -59,12 +61,14 @@ void NurbsCurve::derivatives(double u, int order, Vec3* derivs) const {
   Vec4 aders[kMaxDerivative + 1] = {Vec4::Zero(), Vec4::Zero(), Vec4::Zero()};
   for (int k = 0; k <= order; ++k) {
     aders[k].setZero();
-    for (int j = 0; j <= degree; ++j) aders[k] += ders[k][j] * homogeneous(span - degree + j);
+    for (int j = 0; j <= degree; ++j)
+      aders[k] += ders[k][j] * homogeneous(span - degree + j);
   }
   static constexpr double kBinomial[3][3] = {{1, 0, 0}, {1, 1, 0}, {1, 2, 1}};
   for (int k = 0; k <= order; ++k) {
     Vec3 v = aders[k].head<3>();
-    for (int i = 1; i <= k; ++i) v -= kBinomial[k][i] * aders[i][3] * derivs[k - i];
+    for (int i = 1; i <= k; ++i)
+      v -= kBinomial[k][i] * aders[i][3] * derivs[k - i];
     derivs[k] = v / aders[0][3];
   }
 }

@@ -13,8 +13,12 @@ Vec4 NurbsSurface::homogeneous(int i, int j) const {
   return Vec4(w * p.x(), w * p.y(), w * p.z(), w);
 }
 
-ParamInterval NurbsSurface::domain_u() const { return {knots_u[degree_u], knots_u[count_u]}; }
-ParamInterval NurbsSurface::domain_v() const { return {knots_v[degree_v], knots_v[count_v]}; }
+ParamInterval NurbsSurface::domain_u() const {
+  return {knots_u[degree_u], knots_u[count_u]};
+}
+ParamInterval NurbsSurface::domain_v() const {
+  return {knots_v[degree_v], knots_v[count_v]};
+}
 
 std::optional<std::string> NurbsSurface::validate() const {
   if (auto e = detail::check_degree("degree[0] (u)", degree_u)) return e;
@@ -87,32 +91,38 @@ SurfaceDerivatives NurbsSurface::derivatives(double u, double v) const {
   // Homogeneous partials A^(k,l) (A3.6), k + l <= 2.
   Vec4 a[3][3];
   for (auto& row : a) {
-    for (Vec4& x : row) x.setZero();
+    for (Vec4& x : row)
+      x.setZero();
   }
   for (int r = 0; r <= degree_u; ++r) {
     Vec4 temp[3] = {Vec4::Zero(), Vec4::Zero(), Vec4::Zero()};
     for (int s = 0; s <= degree_v; ++s) {
       const Vec4 pw = homogeneous(span_u - degree_u + r, span_v - degree_v + s);
-      for (int l = 0; l <= 2; ++l) temp[l] += nv[l][s] * pw;
+      for (int l = 0; l <= 2; ++l)
+        temp[l] += nv[l][s] * pw;
     }
     for (int k = 0; k <= 2; ++k) {
-      for (int l = 0; l + k <= 2; ++l) a[k][l] += nu[k][r] * temp[l];
+      for (int l = 0; l + k <= 2; ++l)
+        a[k][l] += nu[k][r] * temp[l];
     }
   }
   // Rational partials S^(k,l) (The NURBS Book A4.4).
   static constexpr double kBinomial[3][3] = {{1, 0, 0}, {1, 1, 0}, {1, 2, 1}};
   Vec3 s[3][3];
   for (auto& row : s) {
-    for (Vec3& x : row) x.setZero();
+    for (Vec3& x : row)
+      x.setZero();
   }
   for (int k = 0; k <= 2; ++k) {
     for (int l = 0; l + k <= 2; ++l) {
       Vec3 v2 = a[k][l].head<3>();
-      for (int j = 1; j <= l; ++j) v2 -= kBinomial[l][j] * a[0][j][3] * s[k][l - j];
+      for (int j = 1; j <= l; ++j)
+        v2 -= kBinomial[l][j] * a[0][j][3] * s[k][l - j];
       for (int i = 1; i <= k; ++i) {
         v2 -= kBinomial[k][i] * a[i][0][3] * s[k - i][l];
         Vec3 v3 = Vec3::Zero();
-        for (int j = 1; j <= l; ++j) v3 += kBinomial[l][j] * a[i][j][3] * s[k - i][l - j];
+        for (int j = 1; j <= l; ++j)
+          v3 += kBinomial[l][j] * a[i][j][3] * s[k - i][l - j];
         v2 -= kBinomial[k][i] * v3;
       }
       s[k][l] = v2 / a[0][0][3];

@@ -11,8 +11,8 @@ constexpr double kHalfSqrt2 = 0.70710678118654752440;
 // Unit circle control polygon (9 points on the square's corners and mid-edges) and weights.
 constexpr std::array<std::array<double, 2>, 9> kUnitCircle = {
     {{1, 0}, {1, 1}, {0, 1}, {-1, 1}, {-1, 0}, {-1, -1}, {0, -1}, {1, -1}, {1, 0}}};
-constexpr std::array<double, 9> kCircleWeights = {1, kHalfSqrt2, 1, kHalfSqrt2, 1,
-                                                  kHalfSqrt2, 1, kHalfSqrt2, 1};
+constexpr std::array<double, 9> kCircleWeights = {1,          kHalfSqrt2, 1,          kHalfSqrt2, 1,
+                                                  kHalfSqrt2, 1,          kHalfSqrt2, 1};
 const std::vector<double> kCircleKnots = {0, 0, 0, 0.25, 0.25, 0.5, 0.5, 0.75, 0.75, 1, 1, 1};
 
 // Half circle from angle +90 deg to -90 deg (north to south) in the (radial, z) plane.
@@ -30,8 +30,7 @@ NurbsCurve make_circle(const Vec3& center, double radius) {
   c.dimension = center.z() == 0.0 ? 2 : 3;
   c.knots = kCircleKnots;
   for (int i = 0; i < 9; ++i) {
-    c.control_points.push_back(center +
-                               radius * Vec3(kUnitCircle[i][0], kUnitCircle[i][1], 0.0));
+    c.control_points.push_back(center + radius * Vec3(kUnitCircle[i][0], kUnitCircle[i][1], 0.0));
     c.weights.push_back(kCircleWeights[i]);
   }
   return c;
@@ -50,7 +49,8 @@ NurbsSurface make_sphere(const Vec3& center, double radius) {
     const double rho = radius * kHalfCircle[i][0];
     const double z = radius * kHalfCircle[i][1];
     for (int j = 0; j < 9; ++j) {
-      s.control_points.push_back(center + Vec3(rho * kUnitCircle[j][0], rho * kUnitCircle[j][1], z));
+      s.control_points.push_back(center +
+                                 Vec3(rho * kUnitCircle[j][0], rho * kUnitCircle[j][1], z));
       s.weights.push_back(kHalfCircleWeights[i] * kCircleWeights[j]);
     }
   }
@@ -71,7 +71,8 @@ NurbsSurface make_torus(const Vec3& center, double major_radius, double minor_ra
     const double rho = major_radius + minor_radius * kUnitCircle[i][0];
     const double z = minor_radius * kUnitCircle[i][1];
     for (int j = 0; j < 9; ++j) {
-      s.control_points.push_back(center + Vec3(rho * kUnitCircle[j][0], rho * kUnitCircle[j][1], z));
+      s.control_points.push_back(center +
+                                 Vec3(rho * kUnitCircle[j][0], rho * kUnitCircle[j][1], z));
       s.weights.push_back(kCircleWeights[i] * kCircleWeights[j]);
     }
   }

@@ -15,7 +15,8 @@ using test::uniform;
 
 double diagonal_of(const std::vector<Vec3>& points) {
   Aabb box;
-  for (const Vec3& p : points) box.extend(p);
+  for (const Vec3& p : points)
+    box.extend(p);
   return box.diagonal();
 }
 
@@ -38,8 +39,8 @@ class CurveDecomposition : public ::testing::TestWithParam<CurveCase> {};
 
 TEST_P(CurveDecomposition, PiecesReproduceTheCurve) {
   const CurveCase c = GetParam();
-  const NurbsCurve curve = random_curve(1000 + c.degree * 7 + c.count, c.degree, c.count,
-                                        c.rational, c.clamped);
+  const NurbsCurve curve =
+      random_curve(1000 + c.degree * 7 + c.count, c.degree, c.count, c.rational, c.clamped);
   ASSERT_FALSE(curve.validate()) << *curve.validate();
   const std::vector<BezierCurve> pieces = decompose(curve);
   const ParamInterval dom = curve.domain();
@@ -109,9 +110,9 @@ class SurfaceDecomposition : public ::testing::TestWithParam<SurfaceCase> {};
 
 TEST_P(SurfaceDecomposition, PatchesReproduceTheSurface) {
   const SurfaceCase c = GetParam();
-  const NurbsSurface surface = random_surface(2000 + c.count_u * 31 + c.degree_v, c.degree_u,
-                                              c.degree_v, c.count_u, c.count_v, c.rational,
-                                              c.clamped);
+  const NurbsSurface surface =
+      random_surface(2000 + c.count_u * 31 + c.degree_v, c.degree_u, c.degree_v, c.count_u,
+                     c.count_v, c.rational, c.clamped);
   ASSERT_FALSE(surface.validate()) << *surface.validate();
   int spans_u = 0;
   int spans_v = 0;
@@ -143,14 +144,12 @@ TEST_P(SurfaceDecomposition, PatchesReproduceTheSurface) {
   }
 }
 
-INSTANTIATE_TEST_SUITE_P(Degrees, SurfaceDecomposition,
-                         ::testing::Values(SurfaceCase{1, 1, 3, 4, false, true},
-                                           SurfaceCase{3, 3, 8, 8, false, true},
-                                           SurfaceCase{3, 3, 8, 7, true, true},
-                                           SurfaceCase{2, 5, 6, 9, true, false},
-                                           SurfaceCase{7, 7, 10, 9, true, true},
-                                           SurfaceCase{3, 8, 6, 14, false, true},
-                                           SurfaceCase{3, 3, 40, 40, true, true}));
+INSTANTIATE_TEST_SUITE_P(
+    Degrees, SurfaceDecomposition,
+    ::testing::Values(SurfaceCase{1, 1, 3, 4, false, true}, SurfaceCase{3, 3, 8, 8, false, true},
+                      SurfaceCase{3, 3, 8, 7, true, true}, SurfaceCase{2, 5, 6, 9, true, false},
+                      SurfaceCase{7, 7, 10, 9, true, true}, SurfaceCase{3, 8, 6, 14, false, true},
+                      SurfaceCase{3, 3, 40, 40, true, true}));
 
 }  // namespace
 }  // namespace nurbsreg::engine

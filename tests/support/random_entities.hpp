@@ -31,7 +31,8 @@ inline std::vector<double> random_knots(std::mt19937_64& rng, int degree, int co
       const double u = uniform(rng, lo, hi);
       const int mult = std::min<int>(1 + static_cast<int>(rng() % max_mult),
                                      interior - static_cast<int>(inner.size()));
-      for (int m = 0; m < mult; ++m) inner.push_back(u);
+      for (int m = 0; m < mult; ++m)
+        inner.push_back(u);
     }
     std::sort(inner.begin(), inner.end());
     knots.insert(knots.end(), inner.begin(), inner.end());
