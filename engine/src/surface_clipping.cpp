@@ -285,46 +285,14 @@ void bernstein_012_fixed(double t, double* b0, double* b1, double* b2) {
     b2[i] = double(N * (N - 1)) * (l2[i] - 2.0 * l2[i + 1] + l2[i + 2]);
 }
 
-// patch_derivatives for fixed degrees (P, Q): the same sums, fully unrolled by the compiler.
-template <int P, int Q>
-void patch_derivatives_fixed(const BezierPatch& patch, double s, double t, Vec3* out) {
-  double bu[3][P + 1], bv[3][Q + 1];
-  bernstein_012_fixed<P>(s, bu[0], bu[1], bu[2]);
-  bernstein_012_fixed<Q>(t, bv[0], bv[1], bv[2]);
+// The tensor sums of the homogeneous patch and its partial derivatives up to order 2, from the
+// Bernstein values (and their derivatives) in s and t, then the rational quotient rule. Always
+// inlined: called with constant degrees (below) the loops unroll fully.
+[[gnu::always_inline]] inline void tensor_derivatives(const Vec4* cw, int p, int q,
+                                                      const double* const bu[3],
+                                                      const double* const bv[3], Vec3* out) {
   Vec4 a00 = Vec4::Zero(), a01 = Vec4::Zero(), a02 = Vec4::Zero(), a10 = Vec4::Zero(),
        a11 = Vec4::Zero(), a20 = Vec4::Zero();
-  const Vec4* cw = patch.cw.data();
-  for (int i = 0; i <= P; ++i) {
-    Vec4 r0 = Vec4::Zero(), r1 = Vec4::Zero(), r2 = Vec4::Zero();
-    const Vec4* row = cw + i * (Q + 1);
-    for (int j = 0; j <= Q; ++j) {
-      r0 += bv[0][j] * row[j];
-      r1 += bv[1][j] * row[j];
-      r2 += bv[2][j] * row[j];
-    }
-    a00 += bu[0][i] * r0;
-    a01 += bu[0][i] * r1;
-    a02 += bu[0][i] * r2;
-    a10 += bu[1][i] * r0;
-    a11 += bu[1][i] * r1;
-    a20 += bu[2][i] * r0;
-  }
-  rational_from_homogeneous(a00, a10, a01, a20, a11, a02, out);
-}
-
-void patch_derivatives(const BezierPatch& patch, double s, double t, Vec3* out) {
-  const int p = patch.degree_u, q = patch.degree_v;
-  // The common degrees of CAD surfaces get unrolled code; any other takes the generic loops.
-  if (p == 3 && q == 3) return patch_derivatives_fixed<3, 3>(patch, s, t, out);
-  if (p == 2 && q == 2) return patch_derivatives_fixed<2, 2>(patch, s, t, out);
-  if (p == 2 && q == 3) return patch_derivatives_fixed<2, 3>(patch, s, t, out);
-  if (p == 3 && q == 2) return patch_derivatives_fixed<3, 2>(patch, s, t, out);
-  double bu[3][kMaxDegree + 1], bv[3][kMaxDegree + 1];
-  bernstein_012(p, s, bu[0], bu[1], bu[2]);
-  bernstein_012(q, t, bv[0], bv[1], bv[2]);
-  Vec4 a00 = Vec4::Zero(), a01 = Vec4::Zero(), a02 = Vec4::Zero(), a10 = Vec4::Zero(),
-       a11 = Vec4::Zero(), a20 = Vec4::Zero();
-  const Vec4* cw = patch.cw.data();
   for (int i = 0; i <= p; ++i) {
     Vec4 r0 = Vec4::Zero(), r1 = Vec4::Zero(), r2 = Vec4::Zero();
     const Vec4* row = cw + i * (q + 1);
@@ -341,6 +309,32 @@ void patch_derivatives(const BezierPatch& patch, double s, double t, Vec3* out) 
     a20 += bu[2][i] * r0;
   }
   rational_from_homogeneous(a00, a10, a01, a20, a11, a02, out);
+}
+
+// patch_derivatives for fixed degrees (P, Q): the same sums, fully unrolled by the compiler.
+template <int P, int Q>
+void patch_derivatives_fixed(const BezierPatch& patch, double s, double t, Vec3* out) {
+  double bu[3][P + 1], bv[3][Q + 1];
+  bernstein_012_fixed<P>(s, bu[0], bu[1], bu[2]);
+  bernstein_012_fixed<Q>(t, bv[0], bv[1], bv[2]);
+  const double* const u_rows[3] = {bu[0], bu[1], bu[2]};
+  const double* const v_rows[3] = {bv[0], bv[1], bv[2]};
+  tensor_derivatives(patch.cw.data(), P, Q, u_rows, v_rows, out);
+}
+
+void patch_derivatives(const BezierPatch& patch, double s, double t, Vec3* out) {
+  const int p = patch.degree_u, q = patch.degree_v;
+  // The common degrees of CAD surfaces get unrolled code; any other takes the generic loops.
+  if (p == 3 && q == 3) return patch_derivatives_fixed<3, 3>(patch, s, t, out);
+  if (p == 2 && q == 2) return patch_derivatives_fixed<2, 2>(patch, s, t, out);
+  if (p == 2 && q == 3) return patch_derivatives_fixed<2, 3>(patch, s, t, out);
+  if (p == 3 && q == 2) return patch_derivatives_fixed<3, 2>(patch, s, t, out);
+  double bu[3][kMaxDegree + 1], bv[3][kMaxDegree + 1];
+  bernstein_012(p, s, bu[0], bu[1], bu[2]);
+  bernstein_012(q, t, bv[0], bv[1], bv[2]);
+  const double* const u_rows[3] = {bu[0], bu[1], bu[2]};
+  const double* const v_rows[3] = {bv[0], bv[1], bv[2]};
+  tensor_derivatives(patch.cw.data(), p, q, u_rows, v_rows, out);
 }
 
 // de Casteljau at 1/2 along s (rows): `low` (in place) gets [s0, mid], `high` [mid, s1].
