@@ -1,5 +1,6 @@
 #include "nurbsreg/engine/nurbs_surface.hpp"
 
+#include <algorithm>
 #include <cmath>
 
 #include "nurbsreg/engine/basis.hpp"
@@ -49,6 +50,39 @@ std::optional<std::string> NurbsSurface::validate() const {
           return "weights[" + std::to_string(i) + "][" + std::to_string(j) +
                  "]: must be a finite number > 0 (got " + detail::format_number(w) + ")";
         }
+      }
+    }
+  }
+  return validate_trim_loops();
+}
+
+std::optional<std::string> NurbsSurface::validate_trim_loops() const {
+  for (std::size_t l = 0; l < trim_loops.size(); ++l) {
+    const std::string loop = "trim_loops[" + std::to_string(l) + "]";
+    if (trim_loops[l].curves.empty()) return loop + ".curves: a loop needs at least one curve";
+    for (std::size_t c = 0; c < trim_loops[l].curves.size(); ++c) {
+      const TrimCurve& curve = trim_loops[l].curves[c];
+      const std::string field = loop + ".curves[" + std::to_string(c) + "]";
+      if (auto e = curve.uv.validate()) return field + ".uv: " + *e;
+      if (curve.uv.dimension != 2) {
+        return field + ".uv: must be a 2-D curve in (u, v) (got dimension " +
+               std::to_string(curve.uv.dimension) + ")";
+      }
+      if (curve.edge) {
+        if (auto e = curve.edge->validate()) return field + ".edge: " + *e;
+        if (curve.edge->dimension != 3) return field + ".edge: must be a 3-D curve";
+        // The edge and its uv curve share their parameter (CAD's same-parameter property): an
+        // edge hit reports (u, v) = uv(t).
+        const ParamInterval a = curve.uv.domain(), b = curve.edge->domain();
+        const double tol = 1e-9 * std::max({1.0, std::abs(a.lo), std::abs(a.hi)});
+        if (std::abs(a.lo - b.lo) > tol || std::abs(a.hi - b.hi) > tol) {
+          return field + ".edge: parameter domain [" + detail::format_number(b.lo) + ", " +
+                 detail::format_number(b.hi) + "] differs from the uv curve's [" +
+                 detail::format_number(a.lo) + ", " + detail::format_number(a.hi) + "]";
+        }
+      } else if (curve.uv.degree != 1) {
+        return field + ": a uv curve of degree " + std::to_string(curve.uv.degree) +
+               " needs its 3-D edge (only degree-1 uv curves are mapped to 3-D by the engine)";
       }
     }
   }

@@ -1,0 +1,74 @@
+#pragma once
+// The trimmed region of a face in its (u, v) parameter space, prepared for fast, exact
+// point-in-region queries and conservative box classification; and the 3-D boundary edges of a
+// trimmed face.
+//
+// The region is the even-odd interior of the surface's trim loops (NurbsSurface::trim_loops),
+// intersected with the surface's domain. Gaps between consecutive curves of a loop (and between
+// its last and first curve) are closed by straight segments in (u, v).
+//
+// Built once (allocates); afterwards immutable, and every query is const, thread-safe and free of
+// heap allocation.
+
+#include <cstdint>
+#include <vector>
+
+#include "nurbsreg/engine/nurbs_curve.hpp"
+#include "nurbsreg/engine/nurbs_surface.hpp"
+#include "nurbsreg/engine/types.hpp"
+
+namespace nurbsreg::engine {
+
+enum class RegionClass : std::uint8_t {
+  outside,   // no point of the box is in the region
+  inside,    // every point of the box is in the region
+  boundary,  // the box may meet a loop (conservative: may also be returned for a uniform box)
+};
+
+class TrimRegion {
+ public:
+  TrimRegion() = default;  // the empty region (contains nothing)
+  // Throws std::invalid_argument when the surface has no trim loops or a loop is invalid.
+  explicit TrimRegion(const NurbsSurface& surface);
+
+  // Is (u, v) in the region? Exact up to rounding: a precomputed grid answers at once for points
+  // away from the loops; near a loop, the crossings of a ray with the loops' monotone rational
+  // Bézier pieces are counted exactly (bisection on the piece, not a polygon). Points outside the
+  // surface's domain are outside. A point on a loop may get either answer.
+  bool contains(double u, double v) const;
+
+  // Conservative classification of the closed box [u0, u1] x [v0, v1]: outside and inside are
+  // proofs, boundary is "don't know". O(1) (prefix sums over the grid).
+  RegionClass classify(double u0, double u1, double v0, double v1) const;
+
+  // Number of monotone Bézier pieces the loops were split into (diagnostics, tests).
+  std::size_t piece_count() const;
+
+  struct Piece;  // a monotone-in-v rational Bézier piece of a loop (defined in the .cpp)
+
+ private:
+  ParamInterval du_, dv_;
+  // Grid of cells over the domain; see trim_region.cpp.
+  int cells_u_ = 0, cells_v_ = 0;
+  std::vector<std::uint8_t> cell_class_;    // RegionClass per cell, [iu * cells_v_ + iv]
+  std::vector<std::int32_t> boundary_sum_;  // 2-D prefix sums of boundary cells
+  std::vector<std::int32_t> inside_sum_;    // 2-D prefix sums of inside cells
+  std::vector<Piece> pieces_;
+  // Per grid row (v band): the pieces whose v range meets it, for the exact crossing count.
+  std::vector<std::int32_t> row_first_;
+  std::vector<std::int32_t> row_pieces_;
+};
+
+// The 3-D boundary edges of a trimmed surface, one per trim curve, in loop order:
+// trim_loops[l].curves[c].edge when given; otherwise the exact 3-D image S(uv(t)) of a degree-1
+// uv curve as a rational B-spline (split where the line crosses the surface's knot lines; on
+// each piece S(uv(t)) is a rational polynomial of degree degree_u + degree_v, recovered exactly
+// by interpolating its homogeneous coordinates). Each edge has the same parameter domain as its
+// uv curve. Throws std::invalid_argument when a computed edge would exceed kMaxDegree.
+struct TrimEdge {
+  int loop = 0, curve = 0;  // indices into NurbsSurface::trim_loops
+  NurbsCurve edge;          // 3-D, domain == uv curve's domain
+};
+std::vector<TrimEdge> trim_edges(const NurbsSurface& surface);
+
+}  // namespace nurbsreg::engine
