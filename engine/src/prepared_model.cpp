@@ -66,8 +66,7 @@ PreparedModel::PreparedModel(Model model) : model_(std::move(model)) {
     const TrimRegion* region = surface_region(patch_surface_[i]);
     if (region == nullptr) continue;
     const BezierPatch& bp = patches_[i].patch;
-    patch_class_[i] =
-        region->classify(bp.param_u.lo, bp.param_u.hi, bp.param_v.lo, bp.param_v.hi);
+    patch_class_[i] = region->classify(bp.param_u.lo, bp.param_u.hi, bp.param_v.lo, bp.param_v.hi);
   }
   // Hierarchy items: the patches that are not trimmed away, then the trim-edge pieces.
   for (std::size_t i = 0; i < patches_.size(); ++i) {

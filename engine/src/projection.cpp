@@ -133,8 +133,7 @@ void Projector::project_range(PointView points, const ProjectionOptions& options
             // The clipping of this patch restarts Newton from the converged point (one step).
             hint_s = s_loc;
             hint_t = t_loc;
-          } else if (region->contains(bp.param_u.to_parent(hint_s),
-                                      bp.param_v.to_parent(hint_t))) {
+          } else if (region->contains(bp.param_u.to_parent(hint_s), bp.param_v.to_parent(hint_t))) {
             // The hint itself is a face point: its distance (a zero-size Newton box evaluates
             // it) still bounds alpha.
             s_loc = hint_s;

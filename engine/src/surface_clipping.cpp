@@ -577,7 +577,7 @@ struct Clipper {
 // boundary curve of the surface itself.
 template <bool kTrim>
 void Clipper<kTrim>::clip_boundary(const double* n_row, const double* d_row, int stride, int count,
-                            bool along_t, double fixed, double a0, double a1) {
+                                   bool along_t, double fixed, double a0, double a1) {
   constexpr int kLine = 2 * kMaxDegree + 1;
   const bool rational = pp.rational;
   auto ratio_min = [&](const double* n, const double* d) {
@@ -761,8 +761,7 @@ void Clipper<kTrim>::run() {
         // In place of Theorem 2 in a straddling box: the monotone edge reduction (valid there,
         // see Clipper) on F's own derivative bounds.
         if (b.straddling) {
-          const int edge =
-              monotone_edge(f_derivatives(n, d, rows, cols, false, {b.lower, f_max}));
+          const int edge = monotone_edge(f_derivatives(n, d, rows, cols, false, {b.lower, f_max}));
           if (edge >= 0) {
             reduce_to_edge(edge, n, d, b);
             continue;
