@@ -115,38 +115,36 @@ void Projector::project_range(PointView points, const ProjectionOptions& options
           hint_s = std::clamp(bp.param_u.to_local(u), 0.0, 1.0);
           hint_t = std::clamp(bp.param_v.to_local(v), 0.0, 1.0);
           double s_loc = hint_s, t_loc = hint_t;
-          SurfaceHit seed;
-          seed.distance_sq = newton_on_patch(bp, p, 0.0, 1.0, 0.0, 1.0, s_loc, t_loc, seed.foot,
-                                             nullptr, &seed.normal);
-          seed.s = s_loc;
-          seed.t = t_loc;
-          seed.u = bp.param_u.to_parent(s_loc);
-          seed.v = bp.param_v.to_parent(t_loc);
+          best.distance_sq = newton_on_patch(bp, p, 0.0, 1.0, 0.0, 1.0, s_loc, t_loc, best.foot,
+                                             nullptr, &best.normal);
+          best.s = s_loc;
+          best.t = t_loc;
+          best.u = bp.param_u.to_parent(s_loc);
+          best.v = bp.param_v.to_parent(t_loc);
+          best_surface = hint->entity;
+          best_patch = hint_patch;
           // A trimmed face: alpha may only come from a face point. The Newton foot seeds it if
           // it lies in the region; otherwise the patch guess is all the hint gives (it only
-          // chooses where the clipping's Newton starts).
+          // chooses where the clipping's Newton starts), plus the hint's own point if that one
+          // is in the region (a zero-size Newton box evaluates it).
           const TrimRegion* region = model_.surface_region(hint->entity);
-          if (region == nullptr || region->contains(seed.u, seed.v)) {
-            best = seed;
-            best_surface = hint->entity;
-            best_patch = hint_patch;
+          if (region == nullptr || region->contains(best.u, best.v)) {
             // The clipping of this patch restarts Newton from the converged point (one step).
             hint_s = s_loc;
             hint_t = t_loc;
           } else if (region->contains(bp.param_u.to_parent(hint_s), bp.param_v.to_parent(hint_t))) {
-            // The hint itself is a face point: its distance (a zero-size Newton box evaluates
-            // it) still bounds alpha.
             s_loc = hint_s;
             t_loc = hint_t;
-            seed.distance_sq = newton_on_patch(bp, p, s_loc, s_loc, t_loc, t_loc, s_loc, t_loc,
-                                               seed.foot, nullptr, &seed.normal);
-            seed.s = s_loc;
-            seed.t = t_loc;
-            seed.u = bp.param_u.to_parent(s_loc);
-            seed.v = bp.param_v.to_parent(t_loc);
-            best = seed;
-            best_surface = hint->entity;
-            best_patch = hint_patch;
+            best.distance_sq = newton_on_patch(bp, p, s_loc, s_loc, t_loc, t_loc, s_loc, t_loc,
+                                               best.foot, nullptr, &best.normal);
+            best.s = s_loc;
+            best.t = t_loc;
+            best.u = bp.param_u.to_parent(s_loc);
+            best.v = bp.param_v.to_parent(t_loc);
+          } else {
+            best = SurfaceHit{};
+            best_surface = -1;
+            best_patch = -1;
           }
         }
       }
