@@ -330,6 +330,62 @@ TEST(TrimmedProjection, WarmHintsThreadsAndMaxDistanceGiveTheColdAnswer) {
   EXPECT_GT(within, 100);
 }
 
+// Seed 001's Theorem 2 (the boundary-row reduction) must not be used in a box that straddles a
+// loop: a single cubic patch S(u, v) = (10u, 10v, h(u)) and points p with F(0, v) below every
+// Bézier coefficient of F (so Theorem 2 hands the whole patch to its edge u = 0), while along u
+// F rises to a hump and falls again to a local minimum at u ~ 0.645. The face is u >= 0.25: the
+// edge u = 0 is cut away, the hump separates the loop u = 0.25 from the interior minimum, which
+// is the answer (it is 6.8 below the loop's squared distance). Reference: F(u, v) = A(u) +
+// (10v - p_y)^2 with the v term zero inside the face, so the answer is min A over [0.25, 0.98],
+// found by dense sampling and golden section on A alone.
+TEST(TrimmedProjection, InteriorMinimumBehindAHumpIsNotLostToACutAwayEdge) {
+  const double z[4] = {7.355621288699869, 9.475504723193833, 4.080462846601428,
+                       0.17747492155780975};
+  const double px = -1.5306911543737831, pz = -2.4406233131278388;
+  NurbsSurface s;
+  s.degree_u = s.degree_v = 3;
+  s.count_u = s.count_v = 4;
+  s.knots_u = s.knots_v = {0, 0, 0, 0, 1, 1, 1, 1};
+  for (int i = 0; i < 4; ++i) {
+    for (int j = 0; j < 4; ++j)
+      s.control_points.emplace_back(10.0 * i / 3.0, 10.0 * j / 3.0, z[i]);
+  }
+  s.trim_loops.push_back(rectangle_loop(0.25, 0.98, 0.02, 0.98));
+  auto squared_distance_u = [&](double u) {
+    const Vec3 x = s.evaluate(u, 0.5);
+    return (x.x() - px) * (x.x() - px) + (x.z() - pz) * (x.z() - pz);
+  };
+  double best_u = 0.25, best = squared_distance_u(0.25);
+  for (int k = 0; k <= 7300; ++k) {
+    const double u = 0.25 + 0.73 * k / 7300.0;
+    if (squared_distance_u(u) < best) best = squared_distance_u(u), best_u = u;
+  }
+  double a = std::max(0.25, best_u - 1e-4), b = std::min(0.98, best_u + 1e-4);
+  // Ternary search on the unimodal bracket.
+  for (int it = 0; it < 100; ++it) {
+    const double m1 = a + (b - a) / 3.0, m2 = b - (b - a) / 3.0;
+    if (squared_distance_u(m1) < squared_distance_u(m2)) {
+      b = m2;
+    } else {
+      a = m1;
+    }
+  }
+  best = std::min(best, squared_distance_u(0.5 * (a + b)));
+  ASSERT_GT(best_u, 0.5);  // the interior minimum, not the loop u = 0.25
+  ASSERT_LT(best + 5.0, squared_distance_u(0.25));
+  const PreparedModel model(single(s));
+  std::vector<Vec3> pts;
+  for (double py : {2.5, 3.7, 5.0, 6.1, 7.9})
+    pts.emplace_back(px, py, pz);
+  ProjectionResults out;
+  Projector(model).project_serial(PointView::of(pts), {}, out);
+  for (std::size_t i = 0; i < pts.size(); ++i) {
+    EXPECT_NEAR(out.distance[i], std::sqrt(best), 1e-9 * diagonal(model)) << i;
+    EXPECT_NEAR(out.u[i], 0.5 * (a + b), 1e-6) << i;
+    EXPECT_NEAR(out.v[i], pts[i].y() / 10.0, 1e-9) << i;
+  }
+}
+
 // ---------------------------------------------------------------------------------------------
 // Brute-force reference for any trimmed surface.
 
