@@ -12,6 +12,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <fstream>
+#include <nlohmann/json.hpp>
 #include <random>
 #include <vector>
 
@@ -562,7 +564,9 @@ void check_against_brute_force(const NurbsSurface& surface, const std::vector<Ve
                     << consistent;
   }
   EXPECT_EQ(failures, 0);
+  // Both kinds of feet were exercised: on edges and inside the face.
   EXPECT_GT(edge_feet, 0);
+  EXPECT_LT(edge_feet, static_cast<int>(pts.size()) * 9 / 10);
   // Warm hints (the cold answers, and those of other points) give the same distances.
   std::vector<ProjectionHint> hints;
   for (std::size_t i = 0; i < pts.size(); ++i)
@@ -631,6 +635,42 @@ TEST(TrimmedProjection, FreeformPanelWithStarHoleMatchesBruteForce) {
   s.trim_loops.push_back(star_loop(c, 0.12 * du.width(), 0.3 * du.width(), 5, 0.3));
   std::vector<Vec3> pts = box_points(control_box(s), 150, 7202, 0.2);
   for (const Vec3& p : near_points(s, 200, 7203, 0.8))
+    pts.push_back(p);
+  check_against_brute_force(s, pts, 300);
+}
+
+// The examples' freeform panel (examples/panel.json, bicubic, 7 x 7 spans), read here with
+// nlohmann::json (the engine tests do not link io).
+NurbsSurface examples_panel() {
+  std::ifstream in(std::string(NURBSREG_EXAMPLES_DIR) + "/panel.json");
+  const nlohmann::json j = nlohmann::json::parse(in).at("surfaces").at(0);
+  NurbsSurface s;
+  s.name = j.at("name").get<std::string>();
+  s.degree_u = j.at("degree").at(0).get<int>();
+  s.degree_v = j.at("degree").at(1).get<int>();
+  s.knots_u = j.at("knots_u").get<std::vector<double>>();
+  s.knots_v = j.at("knots_v").get<std::vector<double>>();
+  const auto& net = j.at("control_points");
+  s.count_u = static_cast<int>(net.size());
+  s.count_v = static_cast<int>(net.at(0).size());
+  for (const auto& row : net) {
+    for (const auto& c : row)
+      s.control_points.emplace_back(c.at(0).get<double>(), c.at(1).get<double>(),
+                                    c.at(2).get<double>());
+  }
+  return s;
+}
+
+TEST(TrimmedProjection, ExamplesPanelWithStarHoleMatchesBruteForce) {
+  NurbsSurface s = examples_panel();
+  ASSERT_FALSE(s.validate().has_value());
+  const ParamInterval du = s.domain_u(), dv = s.domain_v();
+  auto at = [&](double a, double b) { return Vec2(du.to_parent(a), dv.to_parent(b)); };
+  s.trim_loops.push_back(
+      polygon_loop({at(0.03, 0.05), at(0.96, 0.02), at(0.98, 0.97), at(0.02, 0.95)}));
+  s.trim_loops.push_back(star_loop(at(0.47, 0.52), 0.1 * du.width(), 0.33 * du.width(), 6, 0.2));
+  std::vector<Vec3> pts = box_points(control_box(s), 150, 7251, 0.15);
+  for (const Vec3& p : near_points(s, 200, 7252, 5.0))
     pts.push_back(p);
   check_against_brute_force(s, pts, 300);
 }
