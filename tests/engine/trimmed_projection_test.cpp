@@ -709,5 +709,54 @@ TEST(TrimmedProjection, TrimmedTorusMatchesBruteForce) {
   check_against_brute_force(s, pts, 300);
 }
 
+// Several faces in one hierarchy: two trimmed faces, an untrimmed one and a reversed trimmed
+// one. Each point's answer is the best of the faces' answers, each face checked on its own by
+// the tests above (here: projected alone in a one-face model), with the right entity.
+TEST(TrimmedProjection, MultiFaceModelIsTheBestOfItsFaces) {
+  Model model;
+  model.surfaces.push_back(flat_panel());
+  NurbsSurface sphere = make_sphere(Vec3(5.0, 5.0, 4.0), 3.0);
+  sphere.trim_loops.push_back(rectangle_loop(0.1, 0.55, 0.2, 0.9));
+  model.surfaces.push_back(sphere);
+  model.surfaces.push_back(make_torus(Vec3(5.0, 5.0, -3.0), 3.0, 1.0));
+  NurbsSurface freeform = test::random_surface(7501, 3, 3, 6, 6, true);
+  for (Vec3& c : freeform.control_points)
+    c += Vec3(2.0, 2.0, 6.0);
+  const ParamInterval du = freeform.domain_u(), dv = freeform.domain_v();
+  freeform.trim_loops.push_back(star_loop(Vec2(du.to_parent(0.5), dv.to_parent(0.5)),
+                                          0.2 * du.width(), 0.45 * du.width(), 5, 0.0));
+  freeform.reversed = true;
+  model.surfaces.push_back(freeform);
+  const PreparedModel prepared(model);
+  std::vector<Vec3> pts = box_points(prepared.bounds(), 300, 7502, 0.1);
+  for (const Vec3& p : flat_panel_points())
+    pts.push_back(p);
+  Projector projector(prepared);
+  ProjectionResults all;
+  projector.project_serial(PointView::of(pts), {}, all);
+  std::vector<ProjectionResults> alone(model.surfaces.size());
+  for (std::size_t f = 0; f < model.surfaces.size(); ++f) {
+    const PreparedModel one(single(model.surfaces[f]));
+    Projector(one).project_serial(PointView::of(pts), {}, alone[f]);
+  }
+  const double tol = 1e-9 * diagonal(prepared);
+  int failures = 0;
+  for (std::size_t i = 0; i < pts.size(); ++i) {
+    double best = std::numeric_limits<double>::infinity();
+    for (const ProjectionResults& r : alone)
+      best = std::min(best, r.distance[i]);
+    ASSERT_EQ(all.status[i], ProjectionStatus::ok);
+    const bool ok = std::abs(all.distance[i] - best) <= tol &&
+                    std::abs(alone[all.entity[i]].distance[i] - best) <= tol;
+    failures += !ok;
+    EXPECT_TRUE(ok) << i << ": " << all.distance[i] << " on face " << all.entity[i] << ", best "
+                    << best;
+  }
+  EXPECT_EQ(failures, 0);
+  // Every face wins somewhere.
+  for (int f = 0; f < 4; ++f)
+    EXPECT_NE(std::count(all.entity.begin(), all.entity.end(), f), 0) << f;
+}
+
 }  // namespace
 }  // namespace nurbsreg::engine
