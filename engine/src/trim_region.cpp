@@ -29,7 +29,8 @@ constexpr int kMaxSearchDepth = 64;   // crossing_u (construction)
 constexpr int kMaxSearchSteps = 200;  // crossing search per query
 constexpr int kMaxMarkDepth = 30;     // boundary-cell marking
 constexpr int kMinCellsPerSide = 16;
-constexpr int kMaxCellsPerSide = 512;
+// Memory: about 9 bytes per cell (class + two prefix sums), 0.6 MB at the cap.
+constexpr int kMaxCellsPerSide = 256;
 
 double euclid_u(const Vec3& p) {
   return p.x() / p.z();
@@ -512,7 +513,10 @@ bool TrimRegion::contains(double u, double v) const {
 }
 
 RegionClass TrimRegion::classify(double u0, double u1, double v0, double v1) const {
-  if (cells_u_ == 0) return RegionClass::outside;
+  if (std::isnan(u0) || std::isnan(u1) || std::isnan(v0) || std::isnan(v1)) {
+    return RegionClass::boundary;
+  }
+  if (cells_u_ == 0 || u0 > u1 || v0 > v1) return RegionClass::outside;  // (empty box)
   if (u1 < du_.lo || u0 > du_.hi || v1 < dv_.lo || v0 > dv_.hi) return RegionClass::outside;
   // Parts of the box beyond the grid box are outside the region.
   const bool beyond = u0 < du_.lo || u1 > du_.hi || v0 < dv_.lo || v1 > dv_.hi;

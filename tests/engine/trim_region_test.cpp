@@ -256,6 +256,18 @@ TEST(TrimRegion, RejectsUntrimmedSurfaceAndDefaultIsEmpty) {
   EXPECT_FALSE(empty.contains(0.5, 0.5));
   EXPECT_EQ(empty.classify(0, 1, 0, 1), RegionClass::outside);
   EXPECT_EQ(empty.piece_count(), 0u);
+  s.trim_loops[0] = polygon_loop({{0.2, 0.2}, {0.8, 0.2}, {0.5, 0.8}});
+  const TrimRegion triangle(s);
+  EXPECT_EQ(triangle.classify(0.4, 0.45, 0.3, 0.35), RegionClass::inside);
+  EXPECT_EQ(triangle.classify(0.45, 0.4, 0.3, 0.35), RegionClass::outside);  // empty box
+  EXPECT_EQ(triangle.classify(std::nan(""), 0.45, 0.3, 0.35), RegionClass::boundary);
+  EXPECT_FALSE(triangle.contains(std::nan(""), 0.3));
+  EXPECT_TRUE(triangle.contains(0.5, 0.3));
+  // Loops entirely outside the domain: the empty region.
+  s.trim_loops[0] = polygon_loop({{1.2, 0.2}, {1.8, 0.2}, {1.5, 0.8}});
+  const TrimRegion beyond(s);
+  EXPECT_FALSE(beyond.contains(1.5, 0.3));
+  EXPECT_EQ(beyond.classify(0, 1, 0, 1), RegionClass::outside);
 }
 
 // A 9-pointed star with a comb-shaped hole: concave polygon, horizontal and vertical edges,
@@ -384,7 +396,18 @@ TEST(TrimRegion, CurvedLoopsWithHolesMatchReference) {
   PolylineReference ref(s, 100000);
   ref.index(1e-12);
   std::mt19937_64 rng(3);
-  const Agreement a = compare(region, ref, rng, Vec2(-0.2, -0.2), Vec2(4.2, 3.2), 200000);
+  // Points at the exact heights of the curves' knot points (piece ends), left and right.
+  std::vector<Vec2> extra;
+  for (const TrimLoop& loop : s.trim_loops) {
+    for (const TrimCurve& tc : loop.curves) {
+      for (double t : tc.uv.knots) {
+        const Vec3 p = tc.uv.evaluate(t);
+        for (double du : {-0.3, -1e-3, -1e-6, 1e-6, 1e-3, 0.3})
+          extra.emplace_back(p.x() + du, p.y());
+      }
+    }
+  }
+  const Agreement a = compare(region, ref, rng, Vec2(-0.2, -0.2), Vec2(4.2, 3.2), 200000, extra);
   EXPECT_EQ(a.mismatches, 0) << "of " << a.checked;
   EXPECT_GT(a.checked, 190000);
   EXPECT_GT(a.inside, a.checked / 5);
@@ -484,7 +507,7 @@ TEST(TrimRegion, TinyGapsBetweenCurves) {
 }
 
 // Query points exactly on the grid's cell borders (the grid box is the loop's bounding box
-// here, with max(16, min(512, 4 x pieces)) cells per side) and at vertex heights.
+// here, with max(16, min(256, 4 x pieces)) cells per side) and at vertex heights.
 TEST(TrimRegion, PointsOnGridCellBorders) {
   NurbsSurface s = plane(0, 1, 0, 1);
   const std::vector<Vec2> zigzag = {{0.1, 0.1}, {0.9, 0.1}, {0.9, 0.9}, {0.7, 0.9},  {0.7, 0.3},
@@ -493,7 +516,7 @@ TEST(TrimRegion, PointsOnGridCellBorders) {
   const TrimRegion region(s);
   PolylineReference ref(s, 1000);
   ref.index(1e-12);
-  const int side = std::clamp(4 * static_cast<int>(region.piece_count()), 16, 512);
+  const int side = std::clamp(4 * static_cast<int>(region.piece_count()), 16, 256);
   std::vector<Vec2> extra;
   for (int i = 0; i <= side; ++i) {
     for (int j = 0; j <= side; ++j)
