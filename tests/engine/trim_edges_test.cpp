@@ -154,7 +154,8 @@ TEST_P(TrimEdgeImage, LinesThroughKnotIntersectionsAndAlongKnotLines) {
 INSTANTIATE_TEST_SUITE_P(Surfaces, TrimEdgeImage,
                          ::testing::Values(Case{1, 1, 5, 5, false}, Case{2, 2, 7, 7, true},
                                            Case{3, 3, 9, 9, false}, Case{3, 3, 9, 9, true},
-                                           Case{2, 5, 8, 9, true}, Case{6, 6, 9, 9, true}));
+                                           Case{2, 5, 8, 9, true}, Case{6, 6, 9, 9, true},
+                                           Case{2, 3, 30, 25, true}));
 
 TEST(TrimEdges, GivenEdgesPassThroughAndTooHighDegreeThrows) {
   NurbsSurface s = surface(7, 7, 6, 9, 9, true, true);

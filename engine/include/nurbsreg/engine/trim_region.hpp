@@ -12,6 +12,7 @@
 
 #include <array>
 #include <cstdint>
+#include <utility>
 #include <vector>
 
 #include "nurbsreg/engine/nurbs_curve.hpp"
@@ -63,17 +64,22 @@ class TrimRegion {
 
   int cell_u(double u) const;
   int cell_v(double v) const;
+  // Construction: marks boundary cells and lists (row, piece) pairs for one piece.
+  void mark_piece(const Vec3* cw, int degree, std::int32_t piece, int depth, double eps_u,
+                  double eps_v, std::vector<std::pair<std::int32_t, std::int32_t>>& rows);
 };
 
 // Private to TrimRegion (defined here so that TrimRegion stays an ordinary copyable value).
-// Homogeneous control points (w u, w v, w), w > 0, whose v coordinates are monotone: by the
-// variation-diminishing property a line v = const meets the piece at most once.
+// Homogeneous control points (w u, w v, w), w > 0, whose u and v coordinates are monotone: by
+// the variation-diminishing property the piece is monotone in u and v, so a line v = const
+// meets it at most once and the u range of any part of it is that of the part's end points.
 struct TrimRegion::Piece {
-  double u_lo = 0.0, u_hi = 0.0;      // control-point bounds in u
   double v_start = 0.0, v_end = 0.0;  // v at t = 0 and t = 1 (shared exactly with neighbours)
   double u_start = 0.0, u_end = 0.0;
+  double u_lo = 0.0, u_hi = 0.0;  // control-point bounds in u
   int degree = 1;
   std::array<Vec3, kMaxDegree + 1> cw{};
+  std::array<Vec3, kMaxDegree + 1> cb{};  // C(degree, i) cw[i], for Horner evaluation
 };
 
 // The 3-D boundary edges of a trimmed surface, one per trim curve, in loop order:
