@@ -11,7 +11,8 @@
 // includes time spent waiting for a core.
 //
 //   align_peers_bench [--model FILE] [--points N] [--noise SIGMA] [--dense N] [--threads T]
-//                     [--seed S] [--pcl-max-iterations N]
+//                     [--seed S] [--pcl-max-iterations N] [--pcl 0|1|2]
+// --pcl: 0 runs nurbsreg only, 1 adds PCL point-to-plane, 2 (default) both PCL methods.
 #include <pcl/kdtree/kdtree_flann.h>
 #include <pcl/point_cloud.h>
 #include <pcl/point_types.h>
@@ -50,12 +51,14 @@ struct Settings {
   int threads = 2;
   std::uint64_t seed = 1;
   int pcl_max_iterations = 30;
+  int pcl = 2;
 };
 
 [[noreturn]] void usage(const char* message) {
   std::fprintf(stderr,
                "align_peers_bench: %s\nusage: align_peers_bench [--model FILE] [--points N] "
-               "[--noise SIGMA] [--dense N] [--threads T] [--seed S] [--pcl-max-iterations N]\n",
+               "[--noise SIGMA] [--dense N] [--threads T] [--seed S] [--pcl-max-iterations N] "
+               "[--pcl 0|1|2]\n",
                message);
   std::exit(2);
 }
@@ -87,12 +90,16 @@ Settings parse(int argc, char** argv) {
       s.seed = static_cast<std::uint64_t>(number);
     } else if (arg == "--pcl-max-iterations") {
       s.pcl_max_iterations = static_cast<int>(number);
+    } else if (arg == "--pcl") {
+      s.pcl = static_cast<int>(number);
     } else {
       usage(("unknown option " + std::string(arg)).c_str());
     }
   }
-  if (s.points < 10 || s.dense < 10 || s.threads < 1 || s.pcl_max_iterations < 1) {
-    usage("--points and --dense must be >= 10, --threads and --pcl-max-iterations >= 1");
+  if (s.points < 10 || s.dense < 10 || s.threads < 1 || s.pcl_max_iterations < 1 || s.pcl > 2) {
+    usage(
+        "--points and --dense must be >= 10, --threads and --pcl-max-iterations >= 1, --pcl "
+        "0, 1 or 2");
   }
   return s;
 }
@@ -192,6 +199,33 @@ void configure_pcl(Icp& icp, int max_iterations) {
   icp.setMaximumIterations(max_iterations);
 }
 
+// The result table (markdown). Errors next to the noise bound (the same scan for every method).
+void print_table(const std::vector<Outcome>& outcomes, double bound_rotation_deg,
+                 double bound_translation_mm) {
+  std::printf(
+      "\n| method | prepare wall / CPU (s) | align wall / CPU (s) | iterations | stop | "
+      "rotation error (deg) | translation error (mm) | wall ratio | CPU ratio |\n");
+  std::printf("| --- | ---: | ---: | ---: | --- | ---: | ---: | ---: | ---: |\n");
+  const Outcome& ours = outcomes.front();
+  for (const Outcome& o : outcomes) {
+    std::printf("| %s | %.2f / %.2f | %.3f / %.3f | %d | %s | %.2e | %.2e | %.2fx | %.2fx |\n",
+                o.method.c_str(), o.prepare_wall, o.prepare_cpu, o.wall, o.cpu, o.iterations,
+                o.termination.c_str(), o.rotation_deg, o.translation_mm, o.wall / ours.wall,
+                o.cpu / ours.cpu);
+  }
+  std::printf("| noise bound (1-sigma RMS, from the final Hessian) | | | | | %.2e | %.2e | | |\n",
+              bound_rotation_deg, bound_translation_mm);
+  std::printf(
+      "\nratios: time of the method / time of nurbsreg (align only). Error ratios vs "
+      "nurbsreg:");
+  for (std::size_t i = 1; i < outcomes.size(); ++i) {
+    std::printf(" %s rotation %.1fx, translation %.1fx;", outcomes[i].method.c_str(),
+                outcomes[i].rotation_deg / ours.rotation_deg,
+                outcomes[i].translation_mm / ours.translation_mm);
+  }
+  std::printf("\n");
+}
+
 }  // namespace
 
 int main(int argc, char** argv) try {
@@ -232,14 +266,23 @@ int main(int argc, char** argv) try {
 
   // --- nurbsreg ---------------------------------------------------------------------------
   // The model is prepared once (Bezier decomposition, cached coefficients, hierarchy); then the
-  // same scan is aligned twice: on all points from the first iteration, and coarse-to-fine
-  // (IcpOptions::coarse_sizes: deterministic subsamples of 1% and 10% of the scan first, then
-  // all points; the full-scan iterations start close and warm-started).
+  // same scan is aligned three times: with the default schedule (automatic coarse-to-fine:
+  // nested deterministic subsamples of 1% and 10% of the scan, each left when its step is below
+  // its own noise level or predicted to be, then all points until the step is below tolerance),
+  // the same with predict_final_convergence (the last stage also ends on a predicted step:
+  // one full-resolution pass), and on all points from the first iteration without statistical
+  // or predicted stops (the plain loop).
   Stopwatch prep;
   const engine::PreparedModel prepared{engine::Model(model)};
   const double prepare_wall = prep.wall();
   const double prepare_cpu = prep.cpu();
-  const auto run_nurbsreg = [&](const char* label, std::vector<std::size_t> coarse) {
+  // 1-sigma of the pose error the noise alone allows (the Cramer-Rao-like bound
+  // sigma sqrt(diag H^-1) from the final Hessian, IcpResult::covariance), as RMS rotation angle
+  // and RMS displacement of the box centre (the point where the errors are measured).
+  double bound_rotation_deg = 0.0;
+  double bound_translation_mm = 0.0;
+  enum class Mode { plain, schedule, schedule_predicted };
+  const auto run_nurbsreg = [&](const char* label, Mode mode) {
     Outcome o;
     o.method = label;
     o.prepare_wall = prepare_wall;
@@ -252,7 +295,12 @@ int main(int argc, char** argv) try {
     options.rotation_tolerance = 1e-6;
     options.translation_tolerance = 1e-5;
     options.relative_rms_tolerance = 1e-6;
-    options.coarse_sizes = std::move(coarse);
+    options.predict_final_convergence = mode == Mode::schedule_predicted;
+    if (mode == Mode::plain) {
+      options.auto_coarse = false;
+      options.predict_convergence = false;
+      options.statistical_tolerance = 0.0;
+    }
     icp::IcpSolver solver(options);
     Stopwatch run;
     const icp::IcpResult r = solver.align(finder, scan.points, Eigen::Isometry3d::Identity());
@@ -264,27 +312,32 @@ int main(int argc, char** argv) try {
     std::printf("%s: %s\n", label, r.brief_report().c_str());
     for (const icp::IcpIteration& it : r.log) {
       std::printf(
-          "  stage %d: %zu points, %zu inliers, rms %.4g, step %.2e rad / %.2e mm, "
+          "  stage %d: %zu points, %zu inliers, rms %.4g, step %.2e rad / %.2e mm / %.3g sigma%s, "
           "%.3f s\n",
           it.stage, it.points, it.inliers, it.rms, it.rotation_step, it.translation_step,
-          it.seconds);
+          it.step_sigmas, it.predicted ? " (next predicted below tolerance)" : "", it.seconds);
     }
     // Projection work of the last (full, warm-started) correspondence step.
     const engine::ProjectionCounters& c = finder.last_counters();
     std::printf("  last projection: %.2f patches visited per point (49-patch panel)\n",
                 static_cast<double>(c.patches_visited) / static_cast<double>(c.points));
-    // The statistical accuracy the noise allows (solver's covariance, about the model origin).
-    std::printf(
-        "  1-sigma from the covariance: rotation %.3g deg, translation %.3g mm "
-        "(at the origin)\n",
-        std::sqrt(r.covariance.topLeftCorner<3, 3>().trace()) * 180.0 / std::numbers::pi,
-        std::sqrt(r.covariance.bottomRightCorner<3, 3>().trace()));
+    // Covariance of the left twist (omega, v) about the model origin: the displacement of the
+    // centre is v + omega x center = [-[center]x, I] xi.
+    Eigen::Matrix<double, 3, 6> A;
+    A << -icp::skew(center), Eigen::Matrix3d::Identity();
+    bound_rotation_deg =
+        std::sqrt(r.covariance.topLeftCorner<3, 3>().trace()) * 180.0 / std::numbers::pi;
+    bound_translation_mm = std::sqrt((A * r.covariance * A.transpose()).trace());
+    std::printf("  noise bound (1-sigma RMS): rotation %.3g deg, translation %.3g mm (centre)\n",
+                bound_rotation_deg, bound_translation_mm);
     outcomes.push_back(o);
   };
-  run_nurbsreg("nurbsreg point-to-plane, exact NURBS", {});
-  const std::size_t n = scan.points.size();
-  if (n / 10 > 100) {
-    run_nurbsreg("nurbsreg point-to-plane, exact NURBS, coarse-to-fine", {n / 100, n / 10});
+  run_nurbsreg("nurbsreg point-to-plane, exact NURBS, default schedule", Mode::schedule);
+  run_nurbsreg("nurbsreg, default schedule + predict_final_convergence", Mode::schedule_predicted);
+  run_nurbsreg("nurbsreg, all points every iteration", Mode::plain);
+  if (settings.pcl == 0) {
+    print_table(outcomes, bound_rotation_deg, bound_translation_mm);
+    return 0;
   }
 
   // --- PCL: dense sampling with exact normals ------------------------------------------------
@@ -334,7 +387,7 @@ int main(int argc, char** argv) try {
       "(not counted)\n",
       dense.size(), std::sqrt(engine::surface_area(model) / double(dense.size())), sampling.wall());
 
-  {
+  if (settings.pcl >= 2) {
     Outcome o;
     o.method = "PCL IterativeClosestPoint (point-to-point)";
     Stopwatch prep;
@@ -381,26 +434,7 @@ int main(int argc, char** argv) try {
     outcomes.push_back(o);
   }
 
-  std::printf(
-      "\n| method | prepare wall / CPU (s) | align wall / CPU (s) | iterations | stop | "
-      "rotation error (deg) | translation error (mm) | wall ratio | CPU ratio |\n");
-  std::printf("| --- | ---: | ---: | ---: | --- | ---: | ---: | ---: | ---: |\n");
-  const Outcome& ours = outcomes.front();
-  for (const Outcome& o : outcomes) {
-    std::printf("| %s | %.2f / %.2f | %.3f / %.3f | %d | %s | %.2e | %.2e | %.2fx | %.2fx |\n",
-                o.method.c_str(), o.prepare_wall, o.prepare_cpu, o.wall, o.cpu, o.iterations,
-                o.termination.c_str(), o.rotation_deg, o.translation_mm, o.wall / ours.wall,
-                o.cpu / ours.cpu);
-  }
-  std::printf(
-      "\nratios: time of the method / time of nurbsreg (align only). Error ratios vs "
-      "nurbsreg:");
-  for (std::size_t i = 1; i < outcomes.size(); ++i) {
-    std::printf(" %s rotation %.1fx, translation %.1fx;", outcomes[i].method.c_str(),
-                outcomes[i].rotation_deg / ours.rotation_deg,
-                outcomes[i].translation_mm / ours.translation_mm);
-  }
-  std::printf("\n");
+  print_table(outcomes, bound_rotation_deg, bound_translation_mm);
   return 0;
 } catch (const std::exception& e) {
   std::fprintf(stderr, "align_peers_bench: %s\n", e.what());

@@ -14,6 +14,7 @@
 #include <chrono>
 #include <cmath>
 #include <numeric>
+#include <optional>
 #include <random>
 
 namespace nurbsreg::icp {
@@ -93,8 +94,19 @@ struct Rejection {
 // Increment (omega, v) about the centre c': q -> c' + exp(omega) (q - c') + v (update_pose).
 struct Step {
   Vec6 xi = Vec6::Zero();
+  double scaled_norm = 0.0;  // |xi_s|, xi_s = (L omega, v)
+  double sigmas = 0.0;       // Mahalanobis length sqrt(xi_s^T H_s xi_s) / sigma
+  double sigma2 = 0.0;       // residual variance after the step (residual_variance)
   bool finite = true;
 };
+
+// Residual variance sigma^2 = ssr / sum w * n / (n - 6) (6 fitted parameters) for a weighted
+// sum of squared residuals ssr; 0 when it cannot be estimated.
+double residual_variance(const LinearSystem& sys, double ssr) {
+  const double n = static_cast<double>(sys.count);
+  if (sys.count <= 6 || !(sys.m.sum_w > 0.0)) return 0.0;
+  return std::max(0.0, ssr) / sys.m.sum_w * n / (n - 6.0);
+}
 
 }  // namespace
 
@@ -128,7 +140,8 @@ using Buffers = detail::IcpBuffers;
 
 // The active points of a stage: all of them, or a deterministic uniform random subsample
 // (partial Fisher-Yates on std::mt19937_64, which the standard specifies bit for bit), sorted
-// so that the finder reads the scan in memory order.
+// so that the finder reads the scan in memory order. The swaps do not depend on m, so for one
+// seed the subsample of size m is contained in every larger one (nested levels).
 void select_points(std::size_t n, std::size_t m, std::uint64_t seed,
                    std::vector<std::size_t>& ids) {
   ids.resize(n);
@@ -415,6 +428,16 @@ Step solve(IcpMethod method, const LinearSystem& sys, double threshold) {
   }
   step.xi << xi_s.head<3>() / L, xi_s.tail<3>();
   step.finite = step.xi.allFinite();
+  step.scaled_norm = xi_s.norm();
+  // Cov_s^-1 = H_s / sigma^2 on the constrained subspace, where xi_s lies. sigma^2 is taken
+  // from the residuals the linear model predicts after the step, sum w (r + J xi)^2 =
+  // sum w r^2 + 2 g.xi + xi.H xi: before it, far from the solution, the residuals are mostly
+  // misalignment, not noise, and would make the step look small in "standard deviations".
+  const double length2 = xi_s.dot(sys.m.H * xi_s);
+  step.sigma2 = residual_variance(sys, sys.m.sum_wr2 + 2.0 * sys.m.g.dot(xi_s) + length2);
+  step.sigmas = step.sigma2 > 0.0 ? std::sqrt(std::max(0.0, length2) / step.sigma2)
+                : length2 > 0.0   ? std::numeric_limits<double>::infinity()
+                                  : 0.0;
   return step;
 }
 
@@ -432,15 +455,35 @@ Isometry3d update_pose(const Isometry3d& T, const Step& step, const Vec3& c) {
   return next;
 }
 
-// Step 8, check convergence: increment small (rotation and centroid translation), or the
-// inlier RMS no longer changing (relative to its previous value).
-bool has_converged(const IcpOptions& o, double translation_tolerance, const IcpIteration& it,
+// Step 8, check convergence: increment small (rotation and centroid translation, or in
+// standard deviations of the stage's pose estimate), or the inlier RMS no longer changing
+// (relative to its previous value).
+struct Tolerances {
+  double rotation = 0.0;
+  double translation = 0.0;
+  double sigmas = 0.0;  // statistical; 0: off
+};
+
+bool step_is_small(const Tolerances& tol, double rotation, double translation, double sigmas) {
+  return (rotation <= tol.rotation && translation <= tol.translation) ||
+         (tol.sigmas > 0.0 && sigmas <= tol.sigmas);
+}
+
+bool has_converged(const IcpOptions& o, const Tolerances& tol, const IcpIteration& it,
                    double previous_rms) {
-  if (it.rotation_step <= o.rotation_tolerance && it.translation_step <= translation_tolerance) {
-    return true;
-  }
+  if (step_is_small(tol, it.rotation_step, it.translation_step, it.step_sigmas)) return true;
   return std::isfinite(previous_rms) &&
          std::abs(it.rms - previous_rms) <= o.relative_rms_tolerance * previous_rms;
+}
+
+// Predicted convergence (IcpOptions::predict_convergence): near the solution ICP contracts
+// linearly, xi_k+1 ~ rho xi_k, so with a clearly contracting observed rate the step after this
+// one is ~rho times this one. If that predicted step would pass the tests, the iteration that
+// would compute it (one more correspondence pass) is skipped.
+bool predicted_converged(const Tolerances& tol, double rate, const IcpIteration& it) {
+  if (!(rate <= 0.5)) return false;  // NaN (no rate yet) or not clearly contracting
+  return step_is_small(tol, rate * it.rotation_step, rate * it.translation_step,
+                       rate * it.step_sigmas);
 }
 
 // RMS radius of the scan about its centroid (block-deterministic).
@@ -470,12 +513,10 @@ double scan_length_scale(std::span<const Vec3> scan, bool parallel) {
   return std::sqrt(sum / static_cast<double>(n));
 }
 
-// sigma^2 H_s^+ mapped to the unscaled twist about the model origin:
-// xi = D^-1 xi_s with D = diag(L I, I), then v_origin = v_c + c x omega (adjoint of Tr(c)).
-Mat6 pose_covariance(const LinearSystem& sys, double threshold) {
-  const double n = static_cast<double>(sys.count);
+// sigma^2 H_s^+ (sigma^2 from residual_variance) mapped to the unscaled twist about the model
+// origin: xi = D^-1 xi_s with D = diag(L I, I), then v_origin = v_c + c x omega (adjoint of Tr(c)).
+Mat6 pose_covariance(const LinearSystem& sys, double sigma2, double threshold) {
   if (sys.count <= 6 || !(sys.m.sum_w > 0.0)) return Mat6::Zero();
-  const double sigma2 = sys.m.sum_wr2 / sys.m.sum_w * n / (n - 6.0);
   const Eigen::SelfAdjointEigenSolver<Mat6> eigen(sys.m.H);
   if (!(eigen.eigenvalues()(5) > 0.0)) return Mat6::Zero();
   const int k = constrained_count(eigen, threshold);
@@ -537,23 +578,33 @@ IcpResult IcpSolver::align(CorrespondenceFinder& finder, std::span<const Vec3> s
       o.translation_tolerance > 0.0 ? o.translation_tolerance : 1e-10 * L;
 
   finder.reset(scan.size());
-  std::vector<std::size_t> stage_sizes;
-  for (std::size_t m : o.coarse_sizes) {
-    if (m < scan.size()) stage_sizes.push_back(m);
-  }
+  std::vector<std::size_t> stage_sizes = coarse_schedule(o, scan.size());
   stage_sizes.push_back(scan.size());
 
   Isometry3d T = T_model_scan_init;
   IcpTermination termination = IcpTermination::max_iterations;
   std::string message;
+  // The system of the last completed iteration on all points (its correspondences are the
+  // finder's last answer): the result's statistics, with no extra projection pass.
+  std::optional<LinearSystem> final_system;
+  Rejection final_kept;
+  double final_sigma2 = 0.0;
+  // Latest observed contraction rate of successive steps (|xi_s| ratio), for prediction.
+  double rate = std::numeric_limits<double>::quiet_NaN();
   for (std::size_t stage = 0; stage < stage_sizes.size(); ++stage) {
-    select_points(scan.size(), stage_sizes[stage], o.subsample_seed + stage, b.ids);
+    const bool last_stage = stage + 1 == stage_sizes.size();
+    const Tolerances tol{o.rotation_tolerance, translation_tolerance,
+                         last_stage ? o.statistical_tolerance : o.coarse_statistical_tolerance};
+    // One seed for all stages: nested subsamples (select_points).
+    select_points(scan.size(), stage_sizes[stage], o.subsample_seed, b.ids);
     b.resize(b.ids.size());
     termination = IcpTermination::max_iterations;
     message = "no convergence within max_iterations (" + std::to_string(o.max_iterations) + ")";
     double previous_rms = std::numeric_limits<double>::quiet_NaN();
+    double previous_step = std::numeric_limits<double>::quiet_NaN();
     for (int iteration = 0; iteration < o.max_iterations; ++iteration) {
       const auto t0 = Clock::now();
+      final_system.reset();
       transform_points(T, scan, b, o.parallel);
       find_correspondences(finder, o.max_correspondence_distance, o.parallel, b);
       reject_outliers(o, b);
@@ -579,17 +630,31 @@ IcpResult IcpSolver::align(CorrespondenceFinder& finder, std::span<const Vec3> s
         break;
       }
       T = update_pose(T, step, sys.center);
+      if (last_stage) {
+        final_system = sys;
+        final_kept = kept;
+        final_sigma2 = step.sigma2;
+      }
       it.rotation_step = step.xi.head<3>().norm();
       it.translation_step = step.xi.tail<3>().norm();
+      it.step_sigmas = step.sigmas;
+      if (previous_step > 0.0) rate = step.scaled_norm / previous_step;
+      previous_step = step.scaled_norm;
+      const bool converged = has_converged(o, tol, it, previous_rms);
+      const bool predict = last_stage ? o.predict_final_convergence : o.predict_convergence;
+      it.predicted = !converged && predict && predicted_converged(tol, rate, it);
       it.seconds = seconds_since(t0);
       result.log.push_back(it);
       ++result.iterations;
-      spdlog::debug("icp stage {} iteration {}: rms {:.6g}, inliers {}/{}, step {:.3g} rad {:.3g}",
-                    stage, iteration, it.rms, it.inliers, it.points, it.rotation_step,
-                    it.translation_step);
-      if (has_converged(o, translation_tolerance, it, previous_rms)) {
+      spdlog::debug(
+          "icp stage {} iteration {}: rms {:.6g}, inliers {}/{}, step {:.3g} rad {:.3g} "
+          "({:.3g} sigma){}",
+          stage, iteration, it.rms, it.inliers, it.points, it.rotation_step, it.translation_step,
+          it.step_sigmas, it.predicted ? ", next step predicted below tolerance" : "");
+      if (converged || it.predicted) {
         termination = IcpTermination::converged;
-        message = "increment or RMS change below tolerance";
+        message = converged ? "increment or RMS change below tolerance"
+                            : "next increment predicted below tolerance";
         break;
       }
       previous_rms = it.rms;
@@ -601,22 +666,33 @@ IcpResult IcpSolver::align(CorrespondenceFinder& finder, std::span<const Vec3> s
   }
   result.T_model_scan = T;
 
-  // Final evaluation at the returned pose on all points: RMS, inliers, covariance and the
-  // degeneracy report describe the pose we return, not the one before the last update.
-  select_points(scan.size(), scan.size(), 0, b.ids);
-  b.resize(b.ids.size());
-  transform_points(T, scan, b, o.parallel);
-  find_correspondences(finder, o.max_correspondence_distance, o.parallel, b);
-  reject_outliers(o, b);
-  compute_weights(o, L, b);
-  const Rejection kept = inlier_statistics(b);
-  result.inliers = kept.inliers;
-  result.rms = kept.rms;
-  if (kept.inliers > 0) {
-    const LinearSystem sys = linearize(L, o.parallel, b);
-    if (sys.m.sum_w > 0.0 && sys.m.H.allFinite()) {
-      result.covariance = pose_covariance(sys, o.degeneracy_threshold);
-      result.degeneracy = analyse_degeneracy(sys.m.H, sys.center, L, o.degeneracy_threshold);
+  if (final_system) {
+    result.inliers = final_kept.inliers;
+    result.rms = final_kept.rms;
+    if (final_system->m.sum_w > 0.0 && final_system->m.H.allFinite()) {
+      result.covariance = pose_covariance(*final_system, final_sigma2, o.degeneracy_threshold);
+      result.degeneracy =
+          analyse_degeneracy(final_system->m.H, final_system->center, L, o.degeneracy_threshold);
+    }
+  } else {
+    // No completed full-resolution step (a failure): evaluate at the returned pose on all
+    // points, so that the statistics describe it.
+    select_points(scan.size(), scan.size(), 0, b.ids);
+    b.resize(b.ids.size());
+    transform_points(T, scan, b, o.parallel);
+    find_correspondences(finder, o.max_correspondence_distance, o.parallel, b);
+    reject_outliers(o, b);
+    compute_weights(o, L, b);
+    const Rejection kept = inlier_statistics(b);
+    result.inliers = kept.inliers;
+    result.rms = kept.rms;
+    if (kept.inliers > 0) {
+      const LinearSystem sys = linearize(L, o.parallel, b);
+      if (sys.m.sum_w > 0.0 && sys.m.H.allFinite()) {
+        result.covariance =
+            pose_covariance(sys, residual_variance(sys, sys.m.sum_wr2), o.degeneracy_threshold);
+        result.degeneracy = analyse_degeneracy(sys.m.H, sys.center, L, o.degeneracy_threshold);
+      }
     }
   }
   if (termination == IcpTermination::converged && result.degeneracy.degenerate()) {
@@ -624,6 +700,21 @@ IcpResult IcpSolver::align(CorrespondenceFinder& finder, std::span<const Vec3> s
     message = "converged in the constrained directions only; free: " + result.degeneracy.describe();
   }
   return finish(termination, message);
+}
+
+std::vector<std::size_t> coarse_schedule(const IcpOptions& options, std::size_t n) {
+  std::vector<std::size_t> sizes;
+  if (!options.coarse_sizes.empty()) {
+    for (std::size_t m : options.coarse_sizes) {
+      if (m < n) sizes.push_back(m);
+    }
+    return sizes;
+  }
+  if (!options.auto_coarse) return sizes;
+  for (std::size_t m : {n / 100, n / 10}) {
+    if (m >= kAutoCoarseMinPoints) sizes.push_back(m);
+  }
+  return sizes;
 }
 
 IcpResult align(CorrespondenceFinder& finder, std::span<const Vec3> scan,

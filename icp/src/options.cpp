@@ -118,6 +118,13 @@ std::optional<std::string> IcpOptions::validate() const {
   if (!(relative_rms_tolerance >= 0.0 && std::isfinite(relative_rms_tolerance))) {
     return "relative_rms_tolerance: must be finite and >= 0" + got(relative_rms_tolerance);
   }
+  if (!(statistical_tolerance >= 0.0 && std::isfinite(statistical_tolerance))) {
+    return "statistical_tolerance: must be finite and >= 0" + got(statistical_tolerance);
+  }
+  if (!(coarse_statistical_tolerance >= 0.0 && std::isfinite(coarse_statistical_tolerance))) {
+    return "coarse_statistical_tolerance: must be finite and >= 0" +
+           got(coarse_statistical_tolerance);
+  }
   if (min_correspondences < 3) {
     return "min_correspondences: must be >= 3 (got " + std::to_string(min_correspondences) + ")";
   }

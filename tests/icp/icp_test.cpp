@@ -389,8 +389,11 @@ TEST(IcpCoarseToFine, ReachesTheSameAnswer) {
   UnionFinder finder(primitives);
   std::vector<Vec3> scan = to_scan(sample_uniform(primitives, 6000, 20), true_pose());
   add_noise(scan, 1e-3 * kSize, 21);
-  const IcpResult direct = align(finder, scan, Isometry3d::Identity(), exact_options());
+  // Both to the same fixed point to rounding: no statistical stop (which would leave each
+  // within 0.1 standard deviations of it, by different amounts).
   IcpOptions o = exact_options();
+  o.statistical_tolerance = 0.0;
+  const IcpResult direct = align(finder, scan, Isometry3d::Identity(), o);
   o.coarse_sizes = {300, 1500};
   const IcpResult staged = align(finder, scan, Isometry3d::Identity(), o);
   ASSERT_EQ(staged.termination, IcpTermination::converged) << staged.brief_report();
@@ -471,8 +474,8 @@ TEST(IcpFinderContract, StableScanIndicesAcrossStagesAndOneResetPerAlignment) {
   const IcpResult first = solver.align(finder, scan, Isometry3d::Identity());
   ASSERT_EQ(first.termination, IcpTermination::converged) << first.brief_report();
   EXPECT_EQ(finder.resets, 1);
-  // One call per iteration plus the final evaluation on all points.
-  EXPECT_EQ(finder.calls, first.iterations + 1);
+  // One call per iteration: the result's statistics reuse the last one (on all points).
+  EXPECT_EQ(finder.calls, first.iterations);
   EXPECT_EQ(finder.sizes.front(), 200u);
   EXPECT_EQ(finder.sizes.back(), scan.size());
   // The solver reuses its buffers: a second, smaller frame and then the first one again
@@ -484,6 +487,23 @@ TEST(IcpFinderContract, StableScanIndicesAcrossStagesAndOneResetPerAlignment) {
   EXPECT_TRUE(second.T_model_scan.matrix() ==
               align(inner, small, Isometry3d::Identity(), o).T_model_scan.matrix());
   EXPECT_TRUE(third.T_model_scan.matrix() == first.T_model_scan.matrix());
+}
+
+// The automatic levels are n/100 and n/10, each only with >= kAutoCoarseMinPoints points;
+// explicit coarse_sizes win (those not below the scan size dropped); auto_coarse = false: none.
+TEST(IcpCoarseToFine, ScheduleLevels) {
+  using Sizes = std::vector<std::size_t>;
+  const IcpOptions o;
+  EXPECT_EQ(coarse_schedule(o, 1000000), (Sizes{10000, 100000}));
+  EXPECT_EQ(coarse_schedule(o, 199999), (Sizes{19999}));
+  EXPECT_EQ(coarse_schedule(o, 200000), (Sizes{2000, 20000}));
+  EXPECT_EQ(coarse_schedule(o, 19999), Sizes{});
+  IcpOptions explicit_sizes;
+  explicit_sizes.coarse_sizes = {100, 5000};
+  EXPECT_EQ(coarse_schedule(explicit_sizes, 3000), (Sizes{100}));
+  IcpOptions off;
+  off.auto_coarse = false;
+  EXPECT_EQ(coarse_schedule(off, 1000000), Sizes{});
 }
 
 TEST(IcpOptionsValidation, ErrorsNameTheField) {
@@ -510,6 +530,13 @@ TEST(IcpOptionsValidation, ErrorsNameTheField) {
   EXPECT_NE(error_of([](IcpOptions& o) { o.rotation_tolerance = -1; }).find("rotation_tolerance"),
             std::string::npos);
   EXPECT_NE(error_of([](IcpOptions& o) { o.min_correspondences = 2; }).find("min_correspondences"),
+            std::string::npos);
+  EXPECT_NE(
+      error_of([](IcpOptions& o) { o.statistical_tolerance = -1; }).find("statistical_tolerance"),
+      std::string::npos);
+  EXPECT_NE(error_of([](IcpOptions& o) {
+              o.coarse_statistical_tolerance = INFINITY;
+            }).find("coarse_statistical_tolerance"),
             std::string::npos);
   EXPECT_NE(
       error_of([](IcpOptions& o) { o.degeneracy_threshold = 1.0; }).find("degeneracy_threshold"),

@@ -107,6 +107,10 @@ TEST(ModelAlignment, NoiseFreePanelRecoversThePoseExactly) {
   // At the true pose no point lies beyond the panel's edges: all are inliers.
   EXPECT_EQ(r.inliers, scan.points.size());
   EXPECT_LT(r.iterations, 30);
+  // The default schedule ran: one automatic subsample level (n / 10 = 2000), then all points.
+  ASSERT_FALSE(r.log.empty());
+  EXPECT_EQ(r.log.front().points, 2000u);
+  EXPECT_EQ(r.log.back().points, scan.points.size());
 }
 
 // Noise of std sigma along the normal makes the residual r_i = n_i . (q_i - f_i) ~ N(0,
@@ -306,6 +310,71 @@ TEST(ModelAlignment, SameBitsForOneAndTwoThreads) {
     for (std::size_t i = 0; i < one.log.size(); ++i)
       EXPECT_EQ(one.log[i].rms, other->log[i].rms);
   }
+}
+
+// The default schedule on 200,000 noisy points from 5 degrees / 5% D: automatic nested levels
+// of 2,000 and 20,000 points, each left when its step is below its own noise level (or
+// predicted to be), then all points, left as soon as the step is predicted below 0.1 standard
+// deviations. References: the plain loop (all points every iteration, no statistical or
+// predicted stop, tolerances 1e-10), i.e. the fixed point of the full problem to rounding, and
+// bit-identity between 1 and 2 threads.
+TEST(ModelAlignmentSchedule, DefaultScheduleIsDeterministicAndEndsAtTheFullFixedPoint) {
+  const engine::PreparedModel& model = panel();
+  const double D = diagonal(model);
+  const double sigma = 1e-4 * D;
+  const engine::SyntheticScan scan = make_scan(model, 200000, sigma, 106);
+  const auto run = [&](int threads, const IcpOptions& o) {
+    tbb::global_control limit(tbb::global_control::max_allowed_parallelism, threads);
+    ModelCorrespondenceFinder finder(model);
+    return align(finder, scan.points, Isometry3d::Identity(), o);
+  };
+  const IcpResult one = run(1, IcpOptions{});
+  const IcpResult two = run(2, IcpOptions{});
+  ASSERT_EQ(one.termination, IcpTermination::converged) << one.brief_report();
+  EXPECT_TRUE(one.T_model_scan.matrix() == two.T_model_scan.matrix());
+  EXPECT_TRUE(one.covariance == two.covariance);
+  EXPECT_EQ(one.rms, two.rms);
+  ASSERT_EQ(one.log.size(), two.log.size());
+  for (std::size_t i = 0; i < one.log.size(); ++i)
+    EXPECT_EQ(one.log[i].rms, two.log[i].rms);
+
+  ASSERT_EQ(coarse_schedule(IcpOptions{}, scan.points.size()),
+            (std::vector<std::size_t>{2000, 20000}));
+  EXPECT_EQ(one.log.front().points, 2000u);
+  EXPECT_EQ(one.log.back().points, scan.points.size());
+  EXPECT_EQ(one.log.back().stage, 2);
+  int full_iterations = 0;
+  for (const IcpIteration& it : one.log)
+    full_iterations += it.points == scan.points.size();
+
+  IcpOptions plain;
+  plain.auto_coarse = false;
+  plain.predict_convergence = false;
+  plain.statistical_tolerance = 0.0;
+  const IcpResult reference = run(2, plain);
+  ASSERT_EQ(reference.termination, IcpTermination::converged) << reference.brief_report();
+  // Distance from the full problem's fixed point in its standard deviations (Mahalanobis, with
+  // the reference's covariance): the schedule stops when the remaining step is predicted to be
+  // <= 0.1; 0.3 leaves room for the prediction (the observed contraction rate of the previous
+  // steps) to be off by a factor 3.
+  const Vec6 d = pose_error(one.T_model_scan, reference.T_model_scan);
+  EXPECT_LT(std::sqrt(d.dot(reference.covariance.ldlt().solve(d))), 0.3);
+  // The point of the schedule: at most two full-resolution correspondence passes (both runs
+  // reuse the last one for the result's statistics), fewer than the plain loop.
+  EXPECT_LE(full_iterations, 2);
+  EXPECT_LT(full_iterations, reference.iterations);
+
+  // predict_final_convergence: one full-resolution pass, as close to the fixed point.
+  IcpOptions fast;
+  fast.predict_final_convergence = true;
+  const IcpResult quick = run(2, fast);
+  ASSERT_EQ(quick.termination, IcpTermination::converged) << quick.brief_report();
+  int quick_full = 0;
+  for (const IcpIteration& it : quick.log)
+    quick_full += it.points == scan.points.size();
+  EXPECT_EQ(quick_full, 1);
+  const Vec6 e = pose_error(quick.T_model_scan, reference.T_model_scan);
+  EXPECT_LT(std::sqrt(e.dot(reference.covariance.ldlt().solve(e))), 0.3);
 }
 
 }  // namespace

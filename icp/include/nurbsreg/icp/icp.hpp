@@ -79,8 +79,14 @@ struct IcpOptions {
   double kernel_scale = 0.0;
   // Coarse-to-fine: strictly increasing subsample sizes; the solver first iterates on a
   // deterministic random subsample of each size smaller than the scan (seeded by
-  // subsample_seed), then always on all points.
+  // subsample_seed), then always on all points. The subsamples are nested (each is a prefix of
+  // one random permutation of the scan), so a finder's warm-start state for a point carries
+  // over to every later stage.
   std::vector<std::size_t> coarse_sizes;
+  // With coarse_sizes empty: automatic levels for large scans (auto_coarse_sizes(n): n/100
+  // and n/10, each only if it has >= kAutoCoarseMinPoints points). false: all points from the
+  // first iteration unless coarse_sizes says otherwise.
+  bool auto_coarse = true;
   std::uint64_t subsample_seed = 1;
   // Convergence, on the applied increment (rotation [rad] about the inlier centroid and the
   // centroid's translation) ... both at or below:
@@ -89,6 +95,33 @@ struct IcpOptions {
   double translation_tolerance = 0.0;
   // ... or the relative change of the inlier RMS between iterations at or below this.
   double relative_rms_tolerance = 1e-10;
+  // ... or the increment at or below this many standard deviations of the stage's own pose
+  // estimate: its Mahalanobis length sqrt(xi^T Cov^-1 xi) with Cov = sigma^2 H^-1 (as for
+  // IcpResult::covariance, on the stage's points, sigma^2 from the residuals the linearised
+  // problem predicts after the step, so that misalignment is not mistaken for noise). The noise
+  // leaves the pose uncertain by ~1 such unit (the error of a least-squares pose from m points with
+  // residual sigma scales like sigma / sqrt(m)), so refining it further only fits the noise.
+  // Dimensionless, >= 0; 0 switches it off. A noise-free scan has sigma ~ rounding, so there this
+  // test only fires at the rounding level and the absolute tolerances decide.
+  double statistical_tolerance = 0.1;  // the last stage (all points)
+  // The same for the subsample stages: a subsample of m points cannot know the pose better
+  // than ~1 of its own standard deviations, and the next stage's first step corrects the
+  // remainder (it moves by ~sqrt(n_next / m) of the next stage's standard deviations anyway).
+  double coarse_statistical_tolerance = 1.0;
+  // Predicted convergence: ICP steps shrink geometrically near the solution (point-to-plane
+  // Gauss-Newton with exact normals: a rate ~ residual x curvature, far below 1). With the
+  // rate rho = |xi_k| / |xi_k-1| of the latest two steps of a stage (or of the previous stage
+  // before a stage has two), a step is final when the next one, predicted as rho |xi_k|,
+  // would pass the tests above (absolute or statistical). This lets the last stage end after
+  // one iteration per stage from the previous stage's converged pose instead of two. The rate
+  // is only trusted when rho <= 0.5 (clearly contracting).
+  bool predict_convergence = true;  // subsample stages: the next stage checks the result
+  // The same on the last stage (all points). Saves one full correspondence pass (about half
+  // the time of a coarse-to-fine run on a large scan), but the last increment is then not
+  // below tolerance itself: it is typically a few standard deviations of the pose (the
+  // correction from the last subsample to all points), and the result's statistics (rms,
+  // inliers, per-point results of the finder) describe the pose before it. Off by default.
+  bool predict_final_convergence = false;
   // Fewer inliers than this stops with too_few_correspondences (>= 3; 6 for a full 6-DoF
   // point-to-plane system).
   std::size_t min_correspondences = 6;
@@ -121,6 +154,10 @@ struct IcpIteration {
   double kernel_scale = 0.0;   // s used for the weights (0 with RobustKernel::none)
   double rotation_step = 0.0;  // |omega| of the applied increment [rad]
   double translation_step = 0.0;
+  // The increment in standard deviations of the stage's pose estimate (statistical_tolerance);
+  // infinity when the residuals are all 0.
+  double step_sigmas = 0.0;
+  bool predicted = false;  // converged by predict_convergence rather than by the step itself
   double seconds = 0.0;
 };
 
@@ -130,9 +167,14 @@ struct IcpResult {
   std::string message;
   int iterations = 0;  // over all stages
   // Inliers: within max_correspondence_distance, kept by trimming and with robust weight > 0.
-  std::size_t inliers = 0;  // at the final pose, all points
+  // inliers, rms, covariance, degeneracy (and a ModelCorrespondenceFinder's last_results())
+  // are those of the last correspondence step on all points, i.e. at the pose just before the
+  // last increment, which converged() says is below tolerance: evaluating them again at the
+  // returned pose would cost one more full projection pass and change nothing that matters.
+  // (When no full-resolution step was completed, they are evaluated at the returned pose.)
+  std::size_t inliers = 0;  // all points
   std::size_t points = 0;   // scan size
-  double rms = 0.0;         // inlier point-to-surface RMS at the final pose
+  double rms = 0.0;         // inlier point-to-surface RMS
   double seconds = 0.0;
   std::vector<IcpIteration> log;
   // Covariance of the pose error as a left twist (omega [rad], v) in the model frame about
@@ -173,6 +215,13 @@ class IcpSolver {
   IcpOptions options_;
   std::unique_ptr<detail::IcpBuffers> buffers_;
 };
+
+// Points below which a level of the automatic coarse-to-fine schedule is not used (a pose
+// from fewer points is too noisy to save the next level an iteration).
+inline constexpr std::size_t kAutoCoarseMinPoints = 2000;
+// The subsample sizes the solver uses for a scan of n points: options.coarse_sizes if not
+// empty, else the automatic levels (auto_coarse), else none. All are < n.
+std::vector<std::size_t> coarse_schedule(const IcpOptions& options, std::size_t n);
 
 // Convenience: a fresh solver per call.
 IcpResult align(CorrespondenceFinder& finder, std::span<const engine::Vec3> scan,
