@@ -4,8 +4,9 @@
 # Code for the build machine's own instruction set (AVX2 etc.): faster projection, binaries that
 # may not run elsewhere. Every nurbsreg target gets the same flags. Eigen's static alignment stays
 # at 16 bytes so that the layout of Eigen members (Vec4 in BezierPatch, ...) is the same as in the
-# prebuilt libraries we link (PCL), which are compiled for SSE2. Floating-point contraction stays
-# off (-std=c++20 implies -ffp-contract=off in GCC), so results are the same as without it.
+# prebuilt libraries we link (PCL), which are compiled for SSE2. Floating-point contraction is
+# turned off (GCC contracts a * b + c into an FMA by default in C++ when the target has one), so
+# results are bit-identical to the portable build's.
 option(NURBSREG_NATIVE "Compile nurbsreg's targets with -march=native (not portable)" OFF)
 
 function(nurbsreg_apply_standard target)
