@@ -1,10 +1,23 @@
 # One place that applies the project's standard to our own targets only:
 # C++20, warnings as errors. Nothing here leaks to dependencies or consumers.
+
+# Code for the build machine's own instruction set (AVX2 etc.): faster projection, binaries that
+# may not run elsewhere. Every nurbsreg target gets the same flags. Eigen's static alignment stays
+# at 16 bytes so that the layout of Eigen members (Vec4 in BezierPatch, ...) is the same as in the
+# prebuilt libraries we link (PCL), which are compiled for SSE2. Floating-point contraction is
+# turned off (GCC contracts a * b + c into an FMA by default in C++ when the target has one), so
+# results are bit-identical to the portable build's.
+option(NURBSREG_NATIVE "Compile nurbsreg's targets with -march=native (not portable)" OFF)
+
 function(nurbsreg_apply_standard target)
   target_compile_features(${target} PUBLIC cxx_std_20)
   set_target_properties(${target} PROPERTIES CXX_EXTENSIONS OFF)
   if(CMAKE_CXX_COMPILER_ID MATCHES "GNU|Clang")
     target_compile_options(${target} PRIVATE -Wall -Wextra -Werror)
+    if(NURBSREG_NATIVE)
+      target_compile_options(${target} PRIVATE -march=native -ffp-contract=off)
+      target_compile_definitions(${target} PRIVATE EIGEN_MAX_STATIC_ALIGN_BYTES=16)
+    endif()
   endif()
   if(CMAKE_CXX_COMPILER_ID STREQUAL "GNU")
     # GCC 12 at -O3 reports these falsely on Eigen fixed-size arrays and std::string

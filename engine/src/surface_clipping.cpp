@@ -312,15 +312,92 @@ void bernstein_012_fixed(double t, double* b0, double* b1, double* b2) {
   rational_from_homogeneous(a00, a10, a01, a20, a11, a02, out);
 }
 
+// The fixed-degree kernel below works on W doubles at a time (GCC vector extension: element-wise
+// IEEE operations, one SSE2 or AVX register): W = 4 does the four homogeneous coordinates in one
+// pass where AVX is enabled, W = 2 does (x, y) and then (z, w). Each coordinate sees exactly the
+// operations of tensor_derivatives + rational_from_homogeneous in the same order (products, then
+// sums from zero in index order; the same quotient-rule expressions), so the results are
+// bit-identical to them; only the schedule differs: one half of the accumulators at a time fits
+// the 16 SSE registers, where the Vec4 form spilled to the stack.
+#if defined(__AVX__)
+constexpr int kLanes = 4;
+#else
+constexpr int kLanes = 2;
+#endif
+typedef double Lanes __attribute__((vector_size(sizeof(double) * kLanes)));
+
+inline Lanes load_lanes(const double* x) {
+  Lanes v;
+  std::memcpy(&v, x, sizeof v);
+  return v;
+}
+
+inline void store_lanes(double* x, Lanes v) {
+  std::memcpy(x, &v, sizeof v);
+}
+
 // patch_derivatives for fixed degrees (P, Q): the same sums, fully unrolled by the compiler.
 template <int P, int Q>
 void patch_derivatives_fixed(const BezierPatch& patch, double s, double t, Vec3* out) {
   double bu[3][P + 1], bv[3][Q + 1];
   bernstein_012_fixed<P>(s, bu[0], bu[1], bu[2]);
   bernstein_012_fixed<Q>(t, bv[0], bv[1], bv[2]);
-  const double* const u_rows[3] = {bu[0], bu[1], bu[2]};
-  const double* const v_rows[3] = {bv[0], bv[1], bv[2]};
-  tensor_derivatives(patch.cw.data(), P, Q, u_rows, v_rows, out);
+  // Homogeneous sums a_kl = d^(k+l) A / ds^k dt^l, coordinate c at a_kl[c].
+  alignas(32) double a00[4], a10[4], a01[4], a20[4], a11[4], a02[4];
+  const double* cw = patch.cw.data()->data();  // (x, y, z, w) per control point, contiguous
+  for (int h = 0; h < 4; h += kLanes) {
+    Lanes s00, s10, s01, s20, s11, s02;
+    for (int i = 0; i <= P; ++i) {
+      Lanes r0, r1, r2;
+      {
+        const Lanes c = load_lanes(cw + 4 * (i * (Q + 1)) + h);
+        r0 = bv[0][0] * c;
+        r1 = bv[1][0] * c;
+        r2 = bv[2][0] * c;
+      }
+      for (int j = 1; j <= Q; ++j) {
+        const Lanes c = load_lanes(cw + 4 * (i * (Q + 1) + j) + h);
+        r0 += bv[0][j] * c;
+        r1 += bv[1][j] * c;
+        r2 += bv[2][j] * c;
+      }
+      if (i == 0) {
+        s00 = bu[0][0] * r0;
+        s01 = bu[0][0] * r1;
+        s02 = bu[0][0] * r2;
+        s10 = bu[1][0] * r0;
+        s11 = bu[1][0] * r1;
+        s20 = bu[2][0] * r0;
+      } else {
+        s00 += bu[0][i] * r0;
+        s01 += bu[0][i] * r1;
+        s02 += bu[0][i] * r2;
+        s10 += bu[1][i] * r0;
+        s11 += bu[1][i] * r1;
+        s20 += bu[2][i] * r0;
+      }
+    }
+    store_lanes(a00 + h, s00);
+    store_lanes(a10 + h, s10);
+    store_lanes(a01 + h, s01);
+    store_lanes(a20 + h, s20);
+    store_lanes(a11 + h, s11);
+    store_lanes(a02 + h, s02);
+  }
+  // rational_from_homogeneous, coordinate by coordinate, with its expressions' evaluation order.
+  const double inv_w = 1.0 / a00[3];
+  const double w10 = a10[3], w01 = a01[3], w20 = a20[3], w11 = a11[3], w02 = a02[3];
+  for (int c = 0; c < 3; ++c) {
+    const double x = a00[c] * inv_w;
+    const double xs = (a10[c] - w10 * x) * inv_w;
+    const double xt = (a01[c] - w01 * x) * inv_w;
+    out[0][c] = x;
+    out[1][c] = xs;
+    out[2][c] = xt;
+    out[3][c] = (a20[c] - 2.0 * w10 * xs - w20 * x) * inv_w;
+    out[4][c] = (a11[c] - w10 * xt - w01 * xs - w11 * x) * inv_w;
+    out[5][c] = (a02[c] - 2.0 * w01 * xt - w02 * x) * inv_w;
+  }
 }
 
 void patch_derivatives(const BezierPatch& patch, double s, double t, Vec3* out) {
@@ -895,6 +972,12 @@ void PreparedPatch::numerator(const Vec3& point, double* out) const {
   const double* ey = ex + count;
   const double* ez = ey + count;
   const double qx = 2.0 * q.x(), qy = 2.0 * q.y(), qz = 2.0 * q.z();
+  if (!rational) {
+    // D == 1 exactly (prepare_patch), so qq * D == qq: the same values without reading D.
+    for (int k = 0; k < count; ++k)
+      out[k] = g[k] - (qx * ex[k] + qy * ey[k] + qz * ez[k]) + qq;
+    return;
+  }
   for (int k = 0; k < count; ++k)
     out[k] = g[k] - (qx * ex[k] + qy * ey[k] + qz * ez[k]) + qq * d[k];
 }
@@ -1057,7 +1140,8 @@ double newton_core(const BezierPatch& patch, const Vec3& p, double s0, double s1
     // `moved` below, without spending an evaluation on it).
     if (std::max(std::abs(ds), std::abs(dt)) <= 1e-15) break;
     // Rounding in |S - p|^2: S carries ~eps |S| absolute error, so F carries ~2 |r| eps |S|.
-    const double f_noise = 1e-14 * r.norm() * (d[0].norm() + p.norm()) + 1e-300;
+    // Only needed when the sufficient-decrease test fails (rarely): computed then (three roots).
+    auto f_noise = [&] { return 1e-14 * r.norm() * (d[0].norm() + p.norm()) + 1e-300; };
     double step = 1.0;
     bool accepted = false;
     double ns = s, nt = t;
@@ -1074,7 +1158,7 @@ double newton_core(const BezierPatch& patch, const Vec3& p, double s0, double s1
       if (nf <= f + 1e-4 * predicted ||
           // In the quadratic regime the change of F drowns in rounding; a short Newton step is
           // still taken (it improves orthogonality) unless it visibly increases F.
-          (newton_step && step == 1.0 && moved < 1e-6 && nf <= f + f_noise)) {
+          (newton_step && step == 1.0 && moved < 1e-6 && nf <= f + f_noise())) {
         accepted = true;
         break;
       }

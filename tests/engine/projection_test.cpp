@@ -133,7 +133,10 @@ TEST_F(ProjectionTest, WarmStartsStayExactEvenWithWrongHints) {
     EXPECT_NEAR(warm.distance[i], cold.distance[i], tolerance) << i;
     EXPECT_NEAR(misled.distance[i], cold.distance[i], tolerance) << i;
   }
-  EXPECT_LT(warm_counters.patches_visited, cold_counters.patches_visited);
+  // The hint's tight alpha never makes the walk visit more patches; with a good cold visiting
+  // order (best-first by each patch's own bound) it visits as few, and the gain is in Newton.
+  EXPECT_LE(warm_counters.patches_visited, cold_counters.patches_visited);
+  EXPECT_LT(warm_counters.newton_iterations, cold_counters.newton_iterations);
 }
 
 TEST_F(ProjectionTest, NonFinitePointsAreSkippedAndCounted) {
