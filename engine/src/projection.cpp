@@ -105,6 +105,7 @@ void Projector::project_range(PointView points, const ProjectionOptions& options
       // lowers alpha (a true distance) and chooses Newton's start: the answer stays exact.
       std::int64_t hint_patch = -1;
       double hint_s = kNaN, hint_t = kNaN;
+      bool hint_certified = false;  // the hinted patch's minimum is already `best`
       if (valid_hint(hint, entities)) {
         const NurbsSurface& s = model.surfaces[hint->entity];
         const double u = std::clamp(hint->u, s.domain_u().lo, s.domain_u().hi);
@@ -115,8 +116,9 @@ void Projector::project_range(PointView points, const ProjectionOptions& options
           hint_s = std::clamp(bp.param_u.to_local(u), 0.0, 1.0);
           hint_t = std::clamp(bp.param_v.to_local(v), 0.0, 1.0);
           double s_loc = hint_s, t_loc = hint_t;
+          bool stationary = false;
           best.distance_sq = newton_on_patch(bp, p, 0.0, 1.0, 0.0, 1.0, s_loc, t_loc, best.foot,
-                                             nullptr, &best.normal);
+                                             nullptr, &best.normal, &stationary);
           best.s = s_loc;
           best.t = t_loc;
           best.u = bp.param_u.to_parent(s_loc);
@@ -132,6 +134,13 @@ void Projector::project_range(PointView points, const ProjectionOptions& options
             // The clipping of this patch restarts Newton from the converged point (one step).
             hint_s = s_loc;
             hint_t = t_loc;
+            // Cheaper still: when F = |S - p|^2 is provably convex over the whole hinted patch,
+            // the KKT point Newton reached is the patch's global minimum (inside the region, for
+            // a trimmed face, so also the minimum over the patch's part of the face): the walk
+            // below need not clip this patch at all. The same proof as the clipping's convex
+            // termination, applied to the patch's own box.
+            hint_certified = stationary && squared_distance_convex(model_.patch(hint_patch), p,
+                                                                   state.surface_scratch);
           } else if (region->contains(bp.param_u.to_parent(hint_s), bp.param_v.to_parent(hint_t))) {
             s_loc = hint_s;
             t_loc = hint_t;
@@ -154,6 +163,7 @@ void Projector::project_range(PointView points, const ProjectionOptions& options
         best.distance_sq = limit_sq;
         best_surface = -1;
         best_patch = -1;
+        hint_certified = false;
       }
       double alpha = best.distance_sq;
       // Hierarchy items: patches first (item_patch maps them), then trim-edge pieces.
@@ -168,6 +178,7 @@ void Projector::project_range(PointView points, const ProjectionOptions& options
             if (k < patch_items) {
               const std::uint32_t patch = model_.item_patch(k);
               const bool hinted = static_cast<std::int64_t>(patch) == hint_patch;
+              if (hinted && hint_certified) return;
               if (project_onto_patch(model_.patch(patch), p, best, state.surface_scratch,
                                      &state.surface_stats, hinted ? hint_s : kNaN,
                                      hinted ? hint_t : kNaN, model_.patch_region(patch))) {

@@ -17,7 +17,7 @@ constexpr int kMaxGridSide = 2 * kMaxDegree + 1;
 
 double newton_core(const BezierPatch& patch, const Vec3& p, double s0, double s1, double t0,
                    double t1, double& s, double& t, Vec3& foot, SurfaceProjectionStats* stats,
-                   Vec3* normal, double abort_at);
+                   Vec3* normal, double abort_at, bool* converged = nullptr);
 
 double binomial(int n, int k) {
   double r = 1.0;
@@ -1054,24 +1054,27 @@ namespace {
 // returns +infinity (nothing to offer; s, t and foot are then meaningless).
 double newton_core(const BezierPatch& patch, const Vec3& p, double s0, double s1, double t0,
                    double t1, double& s, double& t, Vec3& foot, SurfaceProjectionStats* stats,
-                   Vec3* normal, double abort_at);
+                   Vec3* normal, double abort_at, bool* converged);
 
 }  // namespace
 
 double newton_on_patch(const BezierPatch& patch, const Vec3& p, double s0, double s1, double t0,
                        double t1, double& s, double& t, Vec3& foot, SurfaceProjectionStats* stats,
-                       Vec3* normal) {
+                       Vec3* normal, bool* converged) {
   return newton_core(patch, p, s0, s1, t0, t1, s, t, foot, stats, normal,
-                     std::numeric_limits<double>::infinity());
+                     std::numeric_limits<double>::infinity(), converged);
 }
 
 namespace {
 
 double newton_core(const BezierPatch& patch, const Vec3& p, double s0, double s1, double t0,
                    double t1, double& s, double& t, Vec3& foot, SurfaceProjectionStats* stats,
-                   Vec3* normal, double abort_at) {
+                   Vec3* normal, double abort_at, bool* converged) {
   s = std::clamp(s, s0, s1);
   t = std::clamp(t, t0, t1);
+  // Set when the iteration ends at a stationary (KKT) point of the box, not by the iteration cap,
+  // a failed line search or a non-finite step.
+  bool stationary = false;
   Vec3 d[6];
   patch_derivatives(patch, s, t, d);
   Vec3 r = d[0] - p;
@@ -1088,6 +1091,7 @@ double newton_core(const BezierPatch& patch, const Vec3& p, double s0, double s1
                                       std::min(gt * (t0 - t), gt * (t1 - t)));
       if (below >= abort_at) {
         if (stats) stats->newton_iterations += iterations;
+        if (converged) *converged = false;
         return std::numeric_limits<double>::infinity();
       }
     }
@@ -1101,7 +1105,10 @@ double newton_core(const BezierPatch& patch, const Vec3& p, double s0, double s1
         s1 > s0 && std::abs(gs) > noise && !((s <= s0 && gs > 0) || (s >= s1 && gs < 0));
     const bool free_t =
         t1 > t0 && std::abs(gt) > noise && !((t <= t0 && gt > 0) || (t >= t1 && gt < 0));
-    if (!free_s && !free_t) break;
+    if (!free_s && !free_t) {
+      stationary = true;
+      break;
+    }
     double ds = 0, dt = 0;
     bool newton_step = false;
     if (free_s && free_t) {
@@ -1138,7 +1145,10 @@ double newton_core(const BezierPatch& patch, const Vec3& p, double s0, double s1
     }
     // Converged: the step is below what a parameter in [0, 1] can resolve (the same threshold as
     // `moved` below, without spending an evaluation on it).
-    if (std::max(std::abs(ds), std::abs(dt)) <= 1e-15) break;
+    if (std::max(std::abs(ds), std::abs(dt)) <= 1e-15) {
+      stationary = true;
+      break;
+    }
     // Rounding in |S - p|^2: S carries ~eps |S| absolute error, so F carries ~2 |r| eps |S|.
     // Only needed when the sufficient-decrease test fails (rarely): computed then (three roots).
     auto f_noise = [&] { return 1e-14 * r.norm() * (d[0].norm() + p.norm()) + 1e-300; };
@@ -1171,15 +1181,22 @@ double newton_core(const BezierPatch& patch, const Vec3& p, double s0, double s1
     std::copy(trial, trial + 6, d);
     r = d[0] - p;
     f = r.squaredNorm();
-    if (moved <= 1e-15) break;
+    if (moved <= 1e-15) {
+      stationary = true;
+      break;
+    }
     // A full Newton step (positive definite Hessian) of size delta leaves an error of order
     // delta^2 (quadratic convergence): below 1e-12 the next step would be under 1e-15 relative
     // to the box up to the conditioning. We stop there instead of paying for that step.
-    if (newton_step && step == 1.0 && moved <= 1e-12 * std::max(s1 - s0, t1 - t0)) break;
+    if (newton_step && step == 1.0 && moved <= 1e-12 * std::max(s1 - s0, t1 - t0)) {
+      stationary = true;
+      break;
+    }
   }
   if (stats) stats->newton_iterations += iterations;
   foot = d[0];
   if (normal) *normal = unit_normal(d[1], d[2]);
+  if (converged) *converged = stationary;
   return f;
 }
 
@@ -1253,6 +1270,15 @@ bool project_onto_patch(const PreparedPatch& pp, const Vec3& p, SurfaceHit& best
     return clip_patch<true>(pp, p, best, scratch, stats, guess_s, guess_t, region);
   }
   return clip_patch<false>(pp, p, best, scratch, stats, guess_s, guess_t, nullptr);
+}
+
+bool squared_distance_convex(const PreparedPatch& pp, const Vec3& p, SurfaceScratch& scratch) {
+  if (!p.allFinite()) return false;
+  double* n = scratch.grids.data();
+  pp.numerator(p, n);
+  if (!pp.rational) return convex_polynomial(n, pp.rows, pp.cols);
+  const CoefficientRange range = coefficient_range(n, pp.d.data(), pp.rows * pp.cols, true);
+  return convex(f_derivatives(n, pp.d.data(), pp.rows, pp.cols, true, {range.lo, range.hi}));
 }
 
 }  // namespace nurbsreg::engine

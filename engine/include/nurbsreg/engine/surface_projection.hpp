@@ -157,9 +157,19 @@ bool project_onto_patch_ma_hewitt(const PreparedPatch& patch, const Vec3& p, Sur
 // above the start value.
 // normal (optional): the unit normal S_s x S_t at the result, or zero where undefined
 // (|S_s x S_t| <= 1e-12 |S_s| |S_t|), from the derivatives Newton already has.
+// converged (optional): set to true when the iteration ended at a stationary (KKT) point of the
+// box, false when it stopped otherwise (iteration cap, failed line search, non-finite step).
 double newton_on_patch(const BezierPatch& patch, const Vec3& p, double s0, double s1, double t0,
                        double t1, double& s, double& t, Vec3& foot,
-                       SurfaceProjectionStats* stats = nullptr, Vec3* normal = nullptr);
+                       SurfaceProjectionStats* stats = nullptr, Vec3* normal = nullptr,
+                       bool* converged = nullptr);
+
+// A certificate for warm starts: true when F = |S - p|^2 is provably strictly convex over the
+// whole patch (Bézier bounds on its second derivatives; for a rational patch, on every
+// G_c = N - c D, as in the clipping's termination test). Then a KKT point of F on the patch (a
+// converged newton_on_patch over [0, 1]^2) is the patch's global minimum, and the clipping of the
+// patch can be skipped. Uses the scratch's first grid; no heap allocation.
+bool squared_distance_convex(const PreparedPatch& patch, const Vec3& p, SurfaceScratch& scratch);
 
 // converged: the closest point was found; skipped_nan: the point has a NaN or infinite
 // coordinate; no_candidate: the strategy produced no point at all (only ma_hewitt can: its
