@@ -10,6 +10,7 @@
 // Built once (allocates); afterwards immutable, and every query is const, thread-safe and free of
 // heap allocation.
 
+#include <array>
 #include <cstdint>
 #include <vector>
 
@@ -44,19 +45,35 @@ class TrimRegion {
   // Number of monotone Bézier pieces the loops were split into (diagnostics, tests).
   std::size_t piece_count() const;
 
-  struct Piece;  // a monotone-in-v rational Bézier piece of a loop (defined in the .cpp)
+  struct Piece;  // a monotone-in-v rational Bézier piece of a loop (defined below)
 
  private:
+  // Grid box: the domain intersected with the loops' bounding box (the region lies inside it).
   ParamInterval du_, dv_;
-  // Grid of cells over the domain; see trim_region.cpp.
+  // Grid of cells over the grid box; see trim_region.cpp.
   int cells_u_ = 0, cells_v_ = 0;
-  std::vector<std::uint8_t> cell_class_;    // RegionClass per cell, [iu * cells_v_ + iv]
-  std::vector<std::int32_t> boundary_sum_;  // 2-D prefix sums of boundary cells
-  std::vector<std::int32_t> inside_sum_;    // 2-D prefix sums of inside cells
+  double inv_cell_u_ = 0.0, inv_cell_v_ = 0.0;  // cells per unit of u, v
+  std::vector<std::uint8_t> cell_class_;        // RegionClass per cell, [iu * cells_v_ + iv]
+  std::vector<std::int32_t> boundary_sum_;      // 2-D prefix sums of boundary cells
+  std::vector<std::int32_t> inside_sum_;        // 2-D prefix sums of inside cells
   std::vector<Piece> pieces_;
   // Per grid row (v band): the pieces whose v range meets it, for the exact crossing count.
   std::vector<std::int32_t> row_first_;
   std::vector<std::int32_t> row_pieces_;
+
+  int cell_u(double u) const;
+  int cell_v(double v) const;
+};
+
+// Private to TrimRegion (defined here so that TrimRegion stays an ordinary copyable value).
+// Homogeneous control points (w u, w v, w), w > 0, whose v coordinates are monotone: by the
+// variation-diminishing property a line v = const meets the piece at most once.
+struct TrimRegion::Piece {
+  double u_lo = 0.0, u_hi = 0.0;      // control-point bounds in u
+  double v_start = 0.0, v_end = 0.0;  // v at t = 0 and t = 1 (shared exactly with neighbours)
+  double u_start = 0.0, u_end = 0.0;
+  int degree = 1;
+  std::array<Vec3, kMaxDegree + 1> cw{};
 };
 
 // The 3-D boundary edges of a trimmed surface, one per trim curve, in loop order:

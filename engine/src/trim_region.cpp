@@ -1,0 +1,492 @@
+// TrimRegion: the trim loops cut into rational Bézier pieces that are monotone in v, plus a grid
+// over the region's bounding box that answers most queries at once.
+//
+// Exactness: a horizontal ray from (u, v) to +u crosses a monotone piece at most once, and
+// counting a piece only when v lies in the half-open range [min, max) of its end v's makes the
+// count right at shared vertices and for horizontal pieces (the classic polygon rule, applied to
+// curved pieces). Consecutive pieces share their end points bit for bit (gaps, even of one ulp,
+// are closed by straight pieces), so every loop is a closed chain and the parity is exact up to
+// the rounding of the crossing's position.
+
+#include <algorithm>
+#include <cassert>
+#include <cfloat>
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+#include <string>
+
+#include "nurbsreg/engine/decompose.hpp"
+#include "nurbsreg/engine/trim_region.hpp"
+
+namespace nurbsreg::engine {
+namespace {
+
+using Piece = TrimRegion::Piece;
+
+constexpr int kMaxSplitDepth = 48;   // monotone splitting during construction
+constexpr int kMaxSearchDepth = 64;  // crossing search per query
+constexpr int kMinCellsPerSide = 16;
+constexpr int kMaxCellsPerSide = 512;
+
+double euclid_u(const Vec3& p) {
+  return p.x() / p.z();
+}
+double euclid_v(const Vec3& p) {
+  return p.y() / p.z();
+}
+
+// de Casteljau at 1/2 on homogeneous 2-D points; left/right may not alias a.
+void halve(const Vec3* a, int n, Vec3* left, Vec3* right) {
+  Vec3 work[kMaxDegree + 1];
+  for (int i = 0; i <= n; ++i)
+    work[i] = a[i];
+  left[0] = work[0];
+  right[n] = work[n];
+  for (int r = 1; r <= n; ++r) {
+    for (int i = 0; i <= n - r; ++i)
+      work[i] = 0.5 * (work[i] + work[i + 1]);
+    left[r] = work[0];
+    right[n - r] = work[n - r];
+  }
+}
+
+Piece make_piece(const Vec3* cw, int degree) {
+  Piece p;
+  p.degree = degree;
+  p.u_lo = std::numeric_limits<double>::infinity();
+  p.u_hi = -p.u_lo;
+  for (int i = 0; i <= degree; ++i) {
+    p.cw[i] = cw[i];
+    const double u = euclid_u(cw[i]);
+    p.u_lo = std::min(p.u_lo, u);
+    p.u_hi = std::max(p.u_hi, u);
+  }
+  p.u_start = euclid_u(cw[0]);
+  p.v_start = euclid_v(cw[0]);
+  p.u_end = euclid_u(cw[degree]);
+  p.v_end = euclid_v(cw[degree]);
+  return p;
+}
+
+Piece make_segment(double u0, double v0, double u1, double v1) {
+  const Vec3 cw[2] = {Vec3(u0, v0, 1.0), Vec3(u1, v1, 1.0)};
+  Piece p = make_piece(cw, 1);
+  // Exact end points (division by 1 is exact anyway; this documents the intent).
+  p.u_start = u0;
+  p.v_start = v0;
+  p.u_end = u1;
+  p.v_end = v1;
+  return p;
+}
+
+double piece_v_lo(const Piece& p) {
+  return std::min(p.v_start, p.v_end);
+}
+double piece_v_hi(const Piece& p) {
+  return std::max(p.v_start, p.v_end);
+}
+double piece_v_min_cp(const Piece& p) {
+  double lo = std::numeric_limits<double>::infinity();
+  for (int i = 0; i <= p.degree; ++i)
+    lo = std::min(lo, euclid_v(p.cw[i]));
+  return lo;
+}
+double piece_v_max_cp(const Piece& p) {
+  double hi = -std::numeric_limits<double>::infinity();
+  for (int i = 0; i <= p.degree; ++i)
+    hi = std::max(hi, euclid_v(p.cw[i]));
+  return hi;
+}
+
+// Is the crossing of the piece with the line v = const (v in the piece's half-open v range)
+// right of u? Subdivides the piece, keeping the half that holds the crossing, until the
+// control points' u lie on one side of u (convex hull property). No allocation.
+bool crossing_right_of(const Piece& p, double u, double v) {
+  if (p.u_hi < u) return false;
+  if (p.u_lo > u) return true;
+  if (p.degree == 1) {
+    // A rational line is the segment between its end points whatever its weights.
+    const double s = (v - p.v_start) / (p.v_end - p.v_start);
+    return p.u_start + s * (p.u_end - p.u_start) > u;
+  }
+  const int n = p.degree;
+  const bool increasing = p.v_end > p.v_start;
+  Vec3 a[kMaxDegree + 1], left[kMaxDegree + 1], right[kMaxDegree + 1];
+  for (int i = 0; i <= n; ++i)
+    a[i] = p.cw[i];
+  for (int depth = 0; depth < kMaxSearchDepth; ++depth) {
+    halve(a, n, left, right);
+    const Vec3& mid = left[n];
+    // w > 0: compare without dividing.
+    const bool in_left = increasing ? v * mid.z() < mid.y() : v * mid.z() > mid.y();
+    const Vec3* half = in_left ? left : right;
+    bool all_left = true, all_right = true;
+    for (int i = 0; i <= n; ++i) {
+      const double d = half[i].x() - u * half[i].z();
+      all_left = all_left && d < 0.0;
+      all_right = all_right && d > 0.0;
+    }
+    if (all_left) return false;
+    if (all_right) return true;
+    for (int i = 0; i <= n; ++i)
+      a[i] = half[i];
+  }
+  return euclid_u(a[0]) > u;  // the point is on the loop to rounding: either answer
+}
+
+// u of the piece's crossing with the line v = const (construction only).
+double crossing_u(const Piece& p, double v) {
+  if (p.degree == 1) {
+    const double s = (v - p.v_start) / (p.v_end - p.v_start);
+    return p.u_start + s * (p.u_end - p.u_start);
+  }
+  const int n = p.degree;
+  const bool increasing = p.v_end > p.v_start;
+  Vec3 a[kMaxDegree + 1], left[kMaxDegree + 1], right[kMaxDegree + 1];
+  for (int i = 0; i <= n; ++i)
+    a[i] = p.cw[i];
+  for (int depth = 0; depth < kMaxSearchDepth; ++depth) {
+    halve(a, n, left, right);
+    const Vec3& mid = left[n];
+    const bool in_left = increasing ? v * mid.z() < mid.y() : v * mid.z() > mid.y();
+    const Vec3* half = in_left ? left : right;
+    for (int i = 0; i <= n; ++i)
+      a[i] = half[i];
+  }
+  return euclid_u(a[0]);
+}
+
+// Cuts 2-D rational Bézier curves (homogeneous (w u, w v, w)) into v-monotone pieces.
+class MonotoneSplitter {
+ public:
+  MonotoneSplitter(double v_tolerance, double tiny) : v_tolerance_(v_tolerance), tiny_(tiny) {}
+
+  void add(const BezierCurve& curve, std::vector<Piece>& out) const {
+    BezierCurve c2 = curve;
+    // (w x, w y, w z, w) -> (w u, w v, w) in the first three slots; the 4th is kept as is.
+    for (int i = 0; i <= c2.degree; ++i)
+      c2.cw[i] = Vec4(curve.cw[i][0], curve.cw[i][1], 0.0, curve.cw[i][3]);
+    split(c2, 0, out);
+  }
+
+ private:
+  static Vec3 h(const BezierCurve& c, int i) { return Vec3(c.cw[i][0], c.cw[i][1], c.cw[i][3]); }
+
+  bool monotone(const BezierCurve& c) const {
+    bool up = true, down = true;
+    for (int i = 1; i <= c.degree; ++i) {
+      const double d = c.cw[i][1] / c.cw[i][3] - c.cw[i - 1][1] / c.cw[i - 1][3];
+      up = up && d >= -v_tolerance_;
+      down = down && d <= v_tolerance_;
+    }
+    return up || down;
+  }
+
+  // Sign of dv/dt at t (the sign of Y' W - Y W').
+  static double v_slope(const BezierCurve& c, double t) {
+    Vec3 d[2];
+    c.derivatives(t, 1, d);
+    return d[1].y();
+  }
+
+  // A parameter in (0, 1) where v has an extremum, or 0.5 when none is found by sampling.
+  static double split_parameter(const BezierCurve& c) {
+    const int samples = 4 * c.degree + 4;
+    double t_prev = 0.0, s_prev = v_slope(c, 0.0);
+    for (int k = 1; k <= samples; ++k) {
+      const double t = static_cast<double>(k) / samples;
+      const double s = v_slope(c, t);
+      if (s_prev != 0.0 && s != 0.0 && (s > 0.0) != (s_prev > 0.0)) {
+        double lo = t_prev, hi = t;
+        for (int it = 0; it < 60; ++it) {
+          const double mid = 0.5 * (lo + hi);
+          const double sm = v_slope(c, mid);
+          if (sm == 0.0) {
+            lo = hi = mid;
+            break;
+          }
+          if ((sm > 0.0) == (s_prev > 0.0)) {
+            lo = mid;
+          } else {
+            hi = mid;
+          }
+        }
+        const double root = 0.5 * (lo + hi);
+        if (root > 1e-6 && root < 1.0 - 1e-6) return root;
+        return 0.5;
+      }
+      if (s != 0.0) {
+        t_prev = t;
+        s_prev = s;
+      }
+    }
+    return 0.5;
+  }
+
+  void split(const BezierCurve& c, int depth, std::vector<Piece>& out) const {
+    Vec3 cw[kMaxDegree + 1];
+    for (int i = 0; i <= c.degree; ++i)
+      cw[i] = h(c, i);
+    if (c.degree == 1 || monotone(c)) {
+      out.push_back(make_piece(cw, c.degree));
+      return;
+    }
+    double u_lo = std::numeric_limits<double>::infinity(), u_hi = -u_lo;
+    double v_lo = u_lo, v_hi = -u_lo;
+    for (int i = 0; i <= c.degree; ++i) {
+      u_lo = std::min(u_lo, euclid_u(cw[i]));
+      u_hi = std::max(u_hi, euclid_u(cw[i]));
+      v_lo = std::min(v_lo, euclid_v(cw[i]));
+      v_hi = std::max(v_hi, euclid_v(cw[i]));
+    }
+    if (depth >= kMaxSplitDepth || std::max(u_hi - u_lo, v_hi - v_lo) < tiny_) {
+      // Tiny (or pathological) piece: its chord, which keeps the loop closed.
+      const Vec3 chord[2] = {cw[0], cw[c.degree]};
+      out.push_back(make_piece(chord, 1));
+      return;
+    }
+    BezierCurve left, right;
+    c.split(split_parameter(c), left, right);
+    split(left, depth + 1, out);
+    split(right, depth + 1, out);
+  }
+
+  double v_tolerance_, tiny_;
+};
+
+}  // namespace
+
+int TrimRegion::cell_u(double u) const {
+  const int i = static_cast<int>((u - du_.lo) * inv_cell_u_);
+  return std::clamp(i, 0, cells_u_ - 1);
+}
+int TrimRegion::cell_v(double v) const {
+  const int i = static_cast<int>((v - dv_.lo) * inv_cell_v_);
+  return std::clamp(i, 0, cells_v_ - 1);
+}
+
+TrimRegion::TrimRegion(const NurbsSurface& surface) {
+  if (!surface.is_trimmed())
+    throw std::invalid_argument("TrimRegion: the surface has no trim loops");
+  // Only what the region needs: the domain and the uv curves (a missing 3-D edge is
+  // trim_edges()'s concern, not the region's).
+  if (surface.degree_u < 1 || surface.degree_v < 1 || surface.count_u <= surface.degree_u ||
+      surface.count_v <= surface.degree_v ||
+      surface.knots_u.size() != static_cast<std::size_t>(surface.count_u + surface.degree_u + 1) ||
+      surface.knots_v.size() != static_cast<std::size_t>(surface.count_v + surface.degree_v + 1) ||
+      !(surface.domain_u().width() > 0.0) || !(surface.domain_v().width() > 0.0)) {
+    throw std::invalid_argument("TrimRegion: surface '" + surface.name +
+                                "': invalid degrees, knots or domain");
+  }
+  for (std::size_t l = 0; l < surface.trim_loops.size(); ++l) {
+    const std::string loop = "TrimRegion: trim_loops[" + std::to_string(l) + "]";
+    if (surface.trim_loops[l].curves.empty()) {
+      throw std::invalid_argument(loop + ".curves: a loop needs at least one curve");
+    }
+    for (std::size_t c = 0; c < surface.trim_loops[l].curves.size(); ++c) {
+      const NurbsCurve& uv = surface.trim_loops[l].curves[c].uv;
+      const std::string field = loop + ".curves[" + std::to_string(c) + "].uv";
+      if (auto e = uv.validate()) throw std::invalid_argument(field + ": " + *e);
+      if (uv.dimension != 2) throw std::invalid_argument(field + ": must be a 2-D curve");
+    }
+  }
+  const ParamInterval dom_u = surface.domain_u(), dom_v = surface.domain_v();
+
+  // Scale of the parameter space, for the rounding-level tolerances below.
+  double scale = std::max({std::abs(dom_u.lo), std::abs(dom_u.hi), std::abs(dom_v.lo),
+                           std::abs(dom_v.hi), dom_u.width(), dom_v.width()});
+  for (const TrimLoop& loop : surface.trim_loops) {
+    for (const TrimCurve& curve : loop.curves) {
+      for (const Vec3& p : curve.uv.control_points)
+        scale = std::max({scale, std::abs(p.x()), std::abs(p.y())});
+    }
+  }
+  const MonotoneSplitter splitter(1e-14 * scale, 1e-13 * scale);
+
+  // 1. Monotone pieces, loop by loop, chained end to start.
+  for (const TrimLoop& loop : surface.trim_loops) {
+    const std::size_t first = pieces_.size();
+    for (const TrimCurve& curve : loop.curves) {
+      for (const BezierCurve& bez : decompose(curve.uv)) {
+        const std::size_t before = pieces_.size();
+        splitter.add(bez, pieces_);
+        // Close any gap (also a rounding-level one) to the previous piece by a straight piece.
+        if (before > first) {
+          const Piece& prev = pieces_[before - 1];
+          const Piece& next = pieces_[before];
+          if (prev.u_end != next.u_start || prev.v_end != next.v_start) {
+            pieces_.insert(pieces_.begin() + static_cast<std::ptrdiff_t>(before),
+                           make_segment(prev.u_end, prev.v_end, next.u_start, next.v_start));
+          }
+        }
+      }
+    }
+    if (pieces_.size() > first) {
+      const Piece& last = pieces_.back();
+      const Piece& head = pieces_[first];
+      if (last.u_end != head.u_start || last.v_end != head.v_start) {
+        pieces_.push_back(make_segment(last.u_end, last.v_end, head.u_start, head.v_start));
+      }
+    }
+  }
+
+  // 2. Grid box = domain ∩ the loops' bounding box: the region lies inside it.
+  double lu = std::numeric_limits<double>::infinity(), hu = -lu, lv = lu, hv = -lu;
+  for (const Piece& p : pieces_) {
+    lu = std::min(lu, p.u_lo);
+    hu = std::max(hu, p.u_hi);
+    lv = std::min(lv, piece_v_min_cp(p));
+    hv = std::max(hv, piece_v_max_cp(p));
+  }
+  du_ = {std::max(lu, dom_u.lo), std::min(hu, dom_u.hi)};
+  dv_ = {std::max(lv, dom_v.lo), std::min(hv, dom_v.hi)};
+  if (!(du_.width() > 0.0) || !(dv_.width() > 0.0)) {
+    // The loops enclose no area of the domain: the empty region.
+    cells_u_ = cells_v_ = 0;
+    return;
+  }
+  // About 4 cells per piece along each side, so that most cells hold no loop.
+  const int side = static_cast<int>(
+      std::clamp<std::size_t>(4 * pieces_.size(), kMinCellsPerSide, kMaxCellsPerSide));
+  cells_u_ = cells_v_ = side;
+  inv_cell_u_ = cells_u_ / du_.width();
+  inv_cell_v_ = cells_v_ / dv_.width();
+  const double cell_w = du_.width() / cells_u_, cell_h = dv_.width() / cells_v_;
+  // Margins: a piece marks every cell it comes within (rounding of the cell mapping) of.
+  const double eps_u = 1e-6 * cell_w + 8 * DBL_EPSILON * (std::abs(du_.lo) + std::abs(du_.hi));
+  const double eps_v = 1e-6 * cell_h + 8 * DBL_EPSILON * (std::abs(dv_.lo) + std::abs(dv_.hi));
+
+  const std::size_t cells = static_cast<std::size_t>(cells_u_) * cells_v_;
+  cell_class_.assign(cells, static_cast<std::uint8_t>(RegionClass::outside));
+  std::vector<std::int32_t> row_count(cells_v_ + 1, 0);
+  struct CellRange {
+    int i0, i1, j0, j1;
+    bool misses_rows;   // v range misses the box: never met by a ray from inside it
+    bool misses_cells;  // also (or only) u range misses the box
+  };
+  std::vector<CellRange> ranges(pieces_.size());
+  for (std::size_t k = 0; k < pieces_.size(); ++k) {
+    const Piece& p = pieces_[k];
+    const double vlo = piece_v_min_cp(p), vhi = piece_v_max_cp(p);
+    CellRange r{};
+    // A piece left of the box is never right of a query point; one right of it (outside the
+    // domain) still counts for the rays.
+    r.misses_rows = vlo - eps_v > dv_.hi || vhi + eps_v < dv_.lo || p.u_hi + eps_u < du_.lo;
+    r.misses_cells = r.misses_rows || p.u_lo - eps_u > du_.hi;
+    r.i0 = cell_u(std::max(p.u_lo - eps_u, du_.lo));
+    r.i1 = cell_u(std::min(p.u_hi + eps_u, du_.hi));
+    r.j0 = cell_v(std::max(vlo - eps_v, dv_.lo));
+    r.j1 = cell_v(std::min(vhi + eps_v, dv_.hi));
+    ranges[k] = r;
+    if (r.misses_rows) continue;
+    if (!r.misses_cells) {
+      for (int i = r.i0; i <= r.i1; ++i) {
+        for (int j = r.j0; j <= r.j1; ++j)
+          cell_class_[static_cast<std::size_t>(i) * cells_v_ + j] =
+              static_cast<std::uint8_t>(RegionClass::boundary);
+      }
+    }
+    for (int j = r.j0; j <= r.j1; ++j)
+      ++row_count[j + 1];
+  }
+  // Row lists (CSR). A piece whose v range misses the box never has v in its range for a
+  // query inside the box, so it is left out.
+  row_first_.assign(cells_v_ + 1, 0);
+  for (int j = 0; j < cells_v_; ++j)
+    row_first_[j + 1] = row_first_[j] + row_count[j + 1];
+  row_pieces_.assign(row_first_.back(), 0);
+  {
+    std::vector<std::int32_t> fill(row_first_.begin(), row_first_.end() - 1);
+    for (std::size_t k = 0; k < pieces_.size(); ++k) {
+      const CellRange& r = ranges[k];
+      if (r.misses_rows) continue;
+      for (int j = r.j0; j <= r.j1; ++j)
+        row_pieces_[fill[j]++] = static_cast<std::int32_t>(k);
+    }
+  }
+
+  // 3. Inside/outside of the other cells: one sweep per row along its centre line.
+  std::vector<double> crossings;
+  for (int j = 0; j < cells_v_; ++j) {
+    const double vc = dv_.lo + (j + 0.5) * cell_h;
+    crossings.clear();
+    for (int q = row_first_[j]; q < row_first_[j + 1]; ++q) {
+      const Piece& p = pieces_[row_pieces_[q]];
+      if (vc >= piece_v_lo(p) && vc < piece_v_hi(p)) crossings.push_back(crossing_u(p, vc));
+    }
+    std::sort(crossings.begin(), crossings.end());
+    for (int i = 0; i < cells_u_; ++i) {
+      std::uint8_t& c = cell_class_[static_cast<std::size_t>(i) * cells_v_ + j];
+      if (c == static_cast<std::uint8_t>(RegionClass::boundary)) continue;
+      const double uc = du_.lo + (i + 0.5) * cell_w;
+      const auto right = crossings.end() - std::upper_bound(crossings.begin(), crossings.end(), uc);
+      c = static_cast<std::uint8_t>(right % 2 == 1 ? RegionClass::inside : RegionClass::outside);
+    }
+  }
+
+  // 4. Prefix sums: sum_[i * (cells_v_ + 1) + j] counts cells [0, i) x [0, j).
+  const int stride = cells_v_ + 1;
+  boundary_sum_.assign(static_cast<std::size_t>(cells_u_ + 1) * stride, 0);
+  inside_sum_.assign(boundary_sum_.size(), 0);
+  for (int i = 0; i < cells_u_; ++i) {
+    for (int j = 0; j < cells_v_; ++j) {
+      const std::uint8_t c = cell_class_[static_cast<std::size_t>(i) * cells_v_ + j];
+      const std::size_t at = static_cast<std::size_t>(i + 1) * stride + (j + 1);
+      const std::size_t up = static_cast<std::size_t>(i) * stride + (j + 1);
+      const std::size_t lf = static_cast<std::size_t>(i + 1) * stride + j;
+      const std::size_t dg = static_cast<std::size_t>(i) * stride + j;
+      boundary_sum_[at] = boundary_sum_[up] + boundary_sum_[lf] - boundary_sum_[dg] +
+                          (c == static_cast<std::uint8_t>(RegionClass::boundary));
+      inside_sum_[at] = inside_sum_[up] + inside_sum_[lf] - inside_sum_[dg] +
+                        (c == static_cast<std::uint8_t>(RegionClass::inside));
+    }
+  }
+}
+
+std::size_t TrimRegion::piece_count() const {
+  return pieces_.size();
+}
+
+bool TrimRegion::contains(double u, double v) const {
+  if (cells_u_ == 0) return false;
+  // Written so that NaN is outside.
+  if (!(u >= du_.lo && u <= du_.hi && v >= dv_.lo && v <= dv_.hi)) return false;
+  const int j = cell_v(v);
+  const std::uint8_t c = cell_class_[static_cast<std::size_t>(cell_u(u)) * cells_v_ + j];
+  if (c != static_cast<std::uint8_t>(RegionClass::boundary)) {
+    return c == static_cast<std::uint8_t>(RegionClass::inside);
+  }
+  bool inside = false;
+  for (int q = row_first_[j]; q < row_first_[j + 1]; ++q) {
+    const Piece& p = pieces_[row_pieces_[q]];
+    const bool rising = p.v_end > p.v_start;
+    const double lo = rising ? p.v_start : p.v_end, hi = rising ? p.v_end : p.v_start;
+    if (!(v >= lo && v < hi)) continue;
+    if (crossing_right_of(p, u, v)) inside = !inside;
+  }
+  return inside;
+}
+
+RegionClass TrimRegion::classify(double u0, double u1, double v0, double v1) const {
+  if (cells_u_ == 0) return RegionClass::outside;
+  if (u1 < du_.lo || u0 > du_.hi || v1 < dv_.lo || v0 > dv_.hi) return RegionClass::outside;
+  // Parts of the box beyond the grid box are outside the region.
+  const bool beyond = u0 < du_.lo || u1 > du_.hi || v0 < dv_.lo || v1 > dv_.hi;
+  const int i0 = cell_u(std::max(u0, du_.lo)), i1 = cell_u(std::min(u1, du_.hi));
+  const int j0 = cell_v(std::max(v0, dv_.lo)), j1 = cell_v(std::min(v1, dv_.hi));
+  const int stride = cells_v_ + 1;
+  auto box_sum = [&](const std::vector<std::int32_t>& s) {
+    return s[static_cast<std::size_t>(i1 + 1) * stride + (j1 + 1)] -
+           s[static_cast<std::size_t>(i0) * stride + (j1 + 1)] -
+           s[static_cast<std::size_t>(i1 + 1) * stride + j0] +
+           s[static_cast<std::size_t>(i0) * stride + j0];
+  };
+  if (box_sum(boundary_sum_) > 0) return RegionClass::boundary;
+  const std::int32_t in = box_sum(inside_sum_);
+  if (in == 0) return RegionClass::outside;
+  if (!beyond && in == (i1 - i0 + 1) * (j1 - j0 + 1)) return RegionClass::inside;
+  return RegionClass::boundary;
+}
+
+}  // namespace nurbsreg::engine
