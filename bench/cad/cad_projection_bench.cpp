@@ -33,6 +33,7 @@
 #include <cmath>
 #include <cstdio>
 #include <map>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -171,34 +172,35 @@ bool run_model(const std::string& name, const Options& opt) {
   for (const int threads : opt.threads) {
     tbb::task_arena arena(threads);
     // ExtPF: one instance per face per thread, initialised before timing.
-    tbb::enumerable_thread_specific<std::vector<BRepExtrema_ExtPF>> extpf;
+    tbb::enumerable_thread_specific<std::vector<std::unique_ptr<BRepExtrema_ExtPF>>> extpf;
+    auto init_extpf = [&](std::vector<std::unique_ptr<BRepExtrema_ExtPF>>& mine) {
+      for (int f = 0; f < nfaces; ++f) {
+        mine.push_back(std::make_unique<BRepExtrema_ExtPF>());
+        mine.back()->Initialize(TopoDS::Face(shape.faces(f + 1)), Extrema_ExtFlag_MIN);
+      }
+    };
     std::vector<double> d(occt_n, NAN);
     arena.execute([&] {
-      tbb::parallel_for(tbb::blocked_range<int>(0, threads), [&](const tbb::blocked_range<int>&) {
+      tbb::parallel_for(tbb::blocked_range<int>(0, threads, 1), [&](const tbb::blocked_range<int>&) {
         auto& mine = extpf.local();
         if (!mine.empty()) return;
-        mine.resize(nfaces);
-        for (int f = 0; f < nfaces; ++f) mine[f].Initialize(TopoDS::Face(shape.faces(f + 1)), Extrema_ExtFlag_MIN);
+        init_extpf(mine);
       });
       t = now();
       tbb::parallel_for(tbb::blocked_range<std::size_t>(0, occt_n, 4),
                         [&](const tbb::blocked_range<std::size_t>& r) {
                           auto& mine = extpf.local();
-                          if (mine.empty()) {
-                            mine.resize(nfaces);
-                            for (int f = 0; f < nfaces; ++f)
-                              mine[f].Initialize(TopoDS::Face(shape.faces(f + 1)), Extrema_ExtFlag_MIN);
-                          }
+                          if (mine.empty()) init_extpf(mine);
                           for (std::size_t i = r.begin(); i != r.end(); ++i) {
                             const TopoDS_Vertex v =
                                 BRepBuilderAPI_MakeVertex(test::to_gp(points[i]));
                             double best = INFINITY;
                             for (int f = 0; f < nfaces; ++f) {
                               try {
-                                mine[f].Perform(v, TopoDS::Face(shape.faces(f + 1)));
-                                if (!mine[f].IsDone()) continue;
-                                for (int k = 1; k <= mine[f].NbExt(); ++k)
-                                  best = std::min(best, mine[f].SquareDistance(k));
+                                mine[f]->Perform(v, TopoDS::Face(shape.faces(f + 1)));
+                                if (!mine[f]->IsDone()) continue;
+                                for (int k = 1; k <= mine[f]->NbExt(); ++k)
+                                  best = std::min(best, mine[f]->SquareDistance(k));
                               } catch (const Standard_Failure&) {
                               }
                             }

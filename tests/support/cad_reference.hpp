@@ -4,8 +4,9 @@
 //  - every face of the ORIGINAL OCCT shape is sampled densely over its (u, v) bounds; samples are
 //    kept when OCCT's polygonal classifier (BRepTopAdaptor_FClass2d) puts them strictly IN the
 //    face; the grid's discrete local minima near the best sample are polished by a Newton in
-//    (u, v) whose steps are cut back until the point stays IN, and the polished point is
-//    accepted only when OCCT's exact classifier (BRepClass_FaceClassifier) also says IN;
+//    (u, v) whose steps are cut back until the point stays in the closed face (IN or ON), and
+//    the best polished point is accepted only when OCCT's exact classifier
+//    (BRepClass_FaceClassifier) does not say OUT (else the next best);
 //  - every edge of the shape (its 3-D curve) is sampled densely and the local minima polished by
 //    a golden-section search in the parameter.
 // The answer is the best of both: an upper bound of the true distance to the trimmed shape that
@@ -181,9 +182,18 @@ class CadReference {
     std::sort(seeds_.begin(), seeds_.end(),
               [](const Seed& a, const Seed& b) { return a.d < b.d; });
     const std::size_t polish = std::min<std::size_t>(seeds_.size(), options_.max_polish);
-    for (std::size_t s = 0; s < polish; ++s) {
-      const CadFoot hit = polish_face(p, seeds_[s].face, seeds_[s].sample);
-      if (hit.distance < best.distance) best = hit;
+    candidates_.clear();
+    for (std::size_t s = 0; s < polish; ++s)
+      candidates_.push_back(polish_face(p, seeds_[s].face, seeds_[s].sample));
+    // The exact classifier is slow (up to 0.3 ms a call): ask it about the best candidates only,
+    // until one is in the closed face (the polygonal one may err near a loop).
+    std::sort(candidates_.begin(), candidates_.end(),
+              [](const CadFoot& a, const CadFoot& b) { return a.distance < b.distance; });
+    for (const CadFoot& hit : candidates_) {
+      if (classify(hit.face, hit.u, hit.v) != TopAbs_OUT) {
+        best = hit;
+        break;
+      }
     }
     // 3. Edges: local minima of the edge samples near the bound, golden-section polished.
     for (std::size_t e = 0; e < edges_.size(); ++e) {
@@ -505,9 +515,6 @@ class CadReference {
       if (!moved) break;
     }
     CadFoot hit;
-    // Accept only what the exact classifier also puts in the closed face (the polygonal one may
-    // err near a loop).
-    if (classify(f, u, v) == TopAbs_OUT) return hit;
     hit.face = f;
     hit.u = u;
     hit.v = v;
@@ -528,6 +535,7 @@ class CadReference {
   // Query scratch (why the class is not thread-safe besides OCCT's adaptors).
   mutable std::vector<double> face_best_, edge_best_;
   mutable std::vector<Seed> seeds_;
+  mutable std::vector<CadFoot> candidates_;
 };
 
 }  // namespace nurbsreg::test
