@@ -7,10 +7,9 @@
 #include <filesystem>
 #include <random>
 
-#include "nurbsreg/io/iges_reader.hpp"
+#include "nurbsreg/io/cad_import.hpp"
 #include "nurbsreg/io/model_json.hpp"
 #include "nurbsreg/io/projection_results.hpp"
-#include "nurbsreg/io/step_reader.hpp"
 #include "support/random_entities.hpp"
 
 namespace nurbsreg::io {
@@ -102,10 +101,9 @@ void BM_ReadCad(benchmark::State& state, const char* relative) {
     state.SkipWithError("shared data not found");
     return;
   }
-  const bool step = path.ends_with(".step") || path.ends_with(".stp");
   std::size_t surfaces = 0;
   for (auto _ : state) {
-    const engine::Model m = step ? read_step(path) : read_iges(path);
+    const engine::Model m = read_cad_file(path);
     surfaces = m.surfaces.size();
   }
   state.counters["surfaces"] = static_cast<double>(surfaces);

@@ -4,10 +4,9 @@
 #include <cctype>
 #include <filesystem>
 
+#include "nurbsreg/io/cad_import.hpp"
 #include "nurbsreg/io/errors.hpp"
-#include "nurbsreg/io/iges_reader.hpp"
 #include "nurbsreg/io/model_json.hpp"
-#include "nurbsreg/io/step_reader.hpp"
 
 namespace nurbsreg::io {
 

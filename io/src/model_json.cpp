@@ -159,6 +159,113 @@ void check_knot_vector(const EntityReader& reader, const char* field,
   }
 }
 
+// A curve object (CONTRACT.md) read with `reader`, whose label names where it is.
+engine::NurbsCurve parse_curve(EntityReader& reader, const json& entity) {
+  if (!entity.is_object()) reader.fail("", "expected an object, got " + describe(entity));
+  engine::NurbsCurve c;
+  c.name = read_name(reader, entity);
+
+  c.degree = reader.integer(reader.required(entity, "degree"), "degree");
+  if (c.degree < 1 || c.degree > engine::kMaxDegree) {
+    reader.fail("degree", "must be between 1 and " + std::to_string(engine::kMaxDegree) + " (got " +
+                              std::to_string(c.degree) + ")");
+  }
+  c.knots = reader.numbers(reader.required(entity, "knots"), "knots");
+  const int count = implied_count(reader, "knots", c.knots.size(), c.degree);
+  check_knot_vector(reader, "knots", c.knots, c.degree, count);
+  c.control_points.resize(static_cast<std::size_t>(count));
+
+  const json& points = reader.array(reader.required(entity, "control_points"), "control_points");
+  if (points.size() != static_cast<std::size_t>(count)) {
+    reader.fail("control_points",
+                "expected " + std::to_string(count) +
+                    " points (len(knots) - degree - 1 = " + std::to_string(c.knots.size()) + " - " +
+                    std::to_string(c.degree) + " - 1), got " + std::to_string(points.size()));
+  }
+  for (int i = 0; i < count; ++i) {
+    const std::string field = "control_points[" + std::to_string(i) + "]";
+    const int dimension = reader.point(points[i], field, true, c.control_points[i]);
+    // One dimension per curve: a mix of [x, y] and [x, y, z] is almost surely a typo.
+    if (i == 0) {
+      c.dimension = dimension;
+    } else if (dimension != c.dimension) {
+      reader.fail(field, "has " + std::to_string(dimension) +
+                             " coordinates but control_points[0] has " +
+                             std::to_string(c.dimension) + " (all points of a curve must agree)");
+    }
+  }
+
+  if (const json* weights = optional(entity, "weights")) {
+    c.weights = reader.numbers(*weights, "weights");
+    if (c.weights.size() != static_cast<std::size_t>(count)) {
+      reader.fail("weights", "expected " + std::to_string(count) +
+                                 " values (one per control point), got " +
+                                 std::to_string(c.weights.size()));
+    }
+  }
+  return c;
+}
+
+engine::NurbsCurve read_curve(const std::string& file, std::size_t index, const json& entity) {
+  EntityReader reader(file, "curve " + std::to_string(index));
+  return parse_curve(reader, entity);
+}
+
+// "trim_loops": [{"curves": [{"uv": <2-D curve>, "edge": <3-D curve, optional>}, ...]}, ...]
+// (README.md, "Model format: trimmed faces"). Dimensions and domains are the engine's rules,
+// checked by validate() afterwards.
+std::vector<engine::TrimLoop> read_trim_loops(const std::string& file, const EntityReader& reader,
+                                              const json& value) {
+  reader.array(value, "trim_loops");
+  std::vector<engine::TrimLoop> loops(value.size());
+  for (std::size_t l = 0; l < value.size(); ++l) {
+    const std::string loop_field = "trim_loops[" + std::to_string(l) + "]";
+    const json& loop = value[l];
+    if (!loop.is_object()) reader.fail(loop_field, "expected an object, got " + describe(loop));
+    const auto curves_it = loop.find("curves");
+    if (curves_it == loop.end()) reader.fail(loop_field + ".curves", "missing (required)");
+    const json& curves = reader.array(*curves_it, loop_field + ".curves");
+    for (std::size_t c = 0; c < curves.size(); ++c) {
+      const std::string field = loop_field + ".curves[" + std::to_string(c) + "]";
+      const json& entry = curves[c];
+      if (!entry.is_object()) reader.fail(field, "expected an object, got " + describe(entry));
+      const auto uv = entry.find("uv");
+      if (uv == entry.end()) reader.fail(field + ".uv", "missing (required)");
+      engine::TrimCurve curve;
+      EntityReader uv_reader(file, reader.label() + ": " + field + ".uv");
+      curve.uv = parse_curve(uv_reader, *uv);
+      if (const json* edge = optional(entry, "edge")) {
+        EntityReader edge_reader(file, reader.label() + ": " + field + ".edge");
+        curve.edge = parse_curve(edge_reader, *edge);
+      }
+      loops[l].curves.push_back(std::move(curve));
+    }
+  }
+  return loops;
+}
+
+std::vector<engine::SkippedFace> read_skipped_faces(const EntityReader& top, const json& value) {
+  top.array(value, "skipped_faces");
+  std::vector<engine::SkippedFace> out;
+  for (std::size_t i = 0; i < value.size(); ++i) {
+    const std::string field = "skipped_faces[" + std::to_string(i) + "]";
+    const json& entry = value[i];
+    if (!entry.is_object()) top.fail(field, "expected an object, got " + describe(entry));
+    engine::SkippedFace face;
+    const auto index = entry.find("face");
+    if (index == entry.end()) top.fail(field + ".face", "missing (required)");
+    face.face = top.integer(*index, field + ".face");
+    if (face.face < 0) top.fail(field + ".face", "must be >= 0 (got " + index->dump() + ")");
+    const auto reason = entry.find("reason");
+    if (reason == entry.end()) top.fail(field + ".reason", "missing (required)");
+    if (!reason->is_string())
+      top.fail(field + ".reason", "expected a string, got " + describe(*reason));
+    face.reason = reason->get<std::string>();
+    out.push_back(std::move(face));
+  }
+  return out;
+}
+
 engine::NurbsSurface read_surface(const std::string& file, std::size_t index, const json& entity) {
   EntityReader reader(file, "surface " + std::to_string(index));
   if (!entity.is_object()) reader.fail("", "expected an object, got " + describe(entity));
@@ -230,54 +337,14 @@ engine::NurbsSurface read_surface(const std::string& file, std::size_t index, co
       s.weights.insert(s.weights.end(), row.begin(), row.end());
     }
   }
+  if (const json* loops = optional(entity, "trim_loops"))
+    s.trim_loops = read_trim_loops(file, reader, *loops);
+  if (const json* reversed = optional(entity, "reversed")) {
+    if (!reversed->is_boolean())
+      reader.fail("reversed", "expected true or false, got " + describe(*reversed));
+    s.reversed = reversed->get<bool>();
+  }
   return s;
-}
-
-engine::NurbsCurve read_curve(const std::string& file, std::size_t index, const json& entity) {
-  EntityReader reader(file, "curve " + std::to_string(index));
-  if (!entity.is_object()) reader.fail("", "expected an object, got " + describe(entity));
-  engine::NurbsCurve c;
-  c.name = read_name(reader, entity);
-
-  c.degree = reader.integer(reader.required(entity, "degree"), "degree");
-  if (c.degree < 1 || c.degree > engine::kMaxDegree) {
-    reader.fail("degree", "must be between 1 and " + std::to_string(engine::kMaxDegree) + " (got " +
-                              std::to_string(c.degree) + ")");
-  }
-  c.knots = reader.numbers(reader.required(entity, "knots"), "knots");
-  const int count = implied_count(reader, "knots", c.knots.size(), c.degree);
-  check_knot_vector(reader, "knots", c.knots, c.degree, count);
-  c.control_points.resize(static_cast<std::size_t>(count));
-
-  const json& points = reader.array(reader.required(entity, "control_points"), "control_points");
-  if (points.size() != static_cast<std::size_t>(count)) {
-    reader.fail("control_points",
-                "expected " + std::to_string(count) +
-                    " points (len(knots) - degree - 1 = " + std::to_string(c.knots.size()) + " - " +
-                    std::to_string(c.degree) + " - 1), got " + std::to_string(points.size()));
-  }
-  for (int i = 0; i < count; ++i) {
-    const std::string field = "control_points[" + std::to_string(i) + "]";
-    const int dimension = reader.point(points[i], field, true, c.control_points[i]);
-    // One dimension per curve: a mix of [x, y] and [x, y, z] is almost surely a typo.
-    if (i == 0) {
-      c.dimension = dimension;
-    } else if (dimension != c.dimension) {
-      reader.fail(field, "has " + std::to_string(dimension) +
-                             " coordinates but control_points[0] has " +
-                             std::to_string(c.dimension) + " (all points of a curve must agree)");
-    }
-  }
-
-  if (const json* weights = optional(entity, "weights")) {
-    c.weights = reader.numbers(*weights, "weights");
-    if (c.weights.size() != static_cast<std::size_t>(count)) {
-      reader.fail("weights", "expected " + std::to_string(count) +
-                                 " values (one per control point), got " +
-                                 std::to_string(c.weights.size()));
-    }
-  }
-  return c;
 }
 
 // nlohmann's message is "[json.exception.parse_error.101] parse error at line L, column C:
@@ -314,6 +381,52 @@ void append_string(std::string& out, const std::string& s) {
   out += json(s).dump();
 }
 
+// A curve object; `indent` is the indentation of its braces. Nested (trim) curves write their
+// name only when they have one.
+void append_curve(std::string& out, const engine::NurbsCurve& c, const std::string& indent,
+                  bool always_name) {
+  const std::string in = "\n" + indent + "  ";
+  out += indent + "{";
+  const char* separator = "";
+  if (always_name || !c.name.empty()) {
+    out += in + "\"name\": ";
+    append_string(out, c.name);
+    separator = ",";
+  }
+  out += separator + in + "\"degree\": " + std::to_string(c.degree) + "," + in + "\"knots\": ";
+  append_numbers(out, c.knots.data(), c.knots.size());
+  out += "," + in + "\"control_points\": [";
+  for (int i = 0; i < c.count(); ++i) {
+    out += (i == 0 ? "" : ",") + in + "  ";
+    append_point(out, c.control_points[i], c.dimension == 2 ? 2 : 3);
+  }
+  out += in + "]";
+  if (c.is_rational()) {
+    out += "," + in + "\"weights\": ";
+    append_numbers(out, c.weights.data(), c.weights.size());
+  }
+  out += "\n" + indent + "}";
+}
+
+void append_trim_loops(std::string& out, const std::vector<engine::TrimLoop>& loops) {
+  out += ",\n      \"trim_loops\": [";
+  for (std::size_t l = 0; l < loops.size(); ++l) {
+    out += l == 0 ? "\n        {\"curves\": [" : ",\n        {\"curves\": [";
+    for (std::size_t c = 0; c < loops[l].curves.size(); ++c) {
+      const engine::TrimCurve& curve = loops[l].curves[c];
+      out += c == 0 ? "\n          {\"uv\":\n" : ",\n          {\"uv\":\n";
+      append_curve(out, curve.uv, "            ", false);
+      if (curve.edge) {
+        out += ",\n           \"edge\":\n";
+        append_curve(out, *curve.edge, "            ", false);
+      }
+      out += "}";
+    }
+    out += "\n        ]}";
+  }
+  out += "\n      ]";
+}
+
 void append_surface(std::string& out, const engine::NurbsSurface& s) {
   out += "    {\n      \"name\": ";
   append_string(out, s.name);
@@ -342,24 +455,8 @@ void append_surface(std::string& out, const engine::NurbsSurface& s) {
     }
     out += "\n      ]";
   }
-  out += "\n    }";
-}
-
-void append_curve(std::string& out, const engine::NurbsCurve& c) {
-  out += "    {\n      \"name\": ";
-  append_string(out, c.name);
-  out += ",\n      \"degree\": " + std::to_string(c.degree) + ",\n      \"knots\": ";
-  append_numbers(out, c.knots.data(), c.knots.size());
-  out += ",\n      \"control_points\": [";
-  for (int i = 0; i < c.count(); ++i) {
-    out += i == 0 ? "\n        " : ",\n        ";
-    append_point(out, c.control_points[i], c.dimension == 2 ? 2 : 3);
-  }
-  out += "\n      ]";
-  if (c.is_rational()) {
-    out += ",\n      \"weights\": ";
-    append_numbers(out, c.weights.data(), c.weights.size());
-  }
+  if (s.reversed) out += ",\n      \"reversed\": true";
+  if (s.is_trimmed()) append_trim_loops(out, s.trim_loops);
   out += "\n    }";
 }
 
@@ -415,6 +512,8 @@ engine::Model parse_model(std::string_view text, const std::string& file_label) 
       model.curves.push_back(read_curve(file_label, i, (*curves)[i]));
     }
   }
+  if (const json* skipped = optional(document, "skipped_faces"))
+    model.skipped_faces = read_skipped_faces(top, *skipped);
   // The reader checked shapes; the engine's validate() owns the geometric rules (finite values,
   // weights > 0, knots), so the two can never disagree about what a valid model is.
   if (auto error = model.validate()) throw InputError(file_label, *error);
@@ -442,7 +541,17 @@ std::string model_to_json(const engine::Model& model) {
     out += ",\n  \"curves\": [\n";
     for (std::size_t i = 0; i < model.curves.size(); ++i) {
       if (i > 0) out += ",\n";
-      append_curve(out, model.curves[i]);
+      append_curve(out, model.curves[i], "    ", true);
+    }
+    out += "\n  ]";
+  }
+  if (!model.skipped_faces.empty()) {
+    out += ",\n  \"skipped_faces\": [";
+    for (std::size_t i = 0; i < model.skipped_faces.size(); ++i) {
+      out += i == 0 ? "\n    {\"face\": " : ",\n    {\"face\": ";
+      out += std::to_string(model.skipped_faces[i].face) + ", \"reason\": ";
+      append_string(out, model.skipped_faces[i].reason);
+      out += "}";
     }
     out += "\n  ]";
   }

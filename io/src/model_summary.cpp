@@ -47,6 +47,11 @@ ModelSummary summarize_model(const engine::Model& model) {
     e.rational = s.is_rational();
     e.domain_u = s.domain_u();
     e.domain_v = s.domain_v();
+    e.trim_loops = s.trim_loops.size();
+    for (const engine::TrimLoop& loop : s.trim_loops)
+      e.trim_curves += loop.curves.size();
+    e.reversed = s.reversed;
+    summary.trimmed_surfaces += s.is_trimmed() ? 1 : 0;
     const std::vector<engine::BezierPatch> patches = engine::decompose(s);
     e.bezier_pieces = patches.size();
     for (const engine::BezierPatch& patch : patches)
@@ -74,6 +79,7 @@ ModelSummary summarize_model(const engine::Model& model) {
     summary.box.extend(e.box);
     summary.curves.push_back(std::move(e));
   }
+  summary.skipped_faces = model.skipped_faces;
   return summary;
 }
 
@@ -87,14 +93,21 @@ std::string format_model_summary(const ModelSummary& m, const std::string& model
   std::string out = "model: " + model_label + " (units " + m.units + ")\n";
   out += "surfaces: " + std::to_string(m.surfaces.size()) + " (" +
          std::to_string(rational_surfaces) +
-         " rational), Bézier patches: " + std::to_string(m.bezier_patches) + "\n";
+         " rational" +
+         (m.trimmed_surfaces > 0 ? ", " + std::to_string(m.trimmed_surfaces) + " trimmed" : "") +
+         "), Bézier patches: " + std::to_string(m.bezier_patches) + "\n";
   for (const auto& e : m.surfaces) {
     out += "  " + label("surface", e) + ": degree (" + std::to_string(e.degree_u) + ", " +
            std::to_string(e.degree_v) + "), " + std::to_string(e.count_u) + " x " +
            std::to_string(e.count_v) + " control points, " +
            (e.rational ? "rational" : "polynomial") + ", " + std::to_string(e.bezier_pieces) +
            " Bézier patches, u [" + number(e.domain_u.lo) + ", " + number(e.domain_u.hi) +
-           "], v [" + number(e.domain_v.lo) + ", " + number(e.domain_v.hi) + "]\n";
+           "], v [" + number(e.domain_v.lo) + ", " + number(e.domain_v.hi) + "]";
+    if (e.trim_loops > 0) {
+      out += ", trimmed (" + std::to_string(e.trim_loops) + " loops, " +
+             std::to_string(e.trim_curves) + " curves)";
+    }
+    out += e.reversed ? ", reversed\n" : "\n";
   }
   out += "curves: " + std::to_string(m.curves.size()) + " (" + std::to_string(rational_curves) +
          " rational), Bézier pieces: " + std::to_string(m.bezier_curve_pieces) + "\n";
@@ -103,6 +116,11 @@ std::string format_model_summary(const ModelSummary& m, const std::string& model
            std::to_string(e.count_u) + " control points, " +
            (e.rational ? "rational" : "polynomial") + ", " + std::to_string(e.bezier_pieces) +
            " Bézier pieces, u [" + number(e.domain_u.lo) + ", " + number(e.domain_u.hi) + "]\n";
+  }
+  if (!m.skipped_faces.empty()) {
+    out += "skipped faces: " + std::to_string(m.skipped_faces.size()) + "\n";
+    for (const engine::SkippedFace& f : m.skipped_faces)
+      out += "  skipped face " + std::to_string(f.face) + ": " + f.reason + "\n";
   }
   if (m.box.empty()) {
     out += "bounding box: empty\n";
@@ -122,6 +140,10 @@ std::string model_summary_to_json(const ModelSummary& m) {
       j["control_points"] = {e.count_u, e.count_v};
       j["bezier_patches"] = e.bezier_pieces;
       j["domain"] = {{e.domain_u.lo, e.domain_u.hi}, {e.domain_v.lo, e.domain_v.hi}};
+      j["trimmed"] = e.trim_loops > 0;
+      j["trim_loops"] = e.trim_loops;
+      j["trim_curves"] = e.trim_curves;
+      j["reversed"] = e.reversed;
     } else {
       j["degree"] = e.degree_u;
       j["control_points"] = e.count_u;
@@ -138,12 +160,17 @@ std::string model_summary_to_json(const ModelSummary& m) {
   Json curves = Json::array();
   for (const auto& e : m.curves)
     curves.push_back(entity(e, false));
+  Json skipped = Json::array();
+  for (const engine::SkippedFace& f : m.skipped_faces)
+    skipped.push_back(Json{{"face", f.face}, {"reason", f.reason}});
   const Json j{{"units", m.units},
                {"surfaces", std::move(surfaces)},
                {"curves", std::move(curves)},
                {"bezier_patches", m.bezier_patches},
                {"bezier_curve_pieces", m.bezier_curve_pieces},
-               {"bounding_box", box_json(m.box)}};
+               {"bounding_box", box_json(m.box)},
+               {"trimmed_surfaces", m.trimmed_surfaces},
+               {"skipped_faces", std::move(skipped)}};
   return j.dump(2) + "\n";
 }
 

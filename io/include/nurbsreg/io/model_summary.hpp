@@ -1,7 +1,8 @@
 #pragma once
 // What `nurbsreg info` reports about a model (CONTRACT.md §1): surfaces and curves with their
 // degrees, control-point counts, rationality and parameter domains; the number of Bézier
-// patches (pieces for curves) the engine will cache; and a bounding box.
+// patches (pieces for curves) the engine will cache; and a bounding box. For CAD models also
+// each face's trimming (loops, curves) and orientation, and the faces that were skipped.
 //
 // The box is the union of the Bézier patches' control-point boxes: by the convex-hull property
 // of rational Bézier patches with positive weights it contains the model, and it is usually much
@@ -29,6 +30,10 @@ struct EntitySummary {
   engine::ParamInterval domain_u;
   engine::ParamInterval domain_v;  // curves: [0, 0]
   engine::Aabb box;
+  // Surfaces (CAD faces): trimming and orientation. Curves: 0 and false.
+  std::size_t trim_loops = 0;
+  std::size_t trim_curves = 0;
+  bool reversed = false;
 };
 
 struct ModelSummary {
@@ -38,16 +43,21 @@ struct ModelSummary {
   std::size_t bezier_patches = 0;       // over all surfaces
   std::size_t bezier_curve_pieces = 0;  // over all curves
   engine::Aabb box;                     // over everything
+  std::size_t trimmed_surfaces = 0;
+  std::vector<engine::SkippedFace> skipped_faces;  // CAD faces that could not be converted
 };
 
 ModelSummary summarize_model(const engine::Model& model);
 
 // Human-readable, one line per entity, e.g.
 //   surface 0 "hood": degree (3, 3), 7 x 6 control points, rational, 12 Bézier patches, ...
+// then `skipped face 7: <reason>` lines.
 std::string format_model_summary(const ModelSummary& summary, const std::string& model_label);
 
 // The same as a JSON object (for scripts): {"units", "surfaces": [...], "curves": [...],
-// "bezier_patches", "bezier_curve_pieces", "bounding_box": {"min": [..], "max": [..]}}.
+// "bezier_patches", "bezier_curve_pieces", "bounding_box": {"min": [..], "max": [..]},
+// "trimmed_surfaces", "skipped_faces": [{"face", "reason"}]}; each surface also has "trimmed",
+// "trim_loops", "trim_curves" and "reversed".
 std::string model_summary_to_json(const ModelSummary& summary);
 
 }  // namespace nurbsreg::io

@@ -1,0 +1,174 @@
+#include "nurbsreg/io/cad_import.hpp"
+
+#include <BRepBndLib.hxx>
+#include <Bnd_Box.hxx>
+#include <IFSelect_ReturnStatus.hxx>
+#include <IGESControl_Reader.hxx>
+#include <IGESData_IGESModel.hxx>
+#include <Message.hxx>
+#include <Message_Messenger.hxx>
+#include <STEPControl_Reader.hxx>
+#include <Standard_Failure.hxx>
+#include <TColStd_SequenceOfAsciiString.hxx>
+#include <TopExp.hxx>
+#include <TopTools_IndexedMapOfShape.hxx>
+#include <TopoDS.hxx>
+#include <TopoDS_Shape.hxx>
+#include <algorithm>
+#include <cctype>
+#include <cmath>
+#include <filesystem>
+#include <mutex>
+#include <chrono>
+#include <cstdio>
+
+#include "cad_face_conversion.hpp"
+#include "nurbsreg/io/errors.hpp"
+
+namespace nurbsreg::io {
+namespace {
+
+// OCCT's data-exchange session (Interface_Static parameters, the shared XSControl
+// controllers) is global state: one import at a time.
+std::mutex& occt_mutex() {
+  static std::mutex m;
+  return m;
+}
+
+std::string status_text(IFSelect_ReturnStatus status) {
+  switch (status) {
+    case IFSelect_RetVoid:
+      return "nothing to read (empty file?)";
+    case IFSelect_RetError:
+      return "cannot open or read the file";
+    case IFSelect_RetFail:
+      return "not a valid file of this format (syntax errors)";
+    case IFSelect_RetStop:
+      return "the reader stopped (unreadable content)";
+    default:
+      return "read failed";
+  }
+}
+
+// OCCT happily "reads" a missing file with RetVoid; say what is really wrong.
+void check_readable(const std::string& path) {
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(path, ec))
+    throw InputError(path, "cannot open: not a readable file");
+  if (std::filesystem::file_size(path, ec) == 0) throw InputError(path, "the file is empty");
+}
+
+double diagonal_of(const TopoDS_Shape& shape) {
+  Bnd_Box box;
+  BRepBndLib::Add(shape, box, Standard_False);
+  if (box.IsVoid()) return 0;
+  double x0, y0, z0, x1, y1, z1;
+  box.Get(x0, y0, z0, x1, y1, z1);
+  return std::sqrt((x1 - x0) * (x1 - x0) + (y1 - y0) * (y1 - y0) + (z1 - z0) * (z1 - z0));
+}
+
+engine::Model convert_shape(const std::string& path, const TopoDS_Shape& shape,
+                            CadImportReport& report) {
+  TopTools_IndexedMapOfShape faces;
+  TopExp::MapShapes(shape, TopAbs_FACE, faces);
+  report.faces = static_cast<std::size_t>(faces.Extent());
+  if (faces.Extent() == 0) throw InputError(path, "the file has no faces (no surface geometry)");
+  report.diagonal = diagonal_of(shape);
+  // Approximations (degree reduction only) stay within 1e-9 of the model's size.
+  const double tolerance = 1e-9 * std::max(report.diagonal, 1.0);
+
+  engine::Model model;
+  model.units = "mm";  // OCCT's readers convert lengths to millimetres
+  for (int i = 1; i <= faces.Extent(); ++i) {
+    const int index = i - 1;
+    cad_detail::FaceConversion c = cad_detail::convert_face(TopoDS::Face(faces(i)), tolerance);
+    ++report.surface_types[c.surface_type.empty() ? "unknown" : c.surface_type];
+    if (!c.surface) {
+      model.skipped_faces.push_back({index, c.error});
+      continue;
+    }
+    c.surface->name = "face " + std::to_string(index);
+    if (c.surface->is_trimmed()) ++report.trimmed_faces;
+    if (c.analytic) ++report.analytic_faces;
+    report.approximations += static_cast<std::size_t>(c.approximations);
+    report.degenerated_edges += static_cast<std::size_t>(c.degenerated_edges);
+    report.surface_faces.push_back(index);
+    model.surfaces.push_back(std::move(*c.surface));
+  }
+  if (model.surfaces.empty()) {
+    throw InputError(path, "none of the " + std::to_string(faces.Extent()) +
+                               " faces could be converted (face 0: " +
+                               model.skipped_faces.front().reason + ")");
+  }
+  return model;
+}
+
+template <class Reader>
+TopoDS_Shape transfer(const std::string& path, Reader& reader) {
+  const IFSelect_ReturnStatus status = reader.ReadFile(path.c_str());
+  if (status != IFSelect_RetDone) throw InputError(path, status_text(status));
+  if (reader.TransferRoots() == 0) throw InputError(path, "no shape could be transferred");
+  TopoDS_Shape shape = reader.OneShape();
+  if (shape.IsNull()) throw InputError(path, "no shape could be transferred");
+  return shape;
+}
+
+// Runs an import with OCCT's exceptions turned into InputError.
+template <class Import>
+engine::Model guarded(const std::string& path, CadImportReport* report, Import&& import) {
+  check_readable(path);
+  CadImportReport local;
+  CadImportReport& r = report != nullptr ? *report : local;
+  r = CadImportReport{};
+  std::lock_guard<std::mutex> lock(occt_mutex());
+  // OCCT's readers print progress ("Total number of loaded entities") to stdout, which belongs
+  // to the CLI's results: silence the default messenger (warnings are reported our way).
+  Message::DefaultMessenger()->ChangePrinters().Clear();
+  try {
+    return import(r);
+  } catch (const Standard_Failure& e) {
+    throw InputError(path, std::string("OpenCASCADE failed: ") + e.DynamicType()->Name() + ": " +
+                               e.GetMessageString());
+  }
+}
+
+}  // namespace
+
+engine::Model read_step(const std::string& path, CadImportReport* report) {
+  return guarded(path, report, [&](CadImportReport& r) {
+    r.format = "STEP";
+    STEPControl_Reader reader;
+    auto t0 = std::chrono::steady_clock::now();
+    const TopoDS_Shape shape = transfer(path, reader);
+    std::fprintf(stderr, "read %.2f\n", std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+    TColStd_SequenceOfAsciiString lengths, angles, solid_angles;
+    reader.FileUnits(lengths, angles, solid_angles);
+    if (!lengths.IsEmpty()) r.file_units = lengths.First().ToCString();
+    return convert_shape(path, shape, r);
+  });
+}
+
+engine::Model read_iges(const std::string& path, CadImportReport* report) {
+  return guarded(path, report, [&](CadImportReport& r) {
+    r.format = "IGES";
+    IGESControl_Reader reader;
+    const TopoDS_Shape shape = transfer(path, reader);
+    const Handle(IGESData_IGESModel) model = reader.IGESModel();
+    if (!model.IsNull()) {
+      const Handle(TCollection_HAsciiString) unit = model->GlobalSection().UnitName();
+      if (!unit.IsNull()) r.file_units = unit->ToCString();
+    }
+    return convert_shape(path, shape, r);
+  });
+}
+
+engine::Model read_cad_file(const std::string& path, CadImportReport* report) {
+  std::string ext = std::filesystem::path(path).extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(),
+                 [](unsigned char ch) { return static_cast<char>(std::tolower(ch)); });
+  if (ext == ".step" || ext == ".stp") return read_step(path, report);
+  if (ext == ".iges" || ext == ".igs") return read_iges(path, report);
+  throw InputError(path, "not a CAD file: expected a .step, .stp, .iges or .igs file");
+}
+
+}  // namespace nurbsreg::io
