@@ -19,6 +19,12 @@ double sphere_lower_bound(const BoundingSphere& s, const Vec3& p) {
 PreparedModel::PreparedModel(Model model) : model_(std::move(model)) {
   if (auto error = model_.validate()) throw std::invalid_argument(*error);
   for (std::size_t s = 0; s < model_.surfaces.size(); ++s) {
+    const NurbsSurface& surface = model_.surfaces[s];
+    surface_region_.push_back(-1);
+    if (surface.is_trimmed()) {
+      surface_region_.back() = static_cast<int>(regions_.size());
+      regions_.emplace_back(surface);
+    }
     SurfacePatches layout;
     layout.first = patches_.size();
     const std::vector<BezierPatch> pieces = decompose(model_.surfaces[s]);
@@ -27,6 +33,7 @@ PreparedModel::PreparedModel(Model model) : model_(std::move(model)) {
       patch_spheres_.push_back(bounding_sphere(patch));
       patches_.push_back(prepare_patch(patch));
       patch_surface_.push_back(static_cast<int>(s));
+      patch_class_.push_back(RegionClass::inside);
       bounds_.extend(patch_boxes_.back());
     }
     // Recover the span grid from the patches' parameter boxes and check the layout: the warm
@@ -54,6 +61,33 @@ PreparedModel::PreparedModel(Model model) : model_(std::move(model)) {
     }
     surface_patches_.push_back(std::move(layout));
   }
+  // Classify the trimmed surfaces' patches (regions_ is complete: pointers into it are stable).
+  for (std::size_t i = 0; i < patches_.size(); ++i) {
+    const TrimRegion* region = surface_region(patch_surface_[i]);
+    if (region == nullptr) continue;
+    const BezierPatch& bp = patches_[i].patch;
+    patch_class_[i] = region->classify(bp.param_u.lo, bp.param_u.hi, bp.param_v.lo, bp.param_v.hi);
+  }
+  // Hierarchy items: the patches that are not trimmed away, then the trim-edge pieces.
+  for (std::size_t i = 0; i < patches_.size(); ++i) {
+    if (patch_class_[i] == RegionClass::outside) continue;
+    item_patch_.push_back(static_cast<std::uint32_t>(i));
+    item_boxes_.push_back(patch_boxes_[i]);
+    item_spheres_.push_back(patch_spheres_[i]);
+  }
+  for (std::size_t s = 0; s < model_.surfaces.size(); ++s) {
+    const NurbsSurface& surface = model_.surfaces[s];
+    if (!surface.is_trimmed()) continue;
+    for (const TrimEdge& edge : trim_edges(surface)) {
+      for (const BezierCurve& piece : decompose(edge.edge)) {
+        edge_pieces_.push_back(prepare_curve_piece(piece));
+        edge_piece_info_.push_back({static_cast<int>(s), edge.loop, edge.curve});
+        item_boxes_.push_back(bounding_box(piece));
+        item_spheres_.push_back(bounding_sphere(piece));
+        bounds_.extend(item_boxes_.back());
+      }
+    }
+  }
   for (std::size_t c = 0; c < model_.curves.size(); ++c) {
     for (const BezierCurve& piece : decompose(model_.curves[c])) {
       piece_boxes_.push_back(bounding_box(piece));
@@ -63,7 +97,7 @@ PreparedModel::PreparedModel(Model model) : model_(std::move(model)) {
       bounds_.extend(piece_boxes_.back());
     }
   }
-  patch_bvh_ = Bvh(patch_boxes_, 2);
+  patch_bvh_ = Bvh(item_boxes_, 2);
   piece_bvh_ = Bvh(piece_boxes_, 2);
 }
 
@@ -82,6 +116,20 @@ std::int64_t PreparedModel::locate_patch(int surface, double u, double v) const 
 
 double PreparedModel::patch_lower_bound(std::size_t i, const Vec3& p) const {
   return std::max(patch_boxes_[i].squared_distance(p), sphere_lower_bound(patch_spheres_[i], p));
+}
+
+double PreparedModel::item_lower_bound(std::uint32_t k, const Vec3& p) const {
+  return std::max(item_boxes_[k].squared_distance(p), sphere_lower_bound(item_spheres_[k], p));
+}
+
+Vec2 PreparedModel::edge_uv(std::size_t i, double t) const {
+  const EdgePiece& e = edge_piece_info_[i];
+  const NurbsCurve& uv = model_.surfaces[static_cast<std::size_t>(e.surface)]
+                             .trim_loops[static_cast<std::size_t>(e.loop)]
+                             .curves[static_cast<std::size_t>(e.curve)]
+                             .uv;
+  const Vec3 x = uv.evaluate(t);
+  return {x.x(), x.y()};
 }
 
 double PreparedModel::piece_lower_bound(std::size_t i, const Vec3& p) const {

@@ -123,9 +123,29 @@ void Projector::project_range(PointView points, const ProjectionOptions& options
           best.v = bp.param_v.to_parent(t_loc);
           best_surface = hint->entity;
           best_patch = hint_patch;
-          // The clipping of this patch restarts Newton from the converged point (one step).
-          hint_s = s_loc;
-          hint_t = t_loc;
+          // A trimmed face: alpha may only come from a face point. The Newton foot seeds it if
+          // it lies in the region; otherwise the patch guess is all the hint gives (it only
+          // chooses where the clipping's Newton starts), plus the hint's own point if that one
+          // is in the region (a zero-size Newton box evaluates it).
+          const TrimRegion* region = model_.surface_region(hint->entity);
+          if (region == nullptr || region->contains(best.u, best.v)) {
+            // The clipping of this patch restarts Newton from the converged point (one step).
+            hint_s = s_loc;
+            hint_t = t_loc;
+          } else if (region->contains(bp.param_u.to_parent(hint_s), bp.param_v.to_parent(hint_t))) {
+            s_loc = hint_s;
+            t_loc = hint_t;
+            best.distance_sq = newton_on_patch(bp, p, s_loc, s_loc, t_loc, t_loc, s_loc, t_loc,
+                                               best.foot, nullptr, &best.normal);
+            best.s = s_loc;
+            best.t = t_loc;
+            best.u = bp.param_u.to_parent(s_loc);
+            best.v = bp.param_v.to_parent(t_loc);
+          } else {
+            best = SurfaceHit{};
+            best_surface = -1;
+            best_patch = -1;
+          }
         }
       }
       const double limit_sq = options.max_distance * options.max_distance;
@@ -136,17 +156,40 @@ void Projector::project_range(PointView points, const ProjectionOptions& options
         best_patch = -1;
       }
       double alpha = best.distance_sq;
+      // Hierarchy items: patches first (item_patch maps them), then trim-edge pieces.
+      const std::uint32_t patch_items = static_cast<std::uint32_t>(model_.hierarchy_patch_items());
+      std::int64_t best_edge = -1;  // the best point is on this trim-edge piece
+      double best_edge_t = 0.0;
       model_.patch_hierarchy().nearest(
           p, alpha, state.bvh_scratch,
-          [this](std::uint32_t k, const Vec3& x) { return model_.patch_lower_bound(k, x); },
+          [this](std::uint32_t k, const Vec3& x) { return model_.item_lower_bound(k, x); },
           [&](std::uint32_t k, double& a) {
             ++state.counters.patches_visited;
-            const bool hinted = static_cast<std::int64_t>(k) == hint_patch;
-            if (project_onto_patch(model_.patch(k), p, best, state.surface_scratch,
-                                   &state.surface_stats, hinted ? hint_s : kNaN,
-                                   hinted ? hint_t : kNaN)) {
-              best_surface = model_.patch_surface(k);
-              best_patch = k;
+            if (k < patch_items) {
+              const std::uint32_t patch = model_.item_patch(k);
+              const bool hinted = static_cast<std::int64_t>(patch) == hint_patch;
+              if (project_onto_patch(model_.patch(patch), p, best, state.surface_scratch,
+                                     &state.surface_stats, hinted ? hint_s : kNaN,
+                                     hinted ? hint_t : kNaN, model_.patch_region(patch))) {
+                best_surface = model_.patch_surface(patch);
+                best_patch = patch;
+                best_edge = -1;
+                a = best.distance_sq;
+              }
+              return;
+            }
+            // A trim edge of a face (the loops' points, which the trimmed clipping leaves to
+            // the edges): the curve projector, exact on the piece.
+            const std::size_t e = k - patch_items;
+            CurveHit hit;
+            hit.distance_sq = best.distance_sq;
+            if (project_onto_piece(model_.edge_piece(e), p, hit, &state.curve_stats)) {
+              best.distance_sq = hit.distance_sq;
+              best.foot = hit.foot;
+              best_surface = model_.edge_piece_info(e).surface;
+              best_patch = -1;
+              best_edge = static_cast<std::int64_t>(e);
+              best_edge_t = hit.u;
               a = best.distance_sq;
             }
           });
@@ -155,6 +198,12 @@ void Projector::project_range(PointView points, const ProjectionOptions& options
         continue;
       }
       const NurbsSurface& s = model.surfaces[best_surface];
+      if (best_edge >= 0) {
+        // An edge point reports its trim curve's (u, v) at the same parameter.
+        const Vec2 uv = model_.edge_uv(static_cast<std::size_t>(best_edge), best_edge_t);
+        best.u = uv.x();
+        best.v = uv.y();
+      }
       const double distance = std::sqrt(best.distance_sq);
       // The normal from the Bézier patch that holds the foot (its first derivatives), not via
       // the NURBS surface (span search + basis functions). On a patch edge the NURBS
@@ -171,6 +220,8 @@ void Projector::project_range(PointView points, const ProjectionOptions& options
         if (inner_s && inner_t) n = best.normal;
       }
       if (n.isZero(0.0)) n = surface_normal(s, best.u, best.v);
+      // A reversed face's outer side is -(S_u x S_v): normal and signed distance follow it.
+      if (s.reversed) n = -n;
       out.foot[i] = best.foot;
       out.distance[i] = distance;
       out.signed_distance[i] = (p - best.foot).dot(n) < 0.0 ? -distance : distance;

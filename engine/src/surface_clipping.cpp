@@ -8,6 +8,7 @@
 #include <cstring>
 
 #include "nurbsreg/engine/surface_projection.hpp"
+#include "nurbsreg/engine/trim_region.hpp"
 
 namespace nurbsreg::engine {
 namespace {
@@ -425,6 +426,35 @@ int boundary_edge(const double* f, int rows, int cols) {
 }
 
 // The state of one clipping run on one patch.
+//
+// kTrim: the patch may straddle a trim loop of its face (project_onto_patch's `region`). The
+// untrimmed instantiation compiles to exactly the former code. In the trimmed one every box
+// carries `straddling`: a box proven inside the region (TrimRegion::classify) runs exactly as an
+// untrimmed box (all its points are face points, so every proof below holds as is); children of an
+// inside box are inside; a straddling box's children are classified again and dropped when proven
+// outside. In a straddling box, with R the region and "the edges" the face's trim edges, which
+// the caller projects onto as well (so every loop point's distance is already covered):
+//  - a candidate (corner coefficient, Newton result, boundary-clipping value) is offered only if
+//    its (u, v) is in R (`active` is the region then; offers outside R are rejected);
+//  - Theorem 2 (boundary_edge) is NOT used: it proves F(s0, t) <= F(s, t), but the path from
+//    (s, t) to the edge may leave R, so the edge's minimum over R need not bound the box's.
+//  - the monotone edge reduction IS used: if F_s > 0 on the box, move from any x in box ∩ R
+//    towards s = s0 along s: F decreases, and the segment either reaches the edge inside R (a
+//    point clip_boundary considers, with region-checked offers) or first leaves R, i.e. crosses
+//    a trim loop (the box lies in the domain, so R's boundary there is a loop), whose points the
+//    edges cover. Either way something already considered is at most F(x).
+//  - convex termination: F has a unique minimiser x* on the box (Newton finds it). If x* is in
+//    R, it is the minimum over box ∩ R. If not, drop the box: for x in box ∩ R the segment
+//    [x, x*] stays in the (convex) box, F decreases along it (convexity), and it leaves R, i.e.
+//    crosses a loop, covered by the edges. The same in 1-D inside clip_boundary.
+//  - resolution and depth-limit terminations (safety nets): the Newton point is accepted only if
+//    in R. For the resolution case nothing is lost beyond the accepted rounding: F varies by
+//    <= 4 round_err over the box, and a box meeting R but whose Newton point is outside meets a
+//    loop (edges within 4 round_err) or is all inside (then the point is in R).
+//  - a monotone 1-D edge interval's end value (clip_boundary): offered only if in R; otherwise,
+//    from any point of the interval in R move to that end: F decreases, and the path reaches the
+//    end (in R: offered) or crosses a loop first (covered).
+template <bool kTrim>
 struct Clipper {
   const PreparedPatch& pp;
   const Vec3& p;
@@ -441,6 +471,22 @@ struct Clipper {
   // Caller's guess of the minimiser (e.g. the previous ICP foot), local; NaN: none.
   double guess_s = std::numeric_limits<double>::quiet_NaN();
   double guess_t = std::numeric_limits<double>::quiet_NaN();
+  // kTrim: the face's region, and the region to check offers against for the current box (the
+  // region in a straddling box, null in a box proven inside).
+  const TrimRegion* region = nullptr;
+  const TrimRegion* active = nullptr;
+
+  // kTrim: may the local (s, t) be offered in the current box?
+  bool admissible(double s, double t) const {
+    if constexpr (kTrim) {
+      if (active != nullptr &&
+          !active->contains(pp.patch.param_u.to_parent(s), pp.patch.param_v.to_parent(t))) {
+        ++st.region_rejections;
+        return false;
+      }
+    }
+    return true;
+  }
 
   // Theorem 1 with an accuracy tolerance and a rounding margin: drop the box when its lower bound,
   // even lowered by the rounding bound, shows that no point of the box is closer than
@@ -452,6 +498,11 @@ struct Clipper {
   }
   // A value known only through coefficients (corner values): its bound is value + round_err.
   void offer_coefficient(double value, double s, double t) {
+    if constexpr (kTrim) {
+      // Only a value that could matter pays for the region test.
+      if (value + round_err >= alpha && value >= best_value) return;
+      if (!admissible(s, t)) return;
+    }
     if (value < best_value) {
       best_value = value;
       best_s = s;
@@ -497,7 +548,7 @@ struct Clipper {
     Vec3 foot, normal;
     const double value =
         newton_core(pp.patch, p, s0, s1, t0, t1, s, t, foot, &st, &normal, abort_at);
-    if (std::isfinite(value)) offer_exact(value, s, t, foot, normal);
+    if (std::isfinite(value) && admissible(s, t)) offer_exact(value, s, t, foot, normal);
   }
 
   // The row (stride 1) or column (stride cols) of N and D along an edge of the current box.
@@ -524,8 +575,9 @@ struct Clipper {
 // minimum on the interval) and, for a rational row, when F_t is provably of one sign (the minimum
 // is an end value) or F_tt > 0 (convex: one minimum). The minimum is then found by Newton on the
 // boundary curve of the surface itself.
-void Clipper::clip_boundary(const double* n_row, const double* d_row, int stride, int count,
-                            bool along_t, double fixed, double a0, double a1) {
+template <bool kTrim>
+void Clipper<kTrim>::clip_boundary(const double* n_row, const double* d_row, int stride, int count,
+                                   bool along_t, double fixed, double a0, double a1) {
   constexpr int kLine = 2 * kMaxDegree + 1;
   const bool rational = pp.rational;
   auto ratio_min = [&](const double* n, const double* d) {
@@ -636,7 +688,8 @@ void Clipper::clip_boundary(const double* n_row, const double* d_row, int stride
   }
 }
 
-void Clipper::run() {
+template <bool kTrim>
+void Clipper<kTrim>::run() {
   const int rows = pp.rows, cols = pp.cols, count = rows * cols;
   constexpr int kSlot = 2 * SurfaceScratch::kGridCapacity;
   double* base = sc.grids.data();
@@ -651,9 +704,11 @@ void Clipper::run() {
     return pp.rational ? n + SurfaceScratch::kGridCapacity : pp.d.data();
   };
   const CoefficientRange root = coefficient_range(base, d_of(base), count, pp.rational);
-  sc.boxes[top++] = {0.0, 1.0, 0.0, 1.0, root.lo, root.hi, root.arg, 0};
+  // A trimmed run starts from a patch the caller classified as straddling.
+  sc.boxes[top++] = {0.0, 1.0, 0.0, 1.0, root.lo, root.hi, root.arg, 0, kTrim};
   while (top > 0) {
     const SurfaceScratch::Box b = sc.boxes[--top];
+    if constexpr (kTrim) active = b.straddling ? region : nullptr;
     double* n = base + top * kSlot;
     const double* d = d_of(n);
     // Newton on this box, started at the Greville abscissa (i / (rows - 1), j / (cols - 1)) of
@@ -678,7 +733,9 @@ void Clipper::run() {
       ++st.eliminations;
       continue;
     }
-    if (!pp.rational) {
+    // Theorem 2 does not hold along paths inside a trimmed region (see Clipper): not for a
+    // straddling box.
+    if (!pp.rational && !(kTrim && b.straddling)) {
       const int edge = boundary_edge(n, rows, cols);
       if (edge >= 0) {
         reduce_to_edge(edge, n, d, b);
@@ -699,6 +756,17 @@ void Clipper::run() {
         ++st.convex_terminations;
         newton_box(true);
         continue;
+      }
+      if constexpr (kTrim) {
+        // In place of Theorem 2 in a straddling box: the monotone edge reduction (valid there,
+        // see Clipper) on F's own derivative bounds.
+        if (b.straddling) {
+          const int edge = monotone_edge(f_derivatives(n, d, rows, cols, false, {b.lower, f_max}));
+          if (edge >= 0) {
+            reduce_to_edge(edge, n, d, b);
+            continue;
+          }
+        }
       }
     } else {
       const FDerivatives fd = f_derivatives(n, d, rows, cols, true, {b.lower, f_max});
@@ -757,6 +825,33 @@ void Clipper::run() {
     hi.lower = hi_range.lo;
     hi.upper = hi_range.hi;
     hi.arg = hi_range.arg;
+    if constexpr (kTrim) {
+      if (b.straddling) {
+        // Children of a straddling box: classified on their parent-(u, v) boxes; one proven
+        // outside holds no face point and is dropped, one proven inside runs untrimmed.
+        auto classify = [&](SurfaceScratch::Box& c) {
+          const ParamInterval& pu = pp.patch.param_u;
+          const ParamInterval& pv = pp.patch.param_v;
+          const RegionClass k = region->classify(pu.to_parent(c.s0), pu.to_parent(c.s1),
+                                                 pv.to_parent(c.t0), pv.to_parent(c.t1));
+          c.straddling = k == RegionClass::boundary;
+          return k != RegionClass::outside;
+        };
+        const bool keep_lo = classify(lo), keep_hi = classify(hi);
+        if (!keep_lo || !keep_hi) {
+          st.region_drops += int(!keep_lo) + int(!keep_hi);
+          if (keep_hi) {
+            // The survivor's coefficients go to this box's slot.
+            std::copy(high, high + count, n);
+            if (pp.rational) std::copy(high_d, high_d + count, dn);
+            sc.boxes[top++] = hi;
+          } else if (keep_lo) {
+            sc.boxes[top++] = lo;
+          }
+          continue;
+        }
+      }
+    }
     // Depth first, the more promising half on top (it shrinks alpha soonest).
     if (lo.lower < hi.lower) {
       std::swap_ranges(n, n + count, high);
@@ -779,6 +874,8 @@ void SurfaceProjectionStats::add(const SurfaceProjectionStats& o) {
   convex_terminations += o.convex_terminations;
   boundary_reductions += o.boundary_reductions;
   resolution_terminations += o.resolution_terminations;
+  region_drops += o.region_drops;
+  region_rejections += o.region_rejections;
 }
 
 SurfaceScratch::SurfaceScratch()
@@ -1004,18 +1101,24 @@ double newton_core(const BezierPatch& patch, const Vec3& p, double s0, double s1
 
 }  // namespace
 
-bool project_onto_patch(const PreparedPatch& pp, const Vec3& p, SurfaceHit& best,
-                        SurfaceScratch& scratch, SurfaceProjectionStats* stats, double guess_s,
-                        double guess_t) {
+namespace {
+
+template <bool kTrim>
+[[gnu::always_inline]] inline bool clip_patch(const PreparedPatch& pp, const Vec3& p,
+                                              SurfaceHit& best, SurfaceScratch& scratch,
+                                              SurfaceProjectionStats* stats, double guess_s,
+                                              double guess_t, const TrimRegion* region) {
   if (!p.allFinite()) return false;  // NaN would defeat every elimination test
   SurfaceProjectionStats local;
   const double reach = pp.sphere.radius + (p - pp.origin).norm();
-  Clipper clip{pp, p, scratch, local, best.distance_sq,
-               // Each coefficient is G - 2 q.E + |q|^2 D with terms up to reach^2 D; de Casteljau
-               // is a convex combination, so the error stays a small multiple of eps reach^2.
-               1e-14 * reach * reach, 1e-11 * pp.sphere.radius};
+  Clipper<kTrim> clip{pp, p, scratch, local, best.distance_sq,
+                      // Each coefficient is G - 2 q.E + |q|^2 D with terms up to reach^2 D; de
+                      // Casteljau is a convex combination, so the error stays a small multiple of
+                      // eps reach^2.
+                      1e-14 * reach * reach, 1e-11 * pp.sphere.radius};
   clip.guess_s = guess_s;
   clip.guess_t = guess_t;
+  if constexpr (kTrim) clip.region = region;
   ++local.patches_visited;
   clip.run();
   bool improved = false;
@@ -1032,6 +1135,15 @@ bool project_onto_patch(const PreparedPatch& pp, const Vec3& p, SurfaceHit& best
     double value = clip.best_value;
     if (!clip.best_exact) {
       value = newton_on_patch(pp.patch, p, 0.0, 1.0, 0.0, 1.0, s, t, foot, &local, &normal);
+      if constexpr (kTrim) {
+        // The descent may leave the face: then the corner itself (in the region, it was
+        // offered) is the candidate, evaluated on the geometry (a zero-size Newton box).
+        if (!region->contains(pp.patch.param_u.to_parent(s), pp.patch.param_v.to_parent(t))) {
+          s = clip.best_s;
+          t = clip.best_t;
+          value = newton_on_patch(pp.patch, p, s, s, t, t, s, t, foot, &local, &normal);
+        }
+      }
     }
     if (value < best.distance_sq) {
       best.u = pp.patch.param_u.to_parent(s);
@@ -1046,6 +1158,17 @@ bool project_onto_patch(const PreparedPatch& pp, const Vec3& p, SurfaceHit& best
   }
   if (stats) stats->add(local);
   return improved;
+}
+
+}  // namespace
+
+bool project_onto_patch(const PreparedPatch& pp, const Vec3& p, SurfaceHit& best,
+                        SurfaceScratch& scratch, SurfaceProjectionStats* stats, double guess_s,
+                        double guess_t, const TrimRegion* region) {
+  if (region != nullptr) {
+    return clip_patch<true>(pp, p, best, scratch, stats, guess_s, guess_t, region);
+  }
+  return clip_patch<false>(pp, p, best, scratch, stats, guess_s, guess_t, nullptr);
 }
 
 }  // namespace nurbsreg::engine

@@ -3,6 +3,14 @@
 // patches with their cached squared-distance coefficients and bounds, every curve into pieces,
 // and a bounding volume hierarchy over all patches (and one over all pieces).
 //
+// Trimmed surfaces (NurbsSurface::trim_loops): each gets a TrimRegion, and each of its patches
+// is classified on its parameter box: patches outside the region are left out of the hierarchy
+// (never visited), patches inside it are projected as untrimmed ones, patches that may straddle a
+// loop run the trimmed clipping (project_onto_patch with the region). The face's 3-D trim edges
+// (trim_edges) are decomposed into Bézier pieces and put into the SAME hierarchy as the patches,
+// so one best-first walk handles both: the closest point of a trimmed face is the best of the
+// region's interior points and its edges' points (issue 7).
+//
 // Built once (allocates); afterwards const and thread-safe: any number of threads may project
 // against one PreparedModel at the same time.
 
@@ -13,6 +21,7 @@
 #include "nurbsreg/engine/curve_projection.hpp"
 #include "nurbsreg/engine/model.hpp"
 #include "nurbsreg/engine/surface_projection.hpp"
+#include "nurbsreg/engine/trim_region.hpp"
 
 namespace nurbsreg::engine {
 
@@ -23,11 +32,44 @@ class PreparedModel {
 
   const Model& model() const { return model_; }
 
+  // Every patch of every surface, trimmed away or not (locate_patch's layout).
   std::size_t patch_count() const { return patches_.size(); }
   const PreparedPatch& patch(std::size_t i) const { return patches_[i]; }
   // Index of the surface patch i belongs to.
   int patch_surface(std::size_t i) const { return patch_surface_[i]; }
+  // The region to clip patch i against: null when the patch is untrimmed or proven inside its
+  // face's region; the face's region when the patch may straddle a loop.
+  const TrimRegion* patch_region(std::size_t i) const {
+    return patch_class_[i] == RegionClass::boundary ? surface_region(patch_surface_[i]) : nullptr;
+  }
+  // inside for an untrimmed surface's patches.
+  RegionClass patch_class(std::size_t i) const { return patch_class_[i]; }
+  // The trimmed region of surface s, or null for an untrimmed surface.
+  const TrimRegion* surface_region(int s) const {
+    const int r = surface_region_[static_cast<std::size_t>(s)];
+    return r < 0 ? nullptr : &regions_[static_cast<std::size_t>(r)];
+  }
+
+  // The surfaces' hierarchy. Its primitives ("items") are the patches that are not trimmed away,
+  // k < hierarchy_patch_items(), with item_patch(k) their patch index, then the trim-edge pieces,
+  // edge piece k - hierarchy_patch_items(). For a model without trimmed surfaces the items are
+  // exactly the patches, item_patch(k) == k.
   const Bvh& patch_hierarchy() const { return patch_bvh_; }
+  std::size_t hierarchy_patch_items() const { return item_patch_.size(); }
+  std::uint32_t item_patch(std::uint32_t k) const { return item_patch_[k]; }
+  // Squared-distance lower bound from p to item k (box and sphere).
+  double item_lower_bound(std::uint32_t k, const Vec3& p) const;
+
+  // Trim-edge pieces: Bézier pieces of the faces' 3-D boundary edges (trim_edges).
+  struct EdgePiece {
+    int surface = -1;
+    int loop = -1, curve = -1;  // the trim curve: trim_loops[loop].curves[curve]
+  };
+  std::size_t edge_piece_count() const { return edge_pieces_.size(); }
+  const PreparedCurvePiece& edge_piece(std::size_t i) const { return edge_pieces_[i]; }
+  const EdgePiece& edge_piece_info(std::size_t i) const { return edge_piece_info_[i]; }
+  // (u, v) of the edge point with curve parameter t: the trim curve's uv(t) (same parameter).
+  Vec2 edge_uv(std::size_t i, double t) const;
   // The patch of surface `surface` whose parameter box holds (u, v) (clamped to the domain), by
   // binary search over the surface's patch breakpoints; -1 if the surface has no patches.
   std::int64_t locate_patch(int surface, double u, double v) const;
@@ -58,6 +100,14 @@ class PreparedModel {
   std::vector<SurfacePatches> surface_patches_;
   std::vector<Aabb> patch_boxes_;
   std::vector<BoundingSphere> patch_spheres_;
+  std::vector<RegionClass> patch_class_;
+  std::vector<TrimRegion> regions_;
+  std::vector<int> surface_region_;  // per surface: index into regions_, -1 untrimmed
+  std::vector<std::uint32_t> item_patch_;
+  std::vector<Aabb> item_boxes_;  // per hierarchy item (patches, then edge pieces)
+  std::vector<BoundingSphere> item_spheres_;
+  std::vector<PreparedCurvePiece> edge_pieces_;
+  std::vector<EdgePiece> edge_piece_info_;
   Bvh patch_bvh_;
   std::vector<PreparedCurvePiece> pieces_;
   std::vector<int> piece_curve_;

@@ -30,6 +30,8 @@
 
 namespace nurbsreg::engine {
 
+class TrimRegion;
+
 // A closest point: (u, v) in the PARENT surface's parameters.
 struct SurfaceHit {
   double u = 0, v = 0;
@@ -84,6 +86,9 @@ struct SurfaceScratch {
     double upper;           // max of the ratio coefficients
     int arg;                // index of the smallest ratio coefficient
     int depth;
+    // Trimmed patches only: the box may meet a trim loop (every box of an untrimmed patch, and
+    // every box proven inside the region, has false).
+    bool straddling;
   };
   std::vector<double> grids;  // kStackCapacity entries of 2 * kGridCapacity doubles (N then D)
   std::vector<Box> boxes;
@@ -107,6 +112,10 @@ struct SurfaceProjectionStats {
   // Sub-patches on which F's coefficients vary less than their rounding bound (points on or
   // very near the surface, poles): finished by Newton on the geometry.
   long resolution_terminations = 0;
+  // Trimmed patches: sub-patches proven outside the region and dropped, and candidates (corner
+  // values, Newton points) rejected because they lie outside it.
+  long region_drops = 0;
+  long region_rejections = 0;
   void add(const SurfaceProjectionStats& o);
 };
 
@@ -123,10 +132,19 @@ enum class SurfaceStrategy { spherical_clipping, ma_hewitt };
 // stationary point on the geometry. Improvements below 1e-11 R are not pursued.
 // (guess_s, guess_t): optional local guess of the minimiser (warm start, e.g. the previous foot);
 // it only chooses where Newton starts on a box that holds it, never what is eliminated. NaN: none.
+// region: null for an untrimmed patch or one proven inside its face's trimmed region (the hot
+// path, unchanged). Otherwise the patch may straddle a trim loop of `region` (the region of the
+// patch's parent surface, queried in the parent's (u, v)): the result is then the closest point
+// of the patch among (a) the critical points and patch-boundary points that lie INSIDE the region
+// -- every reported point satisfies region->contains(u, v) -- and it is exact provided the caller
+// also projects onto the face's trim edges (the closest point of patch ∩ region lies in the
+// region's interior or on a loop; the clipping proves nothing about loop points, the edges cover
+// them). See Clipper in surface_clipping.cpp for the proofs.
 bool project_onto_patch(const PreparedPatch& patch, const Vec3& p, SurfaceHit& best,
                         SurfaceScratch& scratch, SurfaceProjectionStats* stats = nullptr,
                         double guess_s = std::numeric_limits<double>::quiet_NaN(),
-                        double guess_t = std::numeric_limits<double>::quiet_NaN());
+                        double guess_t = std::numeric_limits<double>::quiet_NaN(),
+                        const TrimRegion* region = nullptr);
 
 // Ma & Hewitt (seed 000) on one patch: Algorithm 6 with Algorithms 2 and 4, candidates refined
 // by Newton on the flat sub-patch (§9). Not exact (see header comment). Same contract otherwise.

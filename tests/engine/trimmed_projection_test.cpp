@@ -1,0 +1,617 @@
+// Exact projection onto trimmed faces through PreparedModel + Projector (issue 7), against
+// independent references: closed forms where they exist (a flat panel with a circular hole made
+// of rational quadratic uv arcs; points at a sphere's centre), else a brute-force search of the
+// trimmed face (dense (u, v) samples inside the region, each polished by a bounded Newton that
+// stays inside, plus dense samples of every boundary edge refined by golden section). Both
+// directions are checked: our distance is not above the reference's (we miss nothing), and our
+// foot is a face point (inside the region or on an edge) at the reported distance (we do not
+// "win" with a point of a hole).
+
+#include <gtest/gtest.h>
+#include <tbb/global_control.h>
+
+#include <algorithm>
+#include <cmath>
+#include <random>
+#include <vector>
+
+#include "nurbsreg/engine/projection.hpp"
+#include "nurbsreg/engine/sampling.hpp"
+#include "nurbsreg/engine/shapes.hpp"
+#include "nurbsreg/engine/trim_region.hpp"
+#include "support/random_entities.hpp"
+
+namespace nurbsreg::engine {
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+NurbsCurve uv_line(const Vec2& a, const Vec2& b) {
+  NurbsCurve c;
+  c.degree = 1;
+  c.dimension = 2;
+  c.knots = {0.0, 0.0, 1.0, 1.0};
+  c.control_points = {Vec3(a.x(), a.y(), 0.0), Vec3(b.x(), b.y(), 0.0)};
+  return c;
+}
+
+// A closed polygon of degree-1 uv curves (the engine computes their exact 3-D edges).
+TrimLoop polygon_loop(const std::vector<Vec2>& corners) {
+  TrimLoop loop;
+  for (std::size_t k = 0; k < corners.size(); ++k)
+    loop.curves.push_back({uv_line(corners[k], corners[(k + 1) % corners.size()]), std::nullopt});
+  return loop;
+}
+
+TrimLoop rectangle_loop(double u0, double u1, double v0, double v1) {
+  return polygon_loop({{u0, v0}, {u1, v0}, {u1, v1}, {u0, v1}});
+}
+
+// A star with `tips` points around c (radii alternating r_out, r_in), rotated by `phase`.
+TrimLoop star_loop(const Vec2& c, double r_in, double r_out, int tips, double phase) {
+  std::vector<Vec2> corners;
+  for (int k = 0; k < 2 * tips; ++k) {
+    const double a = phase + kPi * k / tips;
+    const double r = k % 2 == 0 ? r_out : r_in;
+    corners.emplace_back(c.x() + r * std::cos(a), c.y() + r * std::sin(a));
+  }
+  return polygon_loop(corners);
+}
+
+// ---------------------------------------------------------------------------------------------
+// The flat panel: the plane z = 0 over [0, 10]^2 as a bicubic B-spline with 3 x 3 spans and a
+// linear parametrisation (control points at the Greville abscissae), so S(u, v) = (10u, 10v, 0).
+// Face: the square [0.05, 0.95]^2 minus the disc of radius 0.2 about (0.45, 0.55) in (u, v),
+// i.e. [0.5, 9.5]^2 minus the disc of radius 2 about (4.5, 5.5) in the plane. The hole is a
+// rational quadratic circle (4 arcs) with its exact 3-D edge given, as a CAD file would.
+
+constexpr double kSquareLo = 0.5, kSquareHi = 9.5;
+const Vec2 kHoleCentre(4.5, 5.5);
+constexpr double kHoleRadius = 2.0;
+
+NurbsSurface flat_panel() {
+  NurbsSurface s;
+  s.name = "flat panel";
+  s.degree_u = s.degree_v = 3;
+  s.knots_u = s.knots_v = {0, 0, 0, 0, 1.0 / 3.0, 2.0 / 3.0, 1, 1, 1, 1};
+  s.count_u = s.count_v = 6;
+  const double greville[6] = {0.0, 1.0 / 9.0, 1.0 / 3.0, 2.0 / 3.0, 8.0 / 9.0, 1.0};
+  for (int i = 0; i < 6; ++i) {
+    for (int j = 0; j < 6; ++j)
+      s.control_points.emplace_back(10.0 * greville[i], 10.0 * greville[j], 0.0);
+  }
+  s.trim_loops.push_back(rectangle_loop(0.05, 0.95, 0.05, 0.95));
+  TrimCurve hole;
+  hole.uv = make_circle(Vec3(0.45, 0.55, 0.0), 0.2);
+  hole.uv.dimension = 2;
+  NurbsCurve edge = hole.uv;
+  edge.dimension = 3;
+  for (Vec3& c : edge.control_points)
+    c *= 10.0;  // S is linear: the edge is the uv circle scaled, same weights and parameter
+  hole.edge = edge;
+  s.trim_loops.push_back({{hole}});
+  return s;
+}
+
+// Closed form: the nearest point of the planar face to p.
+double flat_panel_distance(const Vec3& p) {
+  const Vec2 q(p.x(), p.y());
+  double planar = 0.0;
+  const double r = (q - kHoleCentre).norm();
+  if (r < kHoleRadius) {
+    planar = kHoleRadius - r;  // to the rim (the disc is well inside the square)
+  } else {
+    const Vec2 c(std::clamp(q.x(), kSquareLo, kSquareHi), std::clamp(q.y(), kSquareLo, kSquareHi));
+    planar = (q - c).norm();  // the clamped point is outside the disc (it is far from the border)
+  }
+  return std::sqrt(p.z() * p.z() + planar * planar);
+}
+
+std::vector<Vec3> flat_panel_points() {
+  std::mt19937_64 rng(7001);
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  std::vector<Vec3> pts;
+  for (int k = 0; k < 300; ++k)
+    pts.emplace_back(-2.0 + 14.0 * unit(rng), -2.0 + 14.0 * unit(rng), -3.0 + 6.0 * unit(rng));
+  // Over the hole: the untrimmed foot is in the hole.
+  for (int k = 0; k < 150; ++k) {
+    const double a = 2.0 * kPi * unit(rng), r = kHoleRadius * std::sqrt(unit(rng));
+    pts.emplace_back(kHoleCentre.x() + r * std::cos(a), kHoleCentre.y() + r * std::sin(a),
+                     -2.0 + 4.0 * unit(rng));
+  }
+  // The hole's centre: every rim point is equidistant.
+  for (double z : {-1.0, -1e-3, 0.0, 1e-9, 0.5, 3.0})
+    pts.emplace_back(kHoleCentre.x(), kHoleCentre.y(), z);
+  // Just inside and outside the rim, near the plane.
+  for (int k = 0; k < 80; ++k) {
+    const double a = 2.0 * kPi * unit(rng);
+    const double r =
+        kHoleRadius + (k % 2 == 0 ? 1.0 : -1.0) * std::pow(10.0, -1.0 - 6.0 * unit(rng));
+    pts.emplace_back(kHoleCentre.x() + r * std::cos(a), kHoleCentre.y() + r * std::sin(a),
+                     (unit(rng) - 0.5) * 1e-2);
+  }
+  // Around the square's corners and sides, above and beside.
+  for (double x :
+       {kSquareLo - 0.3, kSquareLo, kSquareLo + 1e-7, kSquareHi - 0.2, kSquareHi + 0.4}) {
+    for (double y : {kSquareLo - 1e-6, kSquareLo + 0.1, 5.0, kSquareHi, kSquareHi + 2.0}) {
+      for (double z : {0.0, 0.7, -2.0})
+        pts.emplace_back(x, y, z);
+    }
+  }
+  return pts;
+}
+
+Model single(const NurbsSurface& s) {
+  Model m;
+  m.surfaces.push_back(s);
+  return m;
+}
+
+double diagonal(const PreparedModel& m) {
+  return (m.bounds().hi - m.bounds().lo).norm();
+}
+
+TEST(TrimmedProjection, FlatPanelWithCircularHoleMatchesClosedForm) {
+  const PreparedModel model(single(flat_panel()));
+  const std::vector<Vec3> pts = flat_panel_points();
+  Projector projector(model);
+  ProjectionResults out;
+  projector.project_serial(PointView::of(pts), {}, out);
+  const double tol = 1e-9 * diagonal(model);
+  const NurbsSurface& s = model.model().surfaces[0];
+  int failures = 0, edge_feet = 0;
+  for (std::size_t i = 0; i < pts.size(); ++i) {
+    ASSERT_EQ(out.status[i], ProjectionStatus::ok) << i;
+    const double exact = flat_panel_distance(pts[i]);
+    // Both directions at once: not farther than the true distance (nothing missed) and not
+    // closer (no point of the hole or of the cut-away border counted).
+    const bool ok = std::abs(out.distance[i] - exact) <= tol;
+    failures += !ok;
+    EXPECT_TRUE(ok) << "point " << i << " (" << pts[i].transpose() << "): got " << out.distance[i]
+                    << ", exact " << exact;
+    // The foot is a face point at the reported distance, and (u, v) is its parameter.
+    const Vec3& f = out.foot[i];
+    EXPECT_NEAR((f - pts[i]).norm(), out.distance[i], tol);
+    EXPECT_NEAR(f.z(), 0.0, tol);
+    EXPECT_GE((Vec2(f.x(), f.y()) - kHoleCentre).norm(), kHoleRadius - tol) << i;
+    EXPECT_GE(std::min(f.x(), f.y()), kSquareLo - tol) << i;
+    EXPECT_LE(std::max(f.x(), f.y()), kSquareHi + tol) << i;
+    EXPECT_LE((s.evaluate(out.u[i], out.v[i]) - f).norm(), 1e-8 * diagonal(model)) << i;
+    edge_feet += (std::abs((Vec2(f.x(), f.y()) - kHoleCentre).norm() - kHoleRadius) < 1e-6);
+    // The plane's normal, up to the side.
+    EXPECT_NEAR(std::abs(out.normal[i].z()), 1.0, 1e-9) << i;
+  }
+  EXPECT_EQ(failures, 0);
+  EXPECT_GT(edge_feet, 150);  // the hole's rim was really exercised
+}
+
+TEST(TrimmedProjection, TrimmingPrunesOutsidePatchesAndAddsEdgePieces) {
+  const PreparedModel model(single(flat_panel()));
+  std::size_t outside = 0, inside = 0, boundary = 0;
+  for (std::size_t i = 0; i < model.patch_count(); ++i) {
+    switch (model.patch_class(i)) {
+      case RegionClass::outside:
+        ++outside;
+        break;
+      case RegionClass::inside:
+        ++inside;
+        break;
+      case RegionClass::boundary:
+        ++boundary;
+        break;
+    }
+  }
+  EXPECT_EQ(model.patch_count(), 9u);
+  EXPECT_EQ(model.hierarchy_patch_items(), inside + boundary);
+  EXPECT_GT(boundary, 0u);
+  EXPECT_GT(model.edge_piece_count(), 0u);
+  for (std::size_t e = 0; e < model.edge_piece_count(); ++e)
+    EXPECT_EQ(model.edge_piece_info(e).surface, 0);
+  // An untrimmed model: the items are exactly the patches, no edges.
+  NurbsSurface plain = flat_panel();
+  plain.trim_loops.clear();
+  const PreparedModel untrimmed(single(plain));
+  EXPECT_EQ(untrimmed.hierarchy_patch_items(), untrimmed.patch_count());
+  EXPECT_EQ(untrimmed.edge_piece_count(), 0u);
+  for (std::uint32_t k = 0; k < untrimmed.patch_count(); ++k)
+    EXPECT_EQ(untrimmed.item_patch(k), k);
+}
+
+TEST(TrimmedProjection, ReversedFaceFlipsNormalAndSignedDistance) {
+  NurbsSurface s = flat_panel();
+  const PreparedModel forward(single(s));
+  s.reversed = true;
+  const PreparedModel backward(single(s));
+  const std::vector<Vec3> pts = flat_panel_points();
+  ProjectionResults a, b;
+  Projector(forward).project_serial(PointView::of(pts), {}, a);
+  Projector(backward).project_serial(PointView::of(pts), {}, b);
+  for (std::size_t i = 0; i < pts.size(); ++i) {
+    EXPECT_EQ(a.distance[i], b.distance[i]);
+    EXPECT_EQ(a.u[i], b.u[i]);
+    EXPECT_EQ(a.v[i], b.v[i]);
+    EXPECT_EQ(a.normal[i], Vec3(-b.normal[i]));
+    // The side is defined where p - foot has a normal component (not for a point beside an
+    // edge in the face's plane: (p - foot) . n == 0 there, both report +distance).
+    if (std::abs(pts[i].z()) > 0.0) {
+      EXPECT_EQ(a.signed_distance[i], -b.signed_distance[i]) << i;
+      EXPECT_EQ(a.signed_distance[i] > 0.0, pts[i].z() * a.normal[i].z() > 0.0) << i;
+    }
+  }
+  // Untrimmed surfaces too: the sphere's outer side turned inwards.
+  NurbsSurface sphere = make_sphere(Vec3::Zero(), 2.0);
+  const PreparedModel out_model(single(sphere));
+  sphere.reversed = true;
+  const PreparedModel in_model(single(sphere));
+  const std::vector<Vec3> probes = {Vec3(3, 0.2, 0.1), Vec3(0.5, 0.3, -0.2)};
+  ProjectionResults c, d;
+  Projector(out_model).project_serial(PointView::of(probes), {}, c);
+  Projector(in_model).project_serial(PointView::of(probes), {}, d);
+  for (std::size_t i = 0; i < probes.size(); ++i) {
+    EXPECT_EQ(c.normal[i], Vec3(-d.normal[i]));
+    EXPECT_EQ(c.signed_distance[i], -d.signed_distance[i]);
+  }
+}
+
+TEST(TrimmedProjection, WarmHintsThreadsAndMaxDistanceGiveTheColdAnswer) {
+  const PreparedModel model(single(flat_panel()));
+  const std::vector<Vec3> pts = flat_panel_points();
+  Projector projector(model);
+  ProjectionResults cold;
+  projector.project_serial(PointView::of(pts), {}, cold);
+  const double tol = 1e-9 * diagonal(model);
+  // Hints: the feet of slightly moved points (an ICP iteration), and deliberately bad ones in
+  // the hole, on another part of the face, and out of the domain.
+  std::mt19937_64 rng(7002);
+  std::normal_distribution<double> gauss(0.0, 1.0);
+  std::vector<Vec3> moved;
+  for (const Vec3& p : pts)
+    moved.push_back(p + 0.05 * Vec3(gauss(rng), gauss(rng), gauss(rng)));
+  ProjectionResults previous;
+  projector.project_serial(PointView::of(moved), {}, previous);
+  std::vector<ProjectionHint> hints;
+  for (std::size_t i = 0; i < pts.size(); ++i) {
+    switch (i % 4) {
+      case 0:
+        hints.push_back(previous.hint(i));
+        break;
+      case 1:
+        hints.push_back({0, 0.45, 0.55});
+        break;  // the hole's centre
+      case 2:
+        hints.push_back({0, 0.9, 0.1});
+        break;
+      default:
+        hints.push_back({0, -3.0, 7.0});
+        break;  // clamped into the cut-away border
+    }
+  }
+  ProjectionResults warm;
+  projector.project_serial(PointView::of(pts), {}, warm, hints);
+  for (std::size_t i = 0; i < pts.size(); ++i) {
+    EXPECT_NEAR(warm.distance[i], cold.distance[i], tol) << i;
+    EXPECT_NEAR(warm.distance[i], flat_panel_distance(pts[i]), tol) << i;
+  }
+  // 1 and 2 threads: identical.
+  ProjectionResults one, two;
+  {
+    tbb::global_control c(tbb::global_control::max_allowed_parallelism, 1);
+    ProjectionOptions o;
+    o.grain = 16;
+    projector.project(PointView::of(pts), o, one, hints);
+  }
+  {
+    tbb::global_control c(tbb::global_control::max_allowed_parallelism, 2);
+    ProjectionOptions o;
+    o.grain = 16;
+    projector.project(PointView::of(pts), o, two, hints);
+  }
+  EXPECT_EQ(one.distance, two.distance);
+  EXPECT_EQ(one.u, two.u);
+  EXPECT_EQ(one.v, two.v);
+  EXPECT_EQ(one.foot, two.foot);
+  EXPECT_EQ(one.distance, warm.distance);
+  // max_distance: points within it get the exact answer, the others none.
+  ProjectionOptions limited;
+  limited.max_distance = 1.5;
+  ProjectionResults capped;
+  projector.project_serial(PointView::of(pts), limited, capped, hints);
+  int within = 0;
+  for (std::size_t i = 0; i < pts.size(); ++i) {
+    const double exact = flat_panel_distance(pts[i]);
+    if (exact < limited.max_distance - tol) {
+      ++within;
+      ASSERT_EQ(capped.status[i], ProjectionStatus::ok) << i;
+      EXPECT_NEAR(capped.distance[i], exact, tol) << i;
+    } else if (exact > limited.max_distance + tol) {
+      EXPECT_EQ(capped.status[i], ProjectionStatus::beyond_max_distance) << i;
+    }
+  }
+  EXPECT_GT(within, 100);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Brute-force reference for any trimmed surface.
+
+class BruteForce {
+ public:
+  BruteForce(const NurbsSurface& s, int grid) : s_(s), region_(s), edges_(trim_edges(s)) {
+    const ParamInterval du = s.domain_u(), dv = s.domain_v();
+    hu_ = du.width() / grid;
+    hv_ = dv.width() / grid;
+    for (int i = 0; i <= grid; ++i) {
+      for (int j = 0; j <= grid; ++j) {
+        const double u = du.to_parent(double(i) / grid), v = dv.to_parent(double(j) / grid);
+        if (!region_.contains(u, v)) continue;
+        uv_.emplace_back(u, v);
+        xyz_.push_back(s.evaluate(u, v));
+      }
+    }
+    for (const TrimEdge& e : edges_) {
+      EdgeSamples es;
+      const ParamInterval d = e.edge.domain();
+      const int n = 3000;
+      for (int k = 0; k <= n; ++k) {
+        es.t.push_back(d.to_parent(double(k) / n));
+        es.x.push_back(e.edge.evaluate(es.t.back()));
+      }
+      samples_.push_back(std::move(es));
+    }
+  }
+
+  // Squared distance from p to the face.
+  double distance_sq(const Vec3& p) const { return std::min(interior(p), edges(p)); }
+  // Squared distance from p to the edges only (also: is a foot on an edge?).
+  double edges(const Vec3& p) const {
+    double best = std::numeric_limits<double>::infinity();
+    for (std::size_t e = 0; e < edges_.size(); ++e) {
+      const EdgeSamples& es = samples_[e];
+      // The best few samples (one per neighbourhood), each refined by golden section.
+      std::vector<std::pair<double, int>> order;
+      for (std::size_t k = 0; k < es.x.size(); ++k)
+        order.push_back({(es.x[k] - p).squaredNorm(), int(k)});
+      std::sort(order.begin(), order.end());
+      std::vector<int> chosen;
+      for (const auto& [d, k] : order) {
+        if (chosen.size() >= 3) break;
+        bool near = false;
+        for (int c : chosen)
+          near |= std::abs(c - k) < 20;
+        if (!near) chosen.push_back(k);
+      }
+      for (int k : chosen) {
+        double a = es.t[std::max(k - 1, 0)],
+               b = es.t[std::min<std::size_t>(k + 1, es.t.size() - 1)];
+        auto f = [&](double t) { return (edges_[e].edge.evaluate(t) - p).squaredNorm(); };
+        const double g = 0.5 * (std::sqrt(5.0) - 1.0);
+        double x1 = b - g * (b - a), x2 = a + g * (b - a), f1 = f(x1), f2 = f(x2);
+        for (int it = 0; it < 90; ++it) {
+          if (f1 < f2) {
+            b = x2, x2 = x1, f2 = f1, x1 = b - g * (b - a), f1 = f(x1);
+          } else {
+            a = x1, x1 = x2, f1 = f2, x2 = a + g * (b - a), f2 = f(x2);
+          }
+        }
+        best = std::min({best, f1, f2, f(es.t[k])});
+      }
+    }
+    return best;
+  }
+  // Squared distance from p to the interior critical points (polished grid samples).
+  double interior(const Vec3& p) const {
+    std::vector<std::pair<double, int>> order;
+    order.reserve(xyz_.size());
+    for (std::size_t k = 0; k < xyz_.size(); ++k)
+      order.push_back({(xyz_[k] - p).squaredNorm(), int(k)});
+    const std::size_t keep = std::min<std::size_t>(400, order.size());
+    std::partial_sort(order.begin(), order.begin() + keep, order.end());
+    std::vector<Vec2> chosen;
+    double best = std::numeric_limits<double>::infinity();
+    for (std::size_t k = 0; k < keep && chosen.size() < 6; ++k) {
+      const Vec2 uv = uv_[order[k].second];
+      bool near = false;
+      for (const Vec2& c : chosen)
+        near |= std::abs(c.x() - uv.x()) < 4 * hu_ && std::abs(c.y() - uv.y()) < 4 * hv_;
+      if (near) continue;
+      chosen.push_back(uv);
+      best = std::min(best, polish(p, uv));
+    }
+    return best;
+  }
+  bool contains(double u, double v) const { return region_.contains(u, v); }
+
+ private:
+  // Descent (Newton where the Hessian is positive definite, else gradient) that only accepts
+  // steps decreasing F and staying in the region: ends at an interior critical point or near a
+  // loop (which the edges cover).
+  double polish(const Vec3& p, Vec2 uv) const {
+    auto F = [&](const Vec2& x) { return (s_.evaluate(x.x(), x.y()) - p).squaredNorm(); };
+    double f = F(uv);
+    for (int it = 0; it < 40; ++it) {
+      const SurfaceDerivatives d = s_.derivatives(uv.x(), uv.y());
+      const Vec3 r = d.s - p;
+      const Vec2 g(r.dot(d.su), r.dot(d.sv));
+      Eigen::Matrix2d h;
+      h << d.su.dot(d.su) + r.dot(d.suu), d.su.dot(d.sv) + r.dot(d.suv),
+          d.su.dot(d.sv) + r.dot(d.suv), d.sv.dot(d.sv) + r.dot(d.svv);
+      Vec2 step;
+      if (h(0, 0) > 0 && h.determinant() > 1e-14 * h.squaredNorm()) {
+        step = -h.inverse() * g;
+      } else {
+        step = -g / (d.su.squaredNorm() + d.sv.squaredNorm() + 1e-300);
+      }
+      bool moved = false;
+      for (double a = 1.0; a > 1e-12; a *= 0.5) {
+        const Vec2 x = uv + a * step;
+        if (x.x() < s_.domain_u().lo || x.x() > s_.domain_u().hi || x.y() < s_.domain_v().lo ||
+            x.y() > s_.domain_v().hi || !region_.contains(x.x(), x.y()))
+          continue;
+        const double fx = F(x);
+        if (fx < f) {
+          moved = (x - uv).norm() > 1e-15;
+          uv = x;
+          f = fx;
+          break;
+        }
+      }
+      if (!moved) break;
+    }
+    return f;
+  }
+
+  struct EdgeSamples {
+    std::vector<double> t;
+    std::vector<Vec3> x;
+  };
+  const NurbsSurface& s_;
+  TrimRegion region_;
+  std::vector<TrimEdge> edges_;
+  std::vector<EdgeSamples> samples_;
+  std::vector<Vec2> uv_;
+  std::vector<Vec3> xyz_;
+  double hu_ = 0, hv_ = 0;
+};
+
+// Projects `pts` onto the one-surface model and checks both directions against the reference.
+void check_against_brute_force(const NurbsSurface& surface, const std::vector<Vec3>& pts,
+                               int grid) {
+  const PreparedModel model(single(surface));
+  const NurbsSurface& s = model.model().surfaces[0];
+  BruteForce reference(s, grid);
+  Projector projector(model);
+  ProjectionResults out;
+  projector.project_serial(PointView::of(pts), {}, out);
+  const double diag = diagonal(model);
+  const double tol = 1e-9 * diag;
+  int failures = 0, edge_feet = 0;
+  for (std::size_t i = 0; i < pts.size(); ++i) {
+    ASSERT_EQ(out.status[i], ProjectionStatus::ok) << i;
+    const double ref = std::sqrt(reference.distance_sq(pts[i]));
+    // Not worse than the reference (nothing missed).
+    const bool not_worse = out.distance[i] <= ref + tol;
+    // Not better by cheating: the foot is at the reported distance, is S(u, v), and is a face
+    // point: on an edge, or (u, v) inside the region.
+    const Vec3& f = out.foot[i];
+    const bool on_edge = reference.edges(f) <= tol * tol;
+    edge_feet += on_edge;
+    const bool in_face = on_edge || reference.contains(out.u[i], out.v[i]);
+    const bool consistent = std::abs((f - pts[i]).norm() - out.distance[i]) <= tol &&
+                            (s.evaluate(out.u[i], out.v[i]) - f).norm() <= 1e-8 * diag;
+    const bool not_better = out.distance[i] >= ref - tol;
+    const bool ok = not_worse && in_face && consistent && not_better;
+    failures += !ok;
+    EXPECT_TRUE(ok) << "point " << i << " (" << pts[i].transpose() << "): got " << out.distance[i]
+                    << " at (" << out.u[i] << ", " << out.v[i] << "), reference " << ref
+                    << "; on edge " << on_edge << ", in face " << in_face << ", consistent "
+                    << consistent;
+  }
+  EXPECT_EQ(failures, 0);
+  EXPECT_GT(edge_feet, 0);
+  // Warm hints (the cold answers, and those of other points) give the same distances.
+  std::vector<ProjectionHint> hints;
+  for (std::size_t i = 0; i < pts.size(); ++i)
+    hints.push_back(out.hint((i * 7 + 3) % pts.size()));
+  ProjectionResults warm;
+  projector.project_serial(PointView::of(pts), {}, warm, hints);
+  for (std::size_t i = 0; i < pts.size(); ++i)
+    EXPECT_NEAR(warm.distance[i], out.distance[i], tol) << i;
+}
+
+std::vector<Vec3> box_points(const Aabb& box, int count, std::uint64_t seed, double pad) {
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  const Vec3 size = box.hi - box.lo;
+  std::vector<Vec3> pts;
+  for (int k = 0; k < count; ++k) {
+    pts.push_back(box.lo - pad * size +
+                  Vec3(unit(rng), unit(rng), unit(rng)).cwiseProduct((1.0 + 2.0 * pad) * size));
+  }
+  return pts;
+}
+
+// Points near the face: samples of the UNTRIMMED surface (many over holes and cut-away parts)
+// moved along the normal.
+std::vector<Vec3> near_points(const NurbsSurface& s, int count, std::uint64_t seed, double reach) {
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  std::vector<Vec3> pts;
+  for (int k = 0; k < count; ++k) {
+    const double u = s.domain_u().to_parent(unit(rng)), v = s.domain_v().to_parent(unit(rng));
+    pts.push_back(s.evaluate(u, v) + reach * (2.0 * unit(rng) - 1.0) * surface_normal(s, u, v));
+  }
+  return pts;
+}
+
+Aabb control_box(const NurbsSurface& s) {
+  Aabb box;
+  for (const Vec3& c : s.control_points)
+    box.extend(c);
+  return box;
+}
+
+TEST(TrimmedProjection, SphereWindowMatchesBruteForce) {
+  NurbsSurface s = make_sphere(Vec3(1.0, -2.0, 0.5), 5.0);
+  s.trim_loops.push_back(rectangle_loop(0.15, 0.6, 0.08, 0.47));
+  s.trim_loops.push_back(polygon_loop({{0.3, 0.2}, {0.45, 0.25}, {0.35, 0.35}}));
+  std::vector<Vec3> pts = box_points(control_box(s), 120, 7101, 0.3);
+  for (const Vec3& p : near_points(s, 120, 7102, 1.0))
+    pts.push_back(p);
+  // The centre: every sphere point is at distance 5 (equidistant); the answer must be 5 too.
+  pts.push_back(Vec3(1.0, -2.0, 0.5));
+  check_against_brute_force(s, pts, 300);
+  const PreparedModel model(single(s));
+  ProjectionResults out;
+  Projector(model).project_serial(PointView::of(std::span<const Vec3>(&pts.back(), 1)), {}, out);
+  EXPECT_NEAR(out.distance[0], 5.0, 1e-12 * 5.0);
+}
+
+TEST(TrimmedProjection, FreeformPanelWithStarHoleMatchesBruteForce) {
+  NurbsSurface s = test::random_surface(7201, 3, 3, 8, 8, false);
+  const ParamInterval du = s.domain_u(), dv = s.domain_v();
+  auto at = [&](double a, double b) { return Vec2(du.to_parent(a), dv.to_parent(b)); };
+  s.trim_loops.push_back(
+      polygon_loop({at(0.04, 0.06), at(0.95, 0.03), at(0.97, 0.96), at(0.05, 0.93)}));
+  const Vec2 c = at(0.5, 0.45);
+  s.trim_loops.push_back(star_loop(c, 0.12 * du.width(), 0.3 * du.width(), 5, 0.3));
+  std::vector<Vec3> pts = box_points(control_box(s), 150, 7202, 0.2);
+  for (const Vec3& p : near_points(s, 200, 7203, 0.8))
+    pts.push_back(p);
+  check_against_brute_force(s, pts, 300);
+}
+
+TEST(TrimmedProjection, RationalExtremeWeightsMatchesBruteForce) {
+  NurbsSurface s = test::random_surface(7301, 3, 2, 6, 5, true);
+  std::mt19937_64 rng(7302);
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  for (double& w : s.weights)
+    w = std::exp(-3.5 + 7.0 * unit(rng));  // 0.03 .. 33
+  const ParamInterval du = s.domain_u(), dv = s.domain_v();
+  auto at = [&](double a, double b) { return Vec2(du.to_parent(a), dv.to_parent(b)); };
+  s.trim_loops.push_back(
+      polygon_loop({at(0.02, 0.1), at(0.9, 0.02), at(0.98, 0.9), at(0.5, 0.75), at(0.1, 0.97)}));
+  s.trim_loops.push_back(star_loop(at(0.45, 0.4), 0.08 * du.width(), 0.2 * du.width(), 4, 0.1));
+  std::vector<Vec3> pts = box_points(control_box(s), 150, 7303, 0.2);
+  for (const Vec3& p : near_points(s, 200, 7304, 0.5))
+    pts.push_back(p);
+  check_against_brute_force(s, pts, 300);
+}
+
+TEST(TrimmedProjection, TrimmedTorusMatchesBruteForce) {
+  NurbsSurface s = make_torus(Vec3(0.0, 0.0, 0.0), 4.0, 1.5);
+  // A band across the seam region of u (the tube) and most of the way around the axis, with a
+  // triangular hole.
+  s.trim_loops.push_back(rectangle_loop(0.1, 0.85, 0.05, 0.7));
+  s.trim_loops.push_back(polygon_loop({{0.3, 0.2}, {0.6, 0.3}, {0.4, 0.5}}));
+  std::vector<Vec3> pts = box_points(control_box(s), 120, 7401, 0.2);
+  for (const Vec3& p : near_points(s, 150, 7402, 1.2))
+    pts.push_back(p);
+  // On the axis (a whole circle of tube points is equidistant) and on the tube's centre circle.
+  for (double z : {-2.0, 0.0, 0.3, 3.0})
+    pts.emplace_back(0.0, 0.0, z);
+  for (double a : {0.1, 1.0, 2.5, 4.0, 5.5})
+    pts.emplace_back(4.0 * std::cos(a), 4.0 * std::sin(a), 0.0);
+  check_against_brute_force(s, pts, 300);
+}
+
+}  // namespace
+}  // namespace nurbsreg::engine
