@@ -27,8 +27,8 @@
 #include <BRepTopAdaptor_FClass2d.hxx>
 #include <BRep_Tool.hxx>
 #include <Bnd_Box.hxx>
-#include <IGESControl_Reader.hxx>
 #include <IFSelect_ReturnStatus.hxx>
+#include <IGESControl_Reader.hxx>
 #include <STEPControl_Reader.hxx>
 #include <TopExp.hxx>
 #include <TopExp_Explorer.hxx>
@@ -51,9 +51,15 @@
 
 namespace nurbsreg::test {
 
-inline gp_Pnt to_gp(const engine::Vec3& p) { return gp_Pnt(p.x(), p.y(), p.z()); }
-inline engine::Vec3 from_gp(const gp_Pnt& p) { return engine::Vec3(p.X(), p.Y(), p.Z()); }
-inline engine::Vec3 from_gp(const gp_Vec& p) { return engine::Vec3(p.X(), p.Y(), p.Z()); }
+inline gp_Pnt to_gp(const engine::Vec3& p) {
+  return gp_Pnt(p.x(), p.y(), p.z());
+}
+inline engine::Vec3 from_gp(const gp_Pnt& p) {
+  return engine::Vec3(p.X(), p.Y(), p.Z());
+}
+inline engine::Vec3 from_gp(const gp_Vec& p) {
+  return engine::Vec3(p.X(), p.Y(), p.Z());
+}
 
 // The file's shape as OCCT's data-exchange readers give it (what a user of OCCT would load),
 // with its faces and edges in TopExp::MapShapes order and its bounding box.
@@ -99,8 +105,9 @@ struct CadFoot {
   int face = -1;  // 0-based index into CadShape::faces, or -1 when the foot is on an edge
   int edge = -1;  // 0-based index into CadShape::edges, or -1 when the foot is inside a face
   double u = 0, v = 0, t = 0;
-  // The interior polish was stopped by the face's boundary (the minimum over the face's closure
-  // is on its trim boundary, where the file's 3-D edge may be off the surface by its tolerance).
+  // The foot is on the face's boundary: the interior polish was stopped by it, or OCCT's exact
+  // classifier says ON (the minimum over the face's closure is on its trim curve, where the file's
+  // 3-D edge may be off the surface: see face_edge_distance).
   bool stopped_by_boundary = false;
 };
 
@@ -145,7 +152,8 @@ class CadReference {
     double best_edge_sample = std::numeric_limits<double>::infinity();
     for (std::size_t e = 0; e < edges_.size(); ++e) {
       double eb = std::numeric_limits<double>::infinity();
-      for (const engine::Vec3& q : edges_[e].points) eb = std::min(eb, (q - p).squaredNorm());
+      for (const engine::Vec3& q : edges_[e].points)
+        eb = std::min(eb, (q - p).squaredNorm());
       edge_best_[e] = std::sqrt(eb);
       best_edge_sample = std::min(best_edge_sample, edge_best_[e]);
     }
@@ -179,8 +187,7 @@ class CadReference {
         }
       }
     }
-    std::sort(seeds_.begin(), seeds_.end(),
-              [](const Seed& a, const Seed& b) { return a.d < b.d; });
+    std::sort(seeds_.begin(), seeds_.end(), [](const Seed& a, const Seed& b) { return a.d < b.d; });
     const std::size_t polish = std::min<std::size_t>(seeds_.size(), options_.max_polish);
     candidates_.clear();
     for (std::size_t s = 0; s < polish; ++s)
@@ -190,8 +197,10 @@ class CadReference {
     std::sort(candidates_.begin(), candidates_.end(),
               [](const CadFoot& a, const CadFoot& b) { return a.distance < b.distance; });
     for (const CadFoot& hit : candidates_) {
-      if (classify(hit.face, hit.u, hit.v) != TopAbs_OUT) {
+      const TopAbs_State state = classify(hit.face, hit.u, hit.v);
+      if (state != TopAbs_OUT) {
         best = hit;
+        best.stopped_by_boundary = hit.stopped_by_boundary || state == TopAbs_ON;
         break;
       }
     }
@@ -259,6 +268,25 @@ class CadReference {
     return points;
   }
 
+  // Distance from q to the nearest 3-D edge of face f. When the reference's foot is on its
+  // face's boundary curve S(uv(t)) (stopped_by_boundary) and the file's edge is off that curve,
+  // an exact projector that takes the edge as the boundary can be worse than the reference by at
+  // most this much at that foot (triangle inequality).
+  double face_edge_distance(int f, const engine::Vec3& q) const {
+    double best = std::numeric_limits<double>::infinity();
+    for (const int e : faces_[f].edge_ids) {
+      const Edge& edge = edges_[e];
+      int k = 0;
+      double bd = HUGE_VAL;
+      for (std::size_t j = 0; j < edge.points.size(); ++j) {
+        const double d = (edge.points[j] - q).norm();
+        if (d < bd) bd = d, k = static_cast<int>(j);
+      }
+      best = std::min({best, bd, polish_edge(q, e, k).distance});
+    }
+    return best;
+  }
+
   // Is the 3-D point q on the trimmed shape (within tol)? The reference distance from q.
   double distance_to_shape(const engine::Vec3& q) const { return closest(q).distance; }
 
@@ -277,8 +305,9 @@ class CadReference {
     int nu = 0, nv = 0;
     std::vector<engine::Vec3> points, normals;
     std::vector<std::uint8_t> in;
-    double spacing = 0;   // largest 3-D distance between grid neighbours
-    double edge_gap = 0;  // see face_edge_gap()
+    double spacing = 0;         // largest 3-D distance between grid neighbours
+    double edge_gap = 0;        // see face_edge_gap()
+    std::vector<int> edge_ids;  // indices into edges_ of the face's edges
     double u_at(int i) const { return u0 + (u1 - u0) * i / (nu - 1); }
     double v_at(int j) const { return v0 + (v1 - v0) * j / (nv - 1); }
   };
@@ -287,9 +316,7 @@ class CadReference {
     double t0 = 0, t1 = 0;
     std::vector<engine::Vec3> points;
     double spacing = 0;
-    double t_at(int k) const {
-      return t0 + (t1 - t0) * k / static_cast<double>(points.size() - 1);
-    }
+    double t_at(int k) const { return t0 + (t1 - t0) * k / static_cast<double>(points.size() - 1); }
   };
   struct Seed {
     double d;
@@ -316,7 +343,7 @@ class CadReference {
       face.surface = std::make_unique<BRepAdaptor_Surface>(face.face);
       BRepTools::UVBounds(face.face, face.u0, face.u1, face.v0, face.v1);
       for (int a = 0; a < 3; ++a) {
-        const double fu = face.u0 + (face.u1 - face.u0) * (0.5 * a) ;
+        const double fu = face.u0 + (face.u1 - face.u0) * (0.5 * a);
         const double fv = face.v0 + (face.v1 - face.v0) * (0.5 * a);
         gp_Pnt pu = face.surface->Value(face.u0, fv), pv = face.surface->Value(fu, face.v0);
         for (int k = 1; k <= 32; ++k) {
@@ -359,7 +386,8 @@ class CadReference {
         for (int j = 0; j < face.nv; ++j) {
           const std::size_t k = static_cast<std::size_t>(i) * face.nv + j;
           if (i + 1 < face.nu)
-            face.spacing = std::max(face.spacing, (face.points[k + face.nv] - face.points[k]).norm());
+            face.spacing =
+                std::max(face.spacing, (face.points[k + face.nv] - face.points[k]).norm());
           if (j + 1 < face.nv)
             face.spacing = std::max(face.spacing, (face.points[k + 1] - face.points[k]).norm());
         }
@@ -371,7 +399,8 @@ class CadReference {
         BRepAdaptor_Curve c(e);
         BRepAdaptor_Curve2d c2(e, face.face);
         for (int k = 0; k <= 16; ++k) {
-          const double t = c2.FirstParameter() + (c2.LastParameter() - c2.FirstParameter()) * k / 16;
+          const double t =
+              c2.FirstParameter() + (c2.LastParameter() - c2.FirstParameter()) * k / 16;
           const gp_Pnt2d uv = c2.Value(t);
           const engine::Vec3 q = from_gp(face.surface->Value(uv.X(), uv.Y()));
           const double g = curve_distance(c, q);
@@ -439,7 +468,8 @@ class CadReference {
       }
       const int m = std::clamp(static_cast<int>(std::ceil(length / h)) + 1, 16, 20000);
       edge.points.resize(m);
-      for (int k = 0; k < m; ++k) edge.points[k] = from_gp(edge.curve->Value(edge.t_at(k)));
+      for (int k = 0; k < m; ++k)
+        edge.points[k] = from_gp(edge.curve->Value(edge.t_at(k)));
       for (int k = 0; k + 1 < m; ++k)
         edge.spacing = std::max(edge.spacing, (edge.points[k + 1] - edge.points[k]).norm());
       edge_samples_ += m;
@@ -447,6 +477,15 @@ class CadReference {
       edges_.push_back(std::move(edge));
     }
     edge_best_.resize(edges_.size());
+    std::vector<int> position(n, -1);
+    for (std::size_t k = 0; k < edge_index_.size(); ++k)
+      position[edge_index_[k]] = static_cast<int>(k);
+    for (Face& face : faces_) {
+      for (TopExp_Explorer ex(face.face, TopAbs_EDGE); ex.More(); ex.Next()) {
+        const int e = shape_.edges.FindIndex(ex.Current()) - 1;
+        if (e >= 0 && position[e] >= 0) face.edge_ids.push_back(position[e]);
+      }
+    }
   }
 
   CadFoot polish_edge(const engine::Vec3& p, int e, int k) const {

@@ -35,7 +35,8 @@ class TrimmedFaceCheck {
     const bool in_domain = u >= du.lo && u <= du.hi && v >= dv.lo && v <= dv.hi;
     out.in_region = in_domain && (!s.is_trimmed() || face.region->contains(u, v));
     out.edge_distance = std::numeric_limits<double>::infinity();
-    for (const Edge& e : face.edges) out.edge_distance = std::min(out.edge_distance, e.distance(foot));
+    for (const Edge& e : face.edges)
+      out.edge_distance = std::min(out.edge_distance, e.distance(foot));
     return out;
   }
 
@@ -84,7 +85,8 @@ class TrimmedFaceCheck {
         Edge e{std::move(te.edge), {}};
         const engine::ParamInterval dom = e.curve.domain();
         const int n = 2000;
-        for (int k = 0; k <= n; ++k) e.samples.push_back(e.curve.evaluate(dom.to_parent(1.0 * k / n)));
+        for (int k = 0; k <= n; ++k)
+          e.samples.push_back(e.curve.evaluate(dom.to_parent(1.0 * k / n)));
         p.edges.push_back(std::move(e));
       }
     }
