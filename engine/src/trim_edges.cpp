@@ -148,11 +148,12 @@ class LineMapper {
   // The homogeneous uv line from ha (t = k0) to hb (t = k1), cut at the surface's knot lines.
   void map_span(const Vec4& ha, const Vec4& hb, double k0, double k1,
                 std::vector<Segment>& out) const {
-    // tau in (0, 1) where u (or v) crosses an interior break: (1-tau) wa (ua - U) + tau wb
-    // (ub - U) = 0, with w u linear in tau.
+    // tau in (0, 1) where u (or v) crosses a break: (1-tau) wa (ua - U) + tau wb (ub - U) = 0,
+    // with w u linear in tau. The domain's ends count too: beyond them S is clamped, which the
+    // clamped local parameters of the end patches reproduce exactly.
     std::vector<double> cuts = {0.0, 1.0};
     auto add_cuts = [&](const std::vector<double>& breaks, int axis) {
-      for (std::size_t k = 1; k + 1 < breaks.size(); ++k) {
+      for (std::size_t k = 0; k < breaks.size(); ++k) {
         const double fa = ha[axis] - breaks[k] * ha[3], fb = hb[axis] - breaks[k] * hb[3];
         if ((fa < 0.0 && fb > 0.0) || (fa > 0.0 && fb < 0.0)) cuts.push_back(fa / (fa - fb));
       }

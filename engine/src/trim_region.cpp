@@ -1,15 +1,21 @@
-// TrimRegion: the trim loops cut into rational Bézier pieces that are monotone in v, plus a grid
+// TrimRegion: the trim loops cut into rational Bézier pieces monotone in u and in v, plus a grid
 // over the region's bounding box that answers most queries at once.
 //
-// Exactness: a horizontal ray from (u, v) to +u crosses a monotone piece at most once, and
+// Exactness: a horizontal ray from (u, v) to +u crosses a v-monotone piece at most once, and
 // counting a piece only when v lies in the half-open range [min, max) of its end v's makes the
 // count right at shared vertices and for horizontal pieces (the classic polygon rule, applied to
 // curved pieces). Consecutive pieces share their end points bit for bit (gaps, even of one ulp,
 // are closed by straight pieces), so every loop is a closed chain and the parity is exact up to
-// the rounding of the crossing's position.
+// the rounding of the crossing's position (and the 1e-14 x scale tolerance of the monotonicity
+// test).
+//
+// Grid: cells met by a loop (found by subdividing its pieces down to cell size, with a margin
+// for the rounding of the cell mapping) are `boundary`; every other cell holds no loop point,
+// so it is uniformly inside or outside, decided once by a sweep along the row's centre line.
+// contains() answers from the cell unless it is a boundary cell; classify() sums cells with 2-D
+// prefix sums. Cost measured in tests/engine/trim_region_test.cpp (ReportQueryCost).
 
 #include <algorithm>
-#include <cassert>
 #include <cfloat>
 #include <cmath>
 #include <limits>
@@ -24,10 +30,13 @@ namespace {
 
 using Piece = TrimRegion::Piece;
 
-constexpr int kMaxSplitDepth = 48;   // monotone splitting during construction
-constexpr int kMaxSearchDepth = 64;  // crossing search per query
+constexpr int kMaxSplitDepth = 48;    // monotone splitting during construction
+constexpr int kMaxSearchDepth = 64;   // crossing_u (construction)
+constexpr int kMaxSearchSteps = 200;  // crossing search per query
+constexpr int kMaxMarkDepth = 30;     // boundary-cell marking
 constexpr int kMinCellsPerSide = 16;
-constexpr int kMaxCellsPerSide = 512;
+// Memory: about 9 bytes per cell (class + two prefix sums), 0.6 MB at the cap.
+constexpr int kMaxCellsPerSide = 256;
 
 double euclid_u(const Vec3& p) {
   return p.x() / p.z();
@@ -56,8 +65,11 @@ Piece make_piece(const Vec3* cw, int degree) {
   p.degree = degree;
   p.u_lo = std::numeric_limits<double>::infinity();
   p.u_hi = -p.u_lo;
+  double binomial = 1.0;  // C(degree, i)
   for (int i = 0; i <= degree; ++i) {
     p.cw[i] = cw[i];
+    p.cb[i] = binomial * cw[i];
+    binomial = binomial * (degree - i) / (i + 1);
     const double u = euclid_u(cw[i]);
     p.u_lo = std::min(p.u_lo, u);
     p.u_hi = std::max(p.u_hi, u);
@@ -99,40 +111,67 @@ double piece_v_max_cp(const Piece& p) {
   return hi;
 }
 
+// Homogeneous point of the piece at t, up to a positive factor (only ratios are used):
+// Bernstein Horner in s = t / (1 - t) or (1 - t) / t, whichever is <= 1. O(degree).
+Vec3 scaled_point(const Piece& p, double t) {
+  const int n = p.degree;
+  Vec3 acc;
+  if (t <= 0.5) {
+    const double s = t / (1.0 - t);
+    acc = p.cb[n];
+    for (int i = n - 1; i >= 0; --i)
+      acc = acc * s + p.cb[i];
+  } else {
+    const double r = (1.0 - t) / t;
+    acc = p.cb[0];
+    for (int i = 1; i <= n; ++i)
+      acc = acc * r + p.cb[i];
+  }
+  return acc;
+}
+
 // Is the crossing of the piece with the line v = const (v in the piece's half-open v range)
-// right of u? Subdivides the piece, keeping the half that holds the crossing, until the
-// control points' u lie on one side of u (convex hull property). No allocation.
+// right of u? The piece is monotone in u and v, so on a bracket [ta, tb] of the crossing its u
+// range is [u(ta), u(tb)]: the bracket is narrowed (Illinois variant of regula falsi on
+// v(t) - v) until that range lies on one side of u. No allocation.
 bool crossing_right_of(const Piece& p, double u, double v) {
-  if (p.u_hi < u) return false;
-  if (p.u_lo > u) return true;
+  double ua = p.u_start, ub = p.u_end;
+  if (u < std::min(ua, ub)) return true;
+  if (u > std::max(ua, ub)) return false;
   if (p.degree == 1) {
     // A rational line is the segment between its end points whatever its weights.
     const double s = (v - p.v_start) / (p.v_end - p.v_start);
     return p.u_start + s * (p.u_end - p.u_start) > u;
   }
-  const int n = p.degree;
-  const bool increasing = p.v_end > p.v_start;
-  Vec3 a[kMaxDegree + 1], left[kMaxDegree + 1], right[kMaxDegree + 1];
-  for (int i = 0; i <= n; ++i)
-    a[i] = p.cw[i];
-  for (int depth = 0; depth < kMaxSearchDepth; ++depth) {
-    halve(a, n, left, right);
-    const Vec3& mid = left[n];
-    // w > 0: compare without dividing.
-    const bool in_left = increasing ? v * mid.z() < mid.y() : v * mid.z() > mid.y();
-    const Vec3* half = in_left ? left : right;
-    bool all_left = true, all_right = true;
-    for (int i = 0; i <= n; ++i) {
-      const double d = half[i].x() - u * half[i].z();
-      all_left = all_left && d < 0.0;
-      all_right = all_right && d > 0.0;
+  double ta = 0.0, tb = 1.0;
+  double fa = p.v_start - v, fb = p.v_end - v;  // opposite signs (or fa == 0)
+  if (fa == 0.0) return ua > u;
+  if (fb == 0.0) return ub > u;
+  int side = 0;
+  for (int it = 0; it < kMaxSearchSteps; ++it) {
+    double t = (ta * fb - tb * fa) / (fb - fa);
+    if (!(t > ta && t < tb)) t = 0.5 * (ta + tb);
+    if (!(t > ta && t < tb)) break;  // the bracket is one ulp wide
+    const Vec3 q = scaled_point(p, t);
+    const double ut = q.x() / q.z(), ft = q.y() / q.z() - v;
+    if (ft == 0.0) return ut > u;
+    if ((ft > 0.0) == (fb > 0.0)) {
+      tb = t;
+      ub = ut;
+      fb = ft;
+      if (side == -1) fa *= 0.5;
+      side = -1;
+    } else {
+      ta = t;
+      ua = ut;
+      fa = ft;
+      if (side == 1) fb *= 0.5;
+      side = 1;
     }
-    if (all_left) return false;
-    if (all_right) return true;
-    for (int i = 0; i <= n; ++i)
-      a[i] = half[i];
+    if (u < std::min(ua, ub)) return true;
+    if (u > std::max(ua, ub)) return false;
   }
-  return euclid_u(a[0]) > u;  // the point is on the loop to rounding: either answer
+  return 0.5 * (ua + ub) > u;  // (u, v) is on the loop to rounding: either answer
 }
 
 // u of the piece's crossing with the line v = const (construction only).
@@ -157,14 +196,15 @@ double crossing_u(const Piece& p, double v) {
   return euclid_u(a[0]);
 }
 
-// Cuts 2-D rational Bézier curves (homogeneous (w u, w v, w)) into v-monotone pieces.
+// Cuts 2-D rational Bézier curves (homogeneous (w u, w v, w)) into pieces monotone in v and
+// in u: v monotone makes a horizontal line meet a piece at most once; u monotone makes the u
+// range of any part of a piece the range of its end points (the query's cheap bracket test).
 class MonotoneSplitter {
  public:
-  MonotoneSplitter(double v_tolerance, double tiny) : v_tolerance_(v_tolerance), tiny_(tiny) {}
+  MonotoneSplitter(double tolerance, double tiny) : tolerance_(tolerance), tiny_(tiny) {}
 
   void add(const BezierCurve& curve, std::vector<Piece>& out) const {
     BezierCurve c2 = curve;
-    // (w x, w y, w z, w) -> (w u, w v, w) in the first three slots; the 4th is kept as is.
     for (int i = 0; i <= c2.degree; ++i)
       c2.cw[i] = Vec4(curve.cw[i][0], curve.cw[i][1], 0.0, curve.cw[i][3]);
     split(c2, 0, out);
@@ -173,48 +213,46 @@ class MonotoneSplitter {
  private:
   static Vec3 h(const BezierCurve& c, int i) { return Vec3(c.cw[i][0], c.cw[i][1], c.cw[i][3]); }
 
-  bool monotone(const BezierCurve& c) const {
+  // Are the control points' coordinates `axis` (0: u, 1: v) monotone (to rounding)?
+  bool monotone(const BezierCurve& c, int axis) const {
     bool up = true, down = true;
     for (int i = 1; i <= c.degree; ++i) {
-      const double d = c.cw[i][1] / c.cw[i][3] - c.cw[i - 1][1] / c.cw[i - 1][3];
-      up = up && d >= -v_tolerance_;
-      down = down && d <= v_tolerance_;
+      const double d = c.cw[i][axis] / c.cw[i][3] - c.cw[i - 1][axis] / c.cw[i - 1][3];
+      up = up && d >= -tolerance_;
+      down = down && d <= tolerance_;
     }
     return up || down;
   }
 
-  // Sign of dv/dt at t (the sign of Y' W - Y W').
-  static double v_slope(const BezierCurve& c, double t) {
+  static double slope(const BezierCurve& c, double t, int axis) {
     Vec3 d[2];
     c.derivatives(t, 1, d);
-    return d[1].y();
+    return d[1][axis];
   }
 
-  // A parameter in (0, 1) where v has an extremum, or 0.5 when none is found by sampling.
-  static double split_parameter(const BezierCurve& c) {
+  // A parameter in (0, 1) where coordinate `axis` has an extremum (sign change of its
+  // derivative found by sampling, then bisection), or 0.5 when sampling finds none.
+  static double split_parameter(const BezierCurve& c, int axis) {
     const int samples = 4 * c.degree + 4;
-    double t_prev = 0.0, s_prev = v_slope(c, 0.0);
+    double t_prev = 0.0, s_prev = slope(c, 0.0, axis);
     for (int k = 1; k <= samples; ++k) {
       const double t = static_cast<double>(k) / samples;
-      const double s = v_slope(c, t);
+      const double s = slope(c, t, axis);
       if (s_prev != 0.0 && s != 0.0 && (s > 0.0) != (s_prev > 0.0)) {
         double lo = t_prev, hi = t;
-        for (int it = 0; it < 60; ++it) {
+        for (int it = 0; it < 60 && hi - lo > 1e-15; ++it) {
           const double mid = 0.5 * (lo + hi);
-          const double sm = v_slope(c, mid);
+          const double sm = slope(c, mid, axis);
           if (sm == 0.0) {
             lo = hi = mid;
-            break;
-          }
-          if ((sm > 0.0) == (s_prev > 0.0)) {
+          } else if ((sm > 0.0) == (s_prev > 0.0)) {
             lo = mid;
           } else {
             hi = mid;
           }
         }
         const double root = 0.5 * (lo + hi);
-        if (root > 1e-6 && root < 1.0 - 1e-6) return root;
-        return 0.5;
+        return root > 1e-6 && root < 1.0 - 1e-6 ? root : 0.5;
       }
       if (s != 0.0) {
         t_prev = t;
@@ -228,7 +266,8 @@ class MonotoneSplitter {
     Vec3 cw[kMaxDegree + 1];
     for (int i = 0; i <= c.degree; ++i)
       cw[i] = h(c, i);
-    if (c.degree == 1 || monotone(c)) {
+    const bool v_monotone = monotone(c, 1);
+    if (c.degree == 1 || (v_monotone && monotone(c, 0))) {
       out.push_back(make_piece(cw, c.degree));
       return;
     }
@@ -247,12 +286,12 @@ class MonotoneSplitter {
       return;
     }
     BezierCurve left, right;
-    c.split(split_parameter(c), left, right);
+    c.split(split_parameter(c, v_monotone ? 0 : 1), left, right);
     split(left, depth + 1, out);
     split(right, depth + 1, out);
   }
 
-  double v_tolerance_, tiny_;
+  double tolerance_, tiny_;
 };
 
 }  // namespace
@@ -359,52 +398,24 @@ TrimRegion::TrimRegion(const NurbsSurface& surface) {
 
   const std::size_t cells = static_cast<std::size_t>(cells_u_) * cells_v_;
   cell_class_.assign(cells, static_cast<std::uint8_t>(RegionClass::outside));
-  std::vector<std::int32_t> row_count(cells_v_ + 1, 0);
-  struct CellRange {
-    int i0, i1, j0, j1;
-    bool misses_rows;   // v range misses the box: never met by a ray from inside it
-    bool misses_cells;  // also (or only) u range misses the box
-  };
-  std::vector<CellRange> ranges(pieces_.size());
+  // Boundary cells and row lists: each piece is subdivided (construction only) until its
+  // sub-pieces' control boxes span at most two cells each way, so the marked cells hug the
+  // curve instead of its whole control box.
+  std::vector<std::pair<std::int32_t, std::int32_t>> row_entries;  // (row, piece)
   for (std::size_t k = 0; k < pieces_.size(); ++k) {
-    const Piece& p = pieces_[k];
-    const double vlo = piece_v_min_cp(p), vhi = piece_v_max_cp(p);
-    CellRange r{};
-    // A piece left of the box is never right of a query point; one right of it (outside the
-    // domain) still counts for the rays.
-    r.misses_rows = vlo - eps_v > dv_.hi || vhi + eps_v < dv_.lo || p.u_hi + eps_u < du_.lo;
-    r.misses_cells = r.misses_rows || p.u_lo - eps_u > du_.hi;
-    r.i0 = cell_u(std::max(p.u_lo - eps_u, du_.lo));
-    r.i1 = cell_u(std::min(p.u_hi + eps_u, du_.hi));
-    r.j0 = cell_v(std::max(vlo - eps_v, dv_.lo));
-    r.j1 = cell_v(std::min(vhi + eps_v, dv_.hi));
-    ranges[k] = r;
-    if (r.misses_rows) continue;
-    if (!r.misses_cells) {
-      for (int i = r.i0; i <= r.i1; ++i) {
-        for (int j = r.j0; j <= r.j1; ++j)
-          cell_class_[static_cast<std::size_t>(i) * cells_v_ + j] =
-              static_cast<std::uint8_t>(RegionClass::boundary);
-      }
-    }
-    for (int j = r.j0; j <= r.j1; ++j)
-      ++row_count[j + 1];
+    mark_piece(pieces_[k].cw.data(), pieces_[k].degree, static_cast<std::int32_t>(k), 0, eps_u,
+               eps_v, row_entries);
   }
-  // Row lists (CSR). A piece whose v range misses the box never has v in its range for a
-  // query inside the box, so it is left out.
+  std::sort(row_entries.begin(), row_entries.end());
+  row_entries.erase(std::unique(row_entries.begin(), row_entries.end()), row_entries.end());
   row_first_.assign(cells_v_ + 1, 0);
-  for (int j = 0; j < cells_v_; ++j)
-    row_first_[j + 1] = row_first_[j] + row_count[j + 1];
-  row_pieces_.assign(row_first_.back(), 0);
-  {
-    std::vector<std::int32_t> fill(row_first_.begin(), row_first_.end() - 1);
-    for (std::size_t k = 0; k < pieces_.size(); ++k) {
-      const CellRange& r = ranges[k];
-      if (r.misses_rows) continue;
-      for (int j = r.j0; j <= r.j1; ++j)
-        row_pieces_[fill[j]++] = static_cast<std::int32_t>(k);
-    }
-  }
+  for (const auto& [row, piece] : row_entries)
+    ++row_first_[row + 1];
+  for (int r = 0; r < cells_v_; ++r)
+    row_first_[r + 1] += row_first_[r];
+  row_pieces_.clear();
+  for (const auto& [row, piece] : row_entries)
+    row_pieces_.push_back(piece);
 
   // 3. Inside/outside of the other cells: one sweep per row along its centre line.
   std::vector<double> crossings;
@@ -444,6 +455,45 @@ TrimRegion::TrimRegion(const NurbsSurface& surface) {
   }
 }
 
+// Marks the cells met by the homogeneous piece a[0..n] (or by its control box once that is
+// small) as boundary and lists the piece in the rows it meets. A sub-piece left of the grid box
+// is dropped (never right of a query point); one right of it (outside the domain) is listed in
+// its rows (rays cross it) but marks no cell.
+void TrimRegion::mark_piece(const Vec3* a, int n, std::int32_t piece, int depth, double eps_u,
+                            double eps_v,
+                            std::vector<std::pair<std::int32_t, std::int32_t>>& rows) {
+  double u_lo = std::numeric_limits<double>::infinity(), u_hi = -u_lo, v_lo = u_lo, v_hi = -u_lo;
+  for (int i = 0; i <= n; ++i) {
+    const double u = euclid_u(a[i]), v = euclid_v(a[i]);
+    u_lo = std::min(u_lo, u);
+    u_hi = std::max(u_hi, u);
+    v_lo = std::min(v_lo, v);
+    v_hi = std::max(v_hi, v);
+  }
+  u_lo -= eps_u;
+  u_hi += eps_u;
+  v_lo -= eps_v;
+  v_hi += eps_v;
+  if (u_hi < du_.lo || v_hi < dv_.lo || v_lo > dv_.hi) return;
+  const int j0 = cell_v(std::max(v_lo, dv_.lo)), j1 = cell_v(std::min(v_hi, dv_.hi));
+  const bool right_of_box = u_lo > du_.hi;
+  const int i0 = cell_u(std::max(u_lo, du_.lo)), i1 = cell_u(std::min(u_hi, du_.hi));
+  if (right_of_box || depth >= kMaxMarkDepth || (i1 - i0 <= 1 && j1 - j0 <= 1)) {
+    for (int j = j0; j <= j1; ++j) {
+      rows.emplace_back(j, piece);
+      if (right_of_box) continue;
+      for (int i = i0; i <= i1; ++i)
+        cell_class_[static_cast<std::size_t>(i) * cells_v_ + j] =
+            static_cast<std::uint8_t>(RegionClass::boundary);
+    }
+    return;
+  }
+  Vec3 left[kMaxDegree + 1], right[kMaxDegree + 1];
+  halve(a, n, left, right);
+  mark_piece(left, n, piece, depth + 1, eps_u, eps_v, rows);
+  mark_piece(right, n, piece, depth + 1, eps_u, eps_v, rows);
+}
+
 std::size_t TrimRegion::piece_count() const {
   return pieces_.size();
 }
@@ -469,7 +519,10 @@ bool TrimRegion::contains(double u, double v) const {
 }
 
 RegionClass TrimRegion::classify(double u0, double u1, double v0, double v1) const {
-  if (cells_u_ == 0) return RegionClass::outside;
+  if (std::isnan(u0) || std::isnan(u1) || std::isnan(v0) || std::isnan(v1)) {
+    return RegionClass::boundary;
+  }
+  if (cells_u_ == 0 || u0 > u1 || v0 > v1) return RegionClass::outside;  // (empty box)
   if (u1 < du_.lo || u0 > du_.hi || v1 < dv_.lo || v0 > dv_.hi) return RegionClass::outside;
   // Parts of the box beyond the grid box are outside the region.
   const bool beyond = u0 < du_.lo || u1 > du_.hi || v0 < dv_.lo || v1 > dv_.hi;

@@ -1,15 +1,18 @@
 #include "cad_face_conversion.hpp"
 
+#include <Adaptor3d_CurveOnSurface.hxx>
 #include <BRepAdaptor_Surface.hxx>
 #include <BRepBuilderAPI_NurbsConvert.hxx>
 #include <BRepTools_WireExplorer.hxx>
 #include <BRep_Tool.hxx>
+#include <Geom2dAdaptor_Curve.hxx>
 #include <Geom2dConvert.hxx>
 #include <Geom2dConvert_ApproxCurve.hxx>
 #include <Geom2d_BSplineCurve.hxx>
 #include <Geom2d_BezierCurve.hxx>
 #include <Geom2d_Line.hxx>
 #include <Geom2d_TrimmedCurve.hxx>
+#include <GeomAdaptor_Surface.hxx>
 #include <GeomConvert.hxx>
 #include <GeomConvert_ApproxCurve.hxx>
 #include <GeomConvert_ApproxSurface.hxx>
@@ -27,6 +30,7 @@
 #include <TopoDS_Edge.hxx>
 #include <TopoDS_Wire.hxx>
 #include <algorithm>
+#include <limits>
 #include <stdexcept>
 
 namespace nurbsreg::io::cad_detail {
@@ -150,8 +154,16 @@ void reverse(engine::NurbsCurve& c) {
   std::reverse(c.weights.begin(), c.weights.end());
 }
 
+// The B-spline geometry behind an engine surface, and its periods before SetNotPeriodic
+// (0: not periodic).
+struct SurfaceGeometry {
+  Handle(Geom_BSplineSurface) bspline;
+  double period_u = 0;
+  double period_v = 0;
+};
+
 engine::NurbsSurface surface_of(const TopoDS_Face& converted, double tolerance,
-                                int& approximations) {
+                                int& approximations, SurfaceGeometry& geometry) {
   Handle(Geom_Surface) surface = BRep_Tool::Surface(converted);  // located copy
   while (const auto t = Handle(Geom_RectangularTrimmedSurface)::DownCast(surface))
     surface = t->BasisSurface();
@@ -163,8 +175,14 @@ engine::NurbsSurface surface_of(const TopoDS_Face& converted, double tolerance,
                         surface->DynamicType()->Name());
   }
   bspline = Handle(Geom_BSplineSurface)::DownCast(bspline->Copy());
-  if (bspline->IsUPeriodic()) bspline->SetUNotPeriodic();
-  if (bspline->IsVPeriodic()) bspline->SetVNotPeriodic();
+  if (bspline->IsUPeriodic()) {
+    geometry.period_u = bspline->UPeriod();
+    bspline->SetUNotPeriodic();
+  }
+  if (bspline->IsVPeriodic()) {
+    geometry.period_v = bspline->VPeriod();
+    bspline->SetVNotPeriodic();
+  }
   if (bspline->UDegree() > engine::kMaxDegree || bspline->VDegree() > engine::kMaxDegree) {
     GeomConvert_ApproxSurface approx(bspline, tolerance, GeomAbs_C2, GeomAbs_C2,
                                      engine::kMaxDegree, engine::kMaxDegree, 1000, 0);
@@ -177,6 +195,7 @@ engine::NurbsSurface surface_of(const TopoDS_Face& converted, double tolerance,
     bspline = approx.Surface();
     ++approximations;
   }
+  geometry.bspline = bspline;
   engine::NurbsSurface s;
   s.degree_u = bspline->UDegree();
   s.degree_v = bspline->VDegree();
@@ -195,14 +214,63 @@ engine::NurbsSurface surface_of(const TopoDS_Face& converted, double tolerance,
   return s;
 }
 
+// The largest distance between edge(t) and S(uv(t)) over 33 parameters evenly spread.
+double edge_gap(const engine::TrimCurve& c, const engine::NurbsSurface& s) {
+  const engine::ParamInterval d = c.uv.domain();
+  double worst = 0;
+  for (int k = 0; k <= 32; ++k) {
+    const double t = d.lo + (d.hi - d.lo) * k / 32;
+    const engine::Vec3 uv = c.uv.evaluate(t);
+    worst = std::max(worst, (c.edge->evaluate(t) - s.evaluate(uv.x(), uv.y())).norm());
+  }
+  return worst;
+}
+
 // One edge use of a wire: uv curve and 3-D edge on the same domain, oriented along the wire.
-engine::TrimCurve trim_curve(const TopoDS_Edge& edge, const TopoDS_Face& face, double tolerance,
-                             double uv_tolerance, FaceConversion& result) {
+// The engine reports (u, v) = uv(t) for a foot point edge(t), so the two must agree: a file's
+// 3-D curve farther than `tolerance` from S(uv(t)) (CAD edges are only within their own,
+// often much looser, tolerance) is replaced by S(uv(t)) itself, approximated within
+// `tolerance` in the uv curve's parameter. Counted in result.rebuilt_edges.
+// On a periodic surface a pcurve may run a whole number of periods away from the domain the
+// non-periodic surface has: translate it back (exact). Returns whether the curve still leaves
+// the domain (then S(uv) clamps there and cannot follow the file's edge).
+bool shift_into_domain(Geom2d_BSplineCurve& uv, const engine::NurbsSurface& s,
+                       const SurfaceGeometry& geometry) {
+  double lo[2] = {1e300, 1e300}, hi[2] = {-1e300, -1e300};
+  for (int k = 0; k <= 32; ++k) {
+    const gp_Pnt2d p =
+        uv.Value(uv.FirstParameter() + (uv.LastParameter() - uv.FirstParameter()) * k / 32);
+    lo[0] = std::min(lo[0], p.X()), hi[0] = std::max(hi[0], p.X());
+    lo[1] = std::min(lo[1], p.Y()), hi[1] = std::max(hi[1], p.Y());
+  }
+  const engine::ParamInterval domain[2] = {s.domain_u(), s.domain_v()};
+  const double period[2] = {geometry.period_u, geometry.period_v};
+  bool outside = false;
+  for (int a = 0; a < 2; ++a) {
+    const double slack = 1e-9 * std::max(1.0, domain[a].hi - domain[a].lo);
+    if (period[a] > 0 && (lo[a] < domain[a].lo - slack || hi[a] > domain[a].hi + slack)) {
+      const double shift = -period[a] * std::floor((lo[a] - domain[a].lo + slack) / period[a]);
+      if (shift != 0) {
+        uv.Translate(a == 0 ? gp_Vec2d(shift, 0) : gp_Vec2d(0, shift));
+        lo[a] += shift, hi[a] += shift;
+      }
+    }
+    outside = outside || lo[a] < domain[a].lo - slack || hi[a] > domain[a].hi + slack;
+  }
+  return outside;
+}
+
+engine::TrimCurve trim_curve(const TopoDS_Edge& edge, const TopoDS_Face& face,
+                             const engine::NurbsSurface& s, const SurfaceGeometry& geometry,
+                             double tolerance, double uv_tolerance, FaceConversion& result) {
   double first = 0, last = 0;
   const Handle(Geom2d_Curve) pcurve = BRep_Tool::CurveOnSurface(edge, face, first, last);
   if (pcurve.IsNull()) throw Unconvertible("an edge has no curve on the face (pcurve)");
   engine::TrimCurve out;
-  out.uv = to_engine(*uv_bspline(pcurve, first, last, uv_tolerance, result.approximations));
+  const Handle(Geom2d_BSplineCurve) uv =
+      uv_bspline(pcurve, first, last, uv_tolerance, result.approximations);
+  if (shift_into_domain(*uv, s, geometry)) ++result.uv_outside_domain;
+  out.uv = to_engine(*uv);
   const engine::ParamInterval domain = out.uv.domain();
   if (BRep_Tool::Degenerated(edge)) {
     // A pole: the whole uv curve maps to one point.
@@ -216,9 +284,35 @@ engine::TrimCurve trim_curve(const TopoDS_Edge& edge, const TopoDS_Face& face, d
   } else {
     double first3 = 0, last3 = 0;
     const Handle(Geom_Curve) curve = BRep_Tool::Curve(edge, first3, last3);  // located copy
-    if (curve.IsNull()) throw Unconvertible("an edge has no 3-D curve");
-    out.edge = to_engine(*edge_bspline(curve, first3, last3, tolerance, result.approximations));
-    map_domain(*out.edge, domain.lo, domain.hi);
+    if (!curve.IsNull()) {
+      out.edge = to_engine(*edge_bspline(curve, first3, last3, tolerance, result.approximations));
+      map_domain(*out.edge, domain.lo, domain.hi);
+    }
+    if (curve.IsNull() || edge_gap(out, s) > tolerance) {
+      const Handle(Adaptor3d_Curve) on_surface = new Adaptor3d_CurveOnSurface(
+          new Geom2dAdaptor_Curve(uv), new GeomAdaptor_Surface(geometry.bspline));
+      // C1 first (fewer pieces); C0 where the uv curve itself has kinks. OCCT's own error
+      // estimate is checked on our side (33 samples); the closest candidate is kept.
+      double best = out.edge ? edge_gap(out, s) : std::numeric_limits<double>::infinity();
+      const double file_gap = best;
+      for (const GeomAbs_Shape order : {GeomAbs_C1, GeomAbs_C0}) {
+        GeomConvert_ApproxCurve approx(on_surface, tolerance, order, 2000, engine::kMaxDegree);
+        if (!approx.HasResult()) continue;
+        engine::TrimCurve candidate{out.uv, to_engine(*approx.Curve())};
+        map_domain(*candidate.edge, domain.lo, domain.hi);  // rounding only: same parameter
+        const double gap = edge_gap(candidate, s);
+        if (gap < best) {
+          best = gap;
+          out.edge = std::move(candidate.edge);
+        }
+        if (gap <= tolerance) break;
+      }
+      if (!out.edge) {
+        throw Unconvertible("an edge has no 3-D curve and S(uv(t)) cannot be approximated");
+      }
+      if (best < file_gap) ++result.rebuilt_edges;
+      if (best > tolerance) ++result.inconsistent_edges;
+    }
   }
   if (edge.Orientation() == TopAbs_REVERSED) {
     reverse(out.uv);
@@ -237,7 +331,8 @@ std::string surface_type(const TopoDS_Face& face) {
 
 }  // namespace
 
-FaceConversion convert_face(const TopoDS_Face& face, double tolerance) {
+FaceConversion convert_face(const TopoDS_Face& face, const TopoDS_Face* nurbs_face,
+                            double tolerance) {
   FaceConversion result;
   try {
     result.surface_type = surface_type(face);
@@ -247,10 +342,19 @@ FaceConversion convert_face(const TopoDS_Face& face, double tolerance) {
     // NurbsConvert makes the surface a B-spline (infinite ones bounded by the face) and
     // recomputes the pcurves in the new parameterisation. The face is explored FORWARD: the
     // engine's even-odd rule ignores loop direction, and `reversed` carries the orientation.
-    BRepBuilderAPI_NurbsConvert convert(face, Standard_True);
-    if (!convert.IsDone()) throw Unconvertible("OCCT's NURBS conversion failed");
-    const TopoDS_Face converted = TopoDS::Face(convert.Shape().Oriented(TopAbs_FORWARD));
-    engine::NurbsSurface s = surface_of(converted, tolerance, result.approximations);
+    // B-spline and Bézier faces are used as they are: their surfaces keep their parameter, so
+    // their pcurves are already right (NurbsConvert would only spend time re-checking them).
+    TopoDS_Face converted = face;
+    if (result.analytic && nurbs_face != nullptr) {
+      converted = *nurbs_face;
+    } else if (result.analytic) {
+      BRepBuilderAPI_NurbsConvert convert(face, Standard_True);
+      if (!convert.IsDone()) throw Unconvertible("OCCT's NURBS conversion failed");
+      converted = TopoDS::Face(convert.Shape());
+    }
+    converted.Orientation(TopAbs_FORWARD);
+    SurfaceGeometry geometry;
+    engine::NurbsSurface s = surface_of(converted, tolerance, result.approximations, geometry);
     s.reversed = face.Orientation() == TopAbs_REVERSED;
     BRepAdaptor_Surface adaptor(converted, Standard_False);
     const double uv_tolerance =
@@ -259,8 +363,8 @@ FaceConversion convert_face(const TopoDS_Face& face, double tolerance) {
       engine::TrimLoop loop;
       for (BRepTools_WireExplorer edges(TopoDS::Wire(wires.Current()), converted); edges.More();
            edges.Next()) {
-        loop.curves.push_back(trim_curve(edges.Current(), converted, tolerance, uv_tolerance,
-                                         result));
+        loop.curves.push_back(trim_curve(edges.Current(), converted, s, geometry, tolerance,
+                                         uv_tolerance, result));
       }
       if (!loop.curves.empty()) s.trim_loops.push_back(std::move(loop));
     }

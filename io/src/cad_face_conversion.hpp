@@ -16,10 +16,16 @@ struct FaceConversion {
   bool analytic = false;     // the original surface was not a B-spline or Bezier surface
   int approximations = 0;
   int degenerated_edges = 0;
+  int rebuilt_edges = 0;       // 3-D edges replaced by S(uv(t)) (the file's was off the face)
+  int inconsistent_edges = 0;  // kept off by more than the tolerance (no approximation found)
+  int uv_outside_domain = 0;   // uv curves leaving the surface's domain (S clamps there)
 };
 
-// Converts `face` (as found in the shape, with its location and orientation). `tolerance` is
-// the absolute 3-D error allowed for approximations (degree reduction). Never throws.
-FaceConversion convert_face(const TopoDS_Face& face, double tolerance);
+// Converts `face` (as found in the shape, with its location and orientation). `nurbs_face`,
+// when given, is the face after BRepBuilderAPI_NurbsConvert of the whole shape (used for
+// analytic faces; without it they are converted one by one). `tolerance` is the absolute 3-D
+// error allowed for approximations. Never throws.
+FaceConversion convert_face(const TopoDS_Face& face, const TopoDS_Face* nurbs_face,
+                            double tolerance);
 
 }  // namespace nurbsreg::io::cad_detail

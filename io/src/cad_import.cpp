@@ -1,12 +1,22 @@
 #include "nurbsreg/io/cad_import.hpp"
 
+// OCCT's readers crash (SIGSEGV) on some malformed files, e.g. a truncated IGES B-spline entity.
+// With this macro, OCC_CATCH_SIGNALS turns such a signal inside an import into a C++ exception
+// (Debian builds OCCT with it too); see guarded() below.
+#ifndef OCC_CONVERT_SIGNALS
+#define OCC_CONVERT_SIGNALS
+#endif
+
 #include <BRepBndLib.hxx>
+#include <BRepBuilderAPI_NurbsConvert.hxx>
 #include <Bnd_Box.hxx>
 #include <IFSelect_ReturnStatus.hxx>
 #include <IGESControl_Reader.hxx>
 #include <IGESData_IGESModel.hxx>
 #include <Message.hxx>
 #include <Message_Messenger.hxx>
+#include <OSD.hxx>
+#include <Standard_ErrorHandler.hxx>
 #include <STEPControl_Reader.hxx>
 #include <Standard_Failure.hxx>
 #include <TColStd_SequenceOfAsciiString.hxx>
@@ -18,9 +28,10 @@
 #include <cctype>
 #include <cmath>
 #include <filesystem>
+#include <fstream>
+#include <csignal>
 #include <mutex>
-#include <chrono>
-#include <cstdio>
+#include <optional>
 
 #include "cad_face_conversion.hpp"
 #include "nurbsreg/io/errors.hpp"
@@ -58,6 +69,27 @@ void check_readable(const std::string& path) {
   if (std::filesystem::file_size(path, ec) == 0) throw InputError(path, "the file is empty");
 }
 
+// An IGES file ends with its Terminate section (one record with 'T' in column 73). OCCT reads a
+// cut-off file without complaint and returns the entities before the cut; say it instead.
+void check_iges_complete(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  in.seekg(0, std::ios::end);
+  const std::streamoff size = in.tellg();
+  const std::streamoff tail = std::min<std::streamoff>(size, 400);
+  std::string text(static_cast<std::size_t>(tail), '\0');
+  in.seekg(size - tail);
+  in.read(text.data(), tail);
+  while (!text.empty() && std::isspace(static_cast<unsigned char>(text.back())))
+    text.pop_back();
+  const std::size_t start = text.find_last_of('\n') + 1;  // npos + 1 == 0
+  const std::string last = text.substr(start);
+  if (last.size() < 73 || last[72] != 'T') {
+    throw InputError(path,
+                     "truncated or not an IGES file: the last record is not the Terminate "
+                     "section (a 'T' record)");
+  }
+}
+
 double diagonal_of(const TopoDS_Shape& shape) {
   Bnd_Box box;
   BRepBndLib::Add(shape, box, Standard_False);
@@ -77,11 +109,32 @@ engine::Model convert_shape(const std::string& path, const TopoDS_Shape& shape,
   // Approximations (degree reduction only) stay within 1e-9 of the model's size.
   const double tolerance = 1e-9 * std::max(report.diagonal, 1.0);
 
+  // Analytic faces become B-splines by one NurbsConvert of the whole shape: an edge shared by
+  // two faces is converted once (face by face would do it twice). If OCCT fails on the whole,
+  // the faces are converted one by one so that only the failing ones are skipped.
+  std::optional<BRepBuilderAPI_NurbsConvert> whole;
+  try {
+    whole.emplace(shape, Standard_True);
+    if (!whole->IsDone()) whole.reset();
+  } catch (const Standard_Failure&) {
+    whole.reset();
+  }
+
   engine::Model model;
   model.units = "mm";  // OCCT's readers convert lengths to millimetres
   for (int i = 1; i <= faces.Extent(); ++i) {
     const int index = i - 1;
-    cad_detail::FaceConversion c = cad_detail::convert_face(TopoDS::Face(faces(i)), tolerance);
+    const TopoDS_Face& face = TopoDS::Face(faces(i));
+    std::optional<TopoDS_Face> nurbs_face;
+    if (whole) {
+      try {
+        const TopoDS_Shape& modified = whole->ModifiedShape(face);
+        if (modified.ShapeType() == TopAbs_FACE) nurbs_face = TopoDS::Face(modified);
+      } catch (const Standard_Failure&) {
+      }
+    }
+    cad_detail::FaceConversion c =
+        cad_detail::convert_face(face, nurbs_face ? &*nurbs_face : nullptr, tolerance);
     ++report.surface_types[c.surface_type.empty() ? "unknown" : c.surface_type];
     if (!c.surface) {
       model.skipped_faces.push_back({index, c.error});
@@ -92,6 +145,9 @@ engine::Model convert_shape(const std::string& path, const TopoDS_Shape& shape,
     if (c.analytic) ++report.analytic_faces;
     report.approximations += static_cast<std::size_t>(c.approximations);
     report.degenerated_edges += static_cast<std::size_t>(c.degenerated_edges);
+    report.rebuilt_edges += static_cast<std::size_t>(c.rebuilt_edges);
+    report.inconsistent_edges += static_cast<std::size_t>(c.inconsistent_edges);
+    report.uv_outside_domain += static_cast<std::size_t>(c.uv_outside_domain);
     report.surface_faces.push_back(index);
     model.surfaces.push_back(std::move(*c.surface));
   }
@@ -113,7 +169,34 @@ TopoDS_Shape transfer(const std::string& path, Reader& reader) {
   return shape;
 }
 
-// Runs an import with OCCT's exceptions turned into InputError.
+// OCCT's signal handlers for the signals a reader bug raises, installed only while an import
+// runs (the previous handlers come back afterwards, so the rest of the program is unaffected).
+class CrashSignalsAsExceptions {
+ public:
+  CrashSignalsAsExceptions() {
+    for (int s = 1; s < NSIG; ++s)
+      saved_ok_[s] = sigaction(s, nullptr, &saved_[s]) == 0;
+    OSD::SetSignal(OSD_SignalMode_Set, Standard_False);
+    // Keep only the crash signals: Ctrl-C and friends stay the program's.
+    for (int s = 1; s < NSIG; ++s) {
+      if (!is_crash(s) && saved_ok_[s]) sigaction(s, &saved_[s], nullptr);
+    }
+  }
+  ~CrashSignalsAsExceptions() {
+    for (int s = 1; s < NSIG; ++s) {
+      if (is_crash(s) && saved_ok_[s]) sigaction(s, &saved_[s], nullptr);
+    }
+  }
+  CrashSignalsAsExceptions(const CrashSignalsAsExceptions&) = delete;
+  CrashSignalsAsExceptions& operator=(const CrashSignalsAsExceptions&) = delete;
+
+ private:
+  static bool is_crash(int s) { return s == SIGSEGV || s == SIGBUS || s == SIGFPE || s == SIGILL; }
+  struct sigaction saved_[NSIG] = {};
+  bool saved_ok_[NSIG] = {};
+};
+
+// Runs an import with OCCT's exceptions (and crashes inside OCCT) turned into InputError.
 template <class Import>
 engine::Model guarded(const std::string& path, CadImportReport* report, Import&& import) {
   check_readable(path);
@@ -124,11 +207,13 @@ engine::Model guarded(const std::string& path, CadImportReport* report, Import&&
   // OCCT's readers print progress ("Total number of loaded entities") to stdout, which belongs
   // to the CLI's results: silence the default messenger (warnings are reported our way).
   Message::DefaultMessenger()->ChangePrinters().Clear();
+  CrashSignalsAsExceptions signals;
   try {
+    OCC_CATCH_SIGNALS
     return import(r);
   } catch (const Standard_Failure& e) {
-    throw InputError(path, std::string("OpenCASCADE failed: ") + e.DynamicType()->Name() + ": " +
-                               e.GetMessageString());
+    throw InputError(path, std::string("OpenCASCADE failed on this file: ") +
+                               e.DynamicType()->Name() + ": " + e.GetMessageString());
   }
 }
 
@@ -138,9 +223,7 @@ engine::Model read_step(const std::string& path, CadImportReport* report) {
   return guarded(path, report, [&](CadImportReport& r) {
     r.format = "STEP";
     STEPControl_Reader reader;
-    auto t0 = std::chrono::steady_clock::now();
     const TopoDS_Shape shape = transfer(path, reader);
-    std::fprintf(stderr, "read %.2f\n", std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
     TColStd_SequenceOfAsciiString lengths, angles, solid_angles;
     reader.FileUnits(lengths, angles, solid_angles);
     if (!lengths.IsEmpty()) r.file_units = lengths.First().ToCString();
@@ -151,6 +234,7 @@ engine::Model read_step(const std::string& path, CadImportReport* report) {
 engine::Model read_iges(const std::string& path, CadImportReport* report) {
   return guarded(path, report, [&](CadImportReport& r) {
     r.format = "IGES";
+    check_iges_complete(path);
     IGESControl_Reader reader;
     const TopoDS_Shape shape = transfer(path, reader);
     const Handle(IGESData_IGESModel) model = reader.IGESModel();

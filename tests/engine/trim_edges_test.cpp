@@ -154,7 +154,31 @@ TEST_P(TrimEdgeImage, LinesThroughKnotIntersectionsAndAlongKnotLines) {
 INSTANTIATE_TEST_SUITE_P(Surfaces, TrimEdgeImage,
                          ::testing::Values(Case{1, 1, 5, 5, false}, Case{2, 2, 7, 7, true},
                                            Case{3, 3, 9, 9, false}, Case{3, 3, 9, 9, true},
-                                           Case{2, 5, 8, 9, true}, Case{6, 6, 9, 9, true}));
+                                           Case{2, 5, 8, 9, true}, Case{6, 6, 9, 9, true},
+                                           Case{2, 3, 30, 25, true}));
+
+// Unclamped knot vectors (domain [knots[p], knots[n]]), and lines leaving the domain (where S
+// clamps its parameters: the edge must follow).
+TEST(TrimEdges, UnclampedSurfaceAndLinesLeavingTheDomain) {
+  for (bool rational : {false, true}) {
+    NurbsSurface s = test::random_surface(rational ? 31 : 32, 3, 2, 8, 7, rational, false);
+    ASSERT_FALSE(s.validate()) << *s.validate();
+    const ParamInterval du = s.domain_u(), dv = s.domain_v();
+    std::mt19937_64 rng(13);
+    for (int k = 0; k < 5; ++k) {
+      std::vector<Vec2> pts;
+      for (int i = 0; i < 3; ++i)
+        pts.emplace_back(uniform(rng, du.lo, du.hi), uniform(rng, dv.lo, dv.hi));
+      expect_exact(s, uv_polyline(pts), "unclamped");
+    }
+    expect_exact(
+        s,
+        uv_polyline(
+            {{du.lo - 0.3, dv.lo + 0.1}, {du.hi + 0.2, dv.hi - 0.1}, {du.hi + 0.4, dv.hi + 0.3}}),
+        "leaving the domain");
+  }
+  report("unclamped");
+}
 
 TEST(TrimEdges, GivenEdgesPassThroughAndTooHighDegreeThrows) {
   NurbsSurface s = surface(7, 7, 6, 9, 9, true, true);

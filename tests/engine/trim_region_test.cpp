@@ -5,9 +5,9 @@
 // random boxes.
 #include <gtest/gtest.h>
 
-#include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <ctime>
 #include <numbers>
 #include <random>
 
@@ -77,34 +77,44 @@ NurbsSurface plane(double u0, double u1, double v0, double v1) {
 
 class PolylineReference {
  public:
+  // Each segment carries its own chord error bound: 1/8 h^2 max|C''| over the segment (|C''|
+  // sampled at its ends and middle), times 4 for safety; closing segments are exact.
   PolylineReference(const NurbsSurface& s, int segments_per_loop) {
     du_ = s.domain_u();
     dv_ = s.domain_v();
     for (const TrimLoop& loop : s.trim_loops) {
       const int per_curve = std::max(1, segments_per_loop / static_cast<int>(loop.curves.size()));
       std::vector<Vec2> poly;
+      std::vector<double> err;
       for (const TrimCurve& tc : loop.curves) {
         const ParamInterval d = tc.uv.domain();
         const double h = d.width() / per_curve;
-        double max_second = 0.0;
+        double second_prev = 0.0;
         for (int k = 0; k <= per_curve; ++k) {
           const double t = d.lo + h * k;
           const Vec3 p = tc.uv.evaluate(t);
           poly.emplace_back(p.x(), p.y());
+          double second = 0.0, second_mid = 0.0;
           if (tc.uv.degree >= 2) {
-            // |C''| at this sample and half-way to the next (safety factor below).
-            for (double tt : {t, std::min(d.hi, t + 0.5 * h)}) {
-              Vec3 der[3];
-              tc.uv.derivatives(tt, 2, der);
-              max_second = std::max(max_second, der[2].norm());
+            Vec3 der[3];
+            tc.uv.derivatives(t, 2, der);
+            second = der[2].norm();
+            if (k > 0) {
+              tc.uv.derivatives(t - 0.5 * h, 2, der);
+              second_mid = der[2].norm();
             }
           }
+          if (k > 0) {
+            err.back() = 4.0 * 0.125 * h * h * std::max({second, second_mid, second_prev});
+          }
+          err.push_back(0.0);  // the segment starting here (closing segments stay exact)
+          second_prev = second;
         }
-        chord_error_ = std::max(chord_error_, 4.0 * 0.125 * h * h * max_second);
       }
-      // Closing segments are part of the region's definition (gaps closed by straight lines).
-      for (std::size_t k = 0; k < poly.size(); ++k)
-        segments_.push_back({poly[k], poly[(k + 1) % poly.size()]});
+      for (std::size_t k = 0; k < poly.size(); ++k) {
+        segments_.push_back({poly[k], poly[(k + 1) % poly.size()], err[k]});
+        chord_error_ = std::max(chord_error_, err[k]);
+      }
     }
     lo_ = Vec2(1e300, 1e300);
     hi_ = Vec2(-1e300, -1e300);
@@ -119,13 +129,15 @@ class PolylineReference {
     cells_.assign(kBuckets * kBuckets, {});
   }
 
-  // Call after construction with the margin within which points are "near".
+  // Call after construction: points within a segment's error bound plus `margin` of it are
+  // "near" (not checked).
   void index(double margin) {
     margin_ = margin;
     for (std::size_t k = 0; k < segments_.size(); ++k) {
       const auto& sg = segments_[k];
-      const Vec2 a = sg.a.cwiseMin(sg.b) - Vec2(margin, margin);
-      const Vec2 b = sg.a.cwiseMax(sg.b) + Vec2(margin, margin);
+      const double m = margin + sg.err;
+      const Vec2 a = sg.a.cwiseMin(sg.b) - Vec2(m, m);
+      const Vec2 b = sg.a.cwiseMax(sg.b) + Vec2(m, m);
       const int i0 = bucket(a.x(), 0), i1 = bucket(b.x(), 0);
       const int j0 = bucket(a.y(), 1), j1 = bucket(b.y(), 1);
       for (int j = j0; j <= j1; ++j) {
@@ -138,7 +150,7 @@ class PolylineReference {
 
   double chord_error() const { return chord_error_; }
 
-  // Is (u, v) farther than the margin from every segment?
+  // Is (u, v) farther than its error bound plus the margin from every segment?
   bool clear(double u, double v) const {
     if (u < lo_.x() || u > hi_.x() || v < lo_.y() || v > hi_.y()) return true;
     const Vec2 p(u, v);
@@ -147,7 +159,7 @@ class PolylineReference {
       const Vec2 ab = b - a;
       const double len2 = ab.squaredNorm();
       const double t = len2 > 0 ? std::clamp((p - a).dot(ab) / len2, 0.0, 1.0) : 0.0;
-      if ((a + t * ab - p).norm() <= margin_) return false;
+      if ((a + t * ab - p).norm() <= margin_ + segments_[k].err) return false;
     }
     return true;
   }
@@ -166,9 +178,10 @@ class PolylineReference {
   }
 
  private:
-  static constexpr int kBuckets = 128;
+  static constexpr int kBuckets = 512;
   struct Segment {
     Vec2 a, b;
+    double err;
   };
   int bucket(double x, int axis) const {
     const double f = (x - lo_[axis]) / (hi_[axis] - lo_[axis]);
@@ -243,6 +256,18 @@ TEST(TrimRegion, RejectsUntrimmedSurfaceAndDefaultIsEmpty) {
   EXPECT_FALSE(empty.contains(0.5, 0.5));
   EXPECT_EQ(empty.classify(0, 1, 0, 1), RegionClass::outside);
   EXPECT_EQ(empty.piece_count(), 0u);
+  s.trim_loops[0] = polygon_loop({{0.2, 0.2}, {0.8, 0.2}, {0.5, 0.8}});
+  const TrimRegion triangle(s);
+  EXPECT_EQ(triangle.classify(0.4, 0.45, 0.3, 0.35), RegionClass::inside);
+  EXPECT_EQ(triangle.classify(0.45, 0.4, 0.3, 0.35), RegionClass::outside);  // empty box
+  EXPECT_EQ(triangle.classify(std::nan(""), 0.45, 0.3, 0.35), RegionClass::boundary);
+  EXPECT_FALSE(triangle.contains(std::nan(""), 0.3));
+  EXPECT_TRUE(triangle.contains(0.5, 0.3));
+  // Loops entirely outside the domain: the empty region.
+  s.trim_loops[0] = polygon_loop({{1.2, 0.2}, {1.8, 0.2}, {1.5, 0.8}});
+  const TrimRegion beyond(s);
+  EXPECT_FALSE(beyond.contains(1.5, 0.3));
+  EXPECT_EQ(beyond.classify(0, 1, 0, 1), RegionClass::outside);
 }
 
 // A 9-pointed star with a comb-shaped hole: concave polygon, horizontal and vertical edges,
@@ -311,6 +336,259 @@ TEST(TrimRegion, ExactCircleHole) {
   }
   EXPECT_EQ(bad, 0) << "of " << checked;
   check_classify(region, rng, Vec2(0, 0), Vec2(3, 2), 3000, 0.1);
+}
+
+// A closed star-shaped B-spline loop: `count` control points at increasing angles with random
+// radii, first == last, optional random weights. Degree up to 12.
+TrimLoop star_curve_loop(std::uint64_t seed, const Vec2& c, double r0, double r1, int count,
+                         int degree, bool rational) {
+  std::mt19937_64 rng(seed);
+  std::vector<Vec2> pts;
+  std::vector<double> w;
+  for (int k = 0; k < count; ++k) {
+    const double a = 2 * std::numbers::pi * k / count;
+    const double r = uniform(rng, r0, r1);
+    pts.push_back(c + r * Vec2(std::cos(a), std::sin(a)));
+    w.push_back(rational ? std::exp(uniform(rng, -2.3, 2.3)) : 1.0);
+  }
+  pts.push_back(pts.front());
+  w.push_back(w.front());
+  TrimLoop loop;
+  loop.curves.push_back(
+      {uv_curve(degree, pts, rational ? w : std::vector<double>{}), std::nullopt});
+  return loop;
+}
+
+// A thick spiral: outer and inner Archimedean spirals (cubic B-splines through control points
+// on the spirals) joined by two straight segments.
+TrimLoop spiral_loop(const Vec2& c) {
+  std::vector<Vec2> outer, inner;
+  const int n = 60;
+  for (int k = 0; k <= n; ++k) {
+    const double a = 4 * std::numbers::pi * k / n;
+    const double r = 0.15 + 0.12 * a / (2 * std::numbers::pi);
+    outer.push_back(c + (r + 0.04) * Vec2(std::cos(a), std::sin(a)));
+    inner.push_back(c + r * Vec2(std::cos(a), std::sin(a)));
+  }
+  std::reverse(inner.begin(), inner.end());
+  TrimLoop loop;
+  loop.curves.push_back({uv_curve(3, outer), std::nullopt});
+  loop.curves.push_back({uv_line(outer.back(), inner.front()), std::nullopt});
+  loop.curves.push_back({uv_curve(3, inner, {}, 2.0, 5.0), std::nullopt});
+  loop.curves.push_back({uv_line(inner.back(), outer.front()), std::nullopt});
+  return loop;
+}
+
+// Outer curved star (degree 12, rational) with holes: an exact circle, a degree-7 rational
+// star, a spiral; the outer loop reaches beyond the domain on one side.
+NurbsSurface curved_face() {
+  NurbsSurface s = plane(0, 4, 0, 3);
+  s.trim_loops.push_back(star_curve_loop(1, Vec2(2.2, 1.5), 1.2, 2.0, 40, 12, true));
+  s.trim_loops.push_back(circle_loop(Vec2(1.2, 1.0), 0.3));
+  s.trim_loops.push_back(star_curve_loop(2, Vec2(3.0, 2.1), 0.2, 0.5, 15, 7, true));
+  s.trim_loops.push_back(spiral_loop(Vec2(2.3, 1.4)));
+  return s;
+}
+
+TEST(TrimRegion, CurvedLoopsWithHolesMatchReference) {
+  const NurbsSurface s = curved_face();
+  const TrimRegion region(s);
+  PolylineReference ref(s, 100000);
+  ref.index(1e-12);
+  std::mt19937_64 rng(3);
+  // Points at the exact heights of the curves' knot points (piece ends), left and right.
+  std::vector<Vec2> extra;
+  for (const TrimLoop& loop : s.trim_loops) {
+    for (const TrimCurve& tc : loop.curves) {
+      for (double t : tc.uv.knots) {
+        const Vec3 p = tc.uv.evaluate(t);
+        for (double du : {-0.3, -1e-3, -1e-6, 1e-6, 1e-3, 0.3})
+          extra.emplace_back(p.x() + du, p.y());
+      }
+    }
+  }
+  const Agreement a = compare(region, ref, rng, Vec2(-0.2, -0.2), Vec2(4.2, 3.2), 200000, extra);
+  EXPECT_EQ(a.mismatches, 0) << "of " << a.checked;
+  EXPECT_GT(a.checked, 190000);
+  EXPECT_GT(a.inside, a.checked / 5);
+  int proved = 0;
+  check_classify(region, rng, Vec2(0, 0), Vec2(4, 3), 5000, 0.05, &proved);
+  EXPECT_GT(proved, 2500);
+  std::printf("curved face: %zu monotone pieces, max chord error bound of the reference %.3g\n",
+              region.piece_count(), ref.chord_error());
+}
+
+// Points very close to the loops (but farther than the reference's margin): near-boundary
+// queries go through the exact crossing count.
+TEST(TrimRegion, PointsNearCurvedLoops) {
+  const NurbsSurface s = curved_face();
+  const TrimRegion region(s);
+  PolylineReference ref(s, 100000);
+  ref.index(1e-12);
+  std::mt19937_64 rng(9);
+  std::vector<Vec2> near;
+  for (const TrimLoop& loop : s.trim_loops) {
+    for (const TrimCurve& tc : loop.curves) {
+      const ParamInterval d = tc.uv.domain();
+      for (int k = 0; k < 3000; ++k) {
+        const double t = uniform(rng, d.lo, d.hi);
+        Vec3 der[2];
+        tc.uv.derivatives(t, 1, der);
+        const Vec2 normal = Vec2(-der[1].y(), der[1].x()).normalized();
+        const double off = std::pow(10.0, uniform(rng, -7, -3)) * (k % 2 ? 1 : -1);
+        near.push_back(Vec2(der[0].x(), der[0].y()) + off * normal);
+      }
+    }
+  }
+  const Agreement a = compare(region, ref, rng, Vec2(0, 0), Vec2(4, 3), 0, near);
+  EXPECT_EQ(a.mismatches, 0) << "of " << a.checked;
+  EXPECT_GT(a.checked, static_cast<int>(near.size()) / 2);
+}
+
+// The outer loop is the domain's boundary itself; a second loop crosses the domain's edge (the
+// region is its interior intersected with the domain); a third touches the edge at a vertex.
+TEST(TrimRegion, LoopsAlongAndAcrossTheDomainBoundary) {
+  NurbsSurface s = plane(-1, 2, 0.5, 1.5);
+  s.trim_loops.push_back(polygon_loop({{-1, 0.5}, {2, 0.5}, {2, 1.5}, {-1, 1.5}}));
+  s.trim_loops.push_back(polygon_loop({{1.5, 0.7}, {2.5, 0.7}, {2.5, 1.3}, {1.5, 1.3}}));
+  s.trim_loops.push_back(polygon_loop({{-1, 1.0}, {-0.5, 0.7}, {-0.3, 1.2}}));
+  s.trim_loops.push_back(circle_loop(Vec2(0.5, 1.5), 0.2));  // cut by the domain's top edge
+  const TrimRegion region(s);
+  PolylineReference ref(s, 100000);
+  ref.index(1e-12);
+  std::mt19937_64 rng(5);
+  std::vector<Vec2> extra;
+  for (int k = 0; k <= 60; ++k) {
+    const double x = -1 + 3.0 * k / 60;
+    for (double y : {0.5, 0.7, 1.0, 1.2, 1.3, 1.5})
+      extra.emplace_back(x, y);  // on vertex heights and on the domain's edges
+  }
+  const Agreement a = compare(region, ref, rng, Vec2(-1.5, 0), Vec2(3, 2), 50000, extra);
+  EXPECT_EQ(a.mismatches, 0) << "of " << a.checked;
+  EXPECT_GT(a.inside, a.checked / 5);
+  // Beyond the domain nothing is inside, although the second loop reaches there.
+  EXPECT_FALSE(region.contains(2.2, 1.0));
+  EXPECT_EQ(region.classify(2.1, 2.4, 0.8, 1.2), RegionClass::outside);
+  EXPECT_EQ(region.classify(-1, 2, 0.5, 1.5), RegionClass::boundary);
+  check_classify(region, rng, Vec2(-1, 0.5), Vec2(2, 1.5), 3000, 0.1);
+}
+
+// Consecutive curves that miss each other by 1e-9 (gaps and overlaps): closed by straight
+// pieces, as the reference polyline does.
+TEST(TrimRegion, TinyGapsBetweenCurves) {
+  NurbsSurface s = plane(0, 1, 0, 1);
+  std::mt19937_64 rng(17);
+  TrimLoop loop;
+  const int n = 12;
+  std::vector<Vec2> corners;
+  for (int k = 0; k < n; ++k) {
+    const double a = 2 * std::numbers::pi * k / n;
+    corners.push_back(Vec2(0.5, 0.5) + (k % 2 ? 0.2 : 0.45) * Vec2(std::cos(a), std::sin(a)));
+  }
+  for (int k = 0; k < n; ++k) {
+    const Vec2 a = corners[k] + Vec2(uniform(rng, -1e-9, 1e-9), uniform(rng, -1e-9, 1e-9));
+    const Vec2 b = corners[(k + 1) % n];
+    // Curved edges: quadratic with a bulge.
+    const Vec2 m = 0.5 * (a + b) + 0.05 * Vec2(-(b - a).y(), (b - a).x());
+    loop.curves.push_back({uv_curve(2, {a, m, b}), std::nullopt});
+  }
+  s.trim_loops.push_back(loop);
+  const TrimRegion region(s);
+  PolylineReference ref(s, 100000);
+  ref.index(1e-12);
+  std::vector<Vec2> extra;
+  for (const Vec2& c : corners) {
+    for (double d : {-1e-6, 1e-6, 3e-9, -3e-9})
+      extra.push_back(c + Vec2(d, 0.0));
+  }
+  const Agreement a = compare(region, ref, rng, Vec2(0, 0), Vec2(1, 1), 50000, extra);
+  EXPECT_EQ(a.mismatches, 0) << "of " << a.checked;
+  check_classify(region, rng, Vec2(0, 0), Vec2(1, 1), 3000, 0.1);
+}
+
+// Query points exactly on the grid's cell borders (the grid box is the loop's bounding box
+// here, with max(16, min(256, 4 x pieces)) cells per side) and at vertex heights.
+TEST(TrimRegion, PointsOnGridCellBorders) {
+  NurbsSurface s = plane(0, 1, 0, 1);
+  const std::vector<Vec2> zigzag = {{0.1, 0.1}, {0.9, 0.1}, {0.9, 0.9}, {0.7, 0.9},  {0.7, 0.3},
+                                    {0.5, 0.3}, {0.5, 0.9}, {0.3, 0.9}, {0.3, 0.55}, {0.1, 0.55}};
+  s.trim_loops.push_back(polygon_loop(zigzag));
+  const TrimRegion region(s);
+  PolylineReference ref(s, 1000);
+  ref.index(1e-12);
+  const int side = std::clamp(4 * static_cast<int>(region.piece_count()), 16, 256);
+  std::vector<Vec2> extra;
+  for (int i = 0; i <= side; ++i) {
+    for (int j = 0; j <= side; ++j)
+      extra.emplace_back(0.1 + 0.8 * i / side, 0.1 + 0.8 * j / side);
+  }
+  for (const Vec2& p : zigzag) {
+    for (int i = 0; i <= side; ++i)
+      extra.emplace_back(0.1 + 0.8 * i / side, p.y());
+  }
+  std::mt19937_64 rng(23);
+  const Agreement a = compare(region, ref, rng, Vec2(0, 0), Vec2(1, 1), 10000, extra);
+  EXPECT_EQ(a.mismatches, 0) << "of " << a.checked;
+  // Boxes whose edges are cell borders.
+  int bad = 0, proofs = 0;
+  for (int b = 0; b < 2000; ++b) {
+    const int i0 = static_cast<int>(rng() % side), j0 = static_cast<int>(rng() % side);
+    const int i1 = std::min(side, i0 + 1 + static_cast<int>(rng() % 4));
+    const int j1 = std::min(side, j0 + 1 + static_cast<int>(rng() % 4));
+    const double u0 = 0.1 + 0.8 * i0 / side, u1 = 0.1 + 0.8 * i1 / side;
+    const double v0 = 0.1 + 0.8 * j0 / side, v1 = 0.1 + 0.8 * j1 / side;
+    const RegionClass c = region.classify(u0, u1, v0, v1);
+    if (c == RegionClass::boundary) continue;
+    ++proofs;
+    for (double u : {u0, 0.5 * (u0 + u1), u1}) {
+      for (double v : {v0, 0.5 * (v0 + v1), v1})
+        bad += region.contains(u, v) != (c == RegionClass::inside);
+    }
+  }
+  EXPECT_EQ(bad, 0);
+  EXPECT_GT(proofs, 500);
+}
+
+// CPU time of this thread (the machine may be shared: wall time would count other jobs).
+double thread_seconds() {
+  timespec ts{};
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+  return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
+}
+
+// Not a timed assertion: prints the cost of contains() on the curved face.
+TEST(TrimRegion, ReportQueryCost) {
+  const TrimRegion region(curved_face());
+  std::mt19937_64 rng(1);
+  std::vector<Vec2> pts(1 << 20);
+  for (Vec2& p : pts)
+    p = Vec2(uniform(rng, 0, 4), uniform(rng, 0, 3));
+  int inside = 0;
+  const auto t0 = thread_seconds();
+  for (const Vec2& p : pts)
+    inside += region.contains(p.x(), p.y());
+  const auto t1 = thread_seconds();
+  const double ns = 1e9 * (t1 - t0) / pts.size();
+  // Points in boundary cells only (answered by the exact crossing count).
+  std::vector<Vec2> near;
+  for (const Vec2& p : pts) {
+    if (region.classify(p.x(), p.x(), p.y(), p.y()) == RegionClass::boundary) near.push_back(p);
+  }
+  const auto t2 = thread_seconds();
+  int near_inside = 0;
+  for (int rep = 0; rep < 20; ++rep) {
+    for (const Vec2& p : near)
+      near_inside += region.contains(p.x(), p.y());
+  }
+  const auto t3 = thread_seconds();
+  const double ns_near = 1e9 * (t3 - t2) / (20.0 * static_cast<double>(near.size()));
+  std::printf(
+      "contains(): %.1f ns per query on uniform points (%zu pieces, %.1f%% inside, %.1f%% "
+      "in boundary cells); %.1f ns per query in boundary cells\n",
+      ns, region.piece_count(), 100.0 * inside / pts.size(), 100.0 * near.size() / pts.size(),
+      ns_near);
+  EXPECT_GT(inside, 0);
+  EXPECT_GT(near_inside, 0);
 }
 
 }  // namespace

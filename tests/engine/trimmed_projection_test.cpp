@@ -12,6 +12,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <fstream>
+#include <nlohmann/json.hpp>
 #include <random>
 #include <vector>
 
@@ -330,6 +332,62 @@ TEST(TrimmedProjection, WarmHintsThreadsAndMaxDistanceGiveTheColdAnswer) {
   EXPECT_GT(within, 100);
 }
 
+// Seed 001's Theorem 2 (the boundary-row reduction) must not be used in a box that straddles a
+// loop: a single cubic patch S(u, v) = (10u, 10v, h(u)) and points p with F(0, v) below every
+// Bézier coefficient of F (so Theorem 2 hands the whole patch to its edge u = 0), while along u
+// F rises to a hump and falls again to a local minimum at u ~ 0.645. The face is u >= 0.25: the
+// edge u = 0 is cut away, the hump separates the loop u = 0.25 from the interior minimum, which
+// is the answer (it is 6.8 below the loop's squared distance). Reference: F(u, v) = A(u) +
+// (10v - p_y)^2 with the v term zero inside the face, so the answer is min A over [0.25, 0.98],
+// found by dense sampling and golden section on A alone.
+TEST(TrimmedProjection, InteriorMinimumBehindAHumpIsNotLostToACutAwayEdge) {
+  const double z[4] = {7.355621288699869, 9.475504723193833, 4.080462846601428,
+                       0.17747492155780975};
+  const double px = -1.5306911543737831, pz = -2.4406233131278388;
+  NurbsSurface s;
+  s.degree_u = s.degree_v = 3;
+  s.count_u = s.count_v = 4;
+  s.knots_u = s.knots_v = {0, 0, 0, 0, 1, 1, 1, 1};
+  for (int i = 0; i < 4; ++i) {
+    for (int j = 0; j < 4; ++j)
+      s.control_points.emplace_back(10.0 * i / 3.0, 10.0 * j / 3.0, z[i]);
+  }
+  s.trim_loops.push_back(rectangle_loop(0.25, 0.98, 0.02, 0.98));
+  auto squared_distance_u = [&](double u) {
+    const Vec3 x = s.evaluate(u, 0.5);
+    return (x.x() - px) * (x.x() - px) + (x.z() - pz) * (x.z() - pz);
+  };
+  double best_u = 0.25, best = squared_distance_u(0.25);
+  for (int k = 0; k <= 7300; ++k) {
+    const double u = 0.25 + 0.73 * k / 7300.0;
+    if (squared_distance_u(u) < best) best = squared_distance_u(u), best_u = u;
+  }
+  double a = std::max(0.25, best_u - 1e-4), b = std::min(0.98, best_u + 1e-4);
+  // Ternary search on the unimodal bracket.
+  for (int it = 0; it < 100; ++it) {
+    const double m1 = a + (b - a) / 3.0, m2 = b - (b - a) / 3.0;
+    if (squared_distance_u(m1) < squared_distance_u(m2)) {
+      b = m2;
+    } else {
+      a = m1;
+    }
+  }
+  best = std::min(best, squared_distance_u(0.5 * (a + b)));
+  ASSERT_GT(best_u, 0.5);  // the interior minimum, not the loop u = 0.25
+  ASSERT_LT(best + 5.0, squared_distance_u(0.25));
+  const PreparedModel model(single(s));
+  std::vector<Vec3> pts;
+  for (double py : {2.5, 3.7, 5.0, 6.1, 7.9})
+    pts.emplace_back(px, py, pz);
+  ProjectionResults out;
+  Projector(model).project_serial(PointView::of(pts), {}, out);
+  for (std::size_t i = 0; i < pts.size(); ++i) {
+    EXPECT_NEAR(out.distance[i], std::sqrt(best), 1e-9 * diagonal(model)) << i;
+    EXPECT_NEAR(out.u[i], 0.5 * (a + b), 1e-6) << i;
+    EXPECT_NEAR(out.v[i], pts[i].y() / 10.0, 1e-9) << i;
+  }
+}
+
 // ---------------------------------------------------------------------------------------------
 // Brute-force reference for any trimmed surface.
 
@@ -506,7 +564,9 @@ void check_against_brute_force(const NurbsSurface& surface, const std::vector<Ve
                     << consistent;
   }
   EXPECT_EQ(failures, 0);
+  // Both kinds of feet were exercised: on edges and inside the face.
   EXPECT_GT(edge_feet, 0);
+  EXPECT_LT(edge_feet, static_cast<int>(pts.size()) * 9 / 10);
   // Warm hints (the cold answers, and those of other points) give the same distances.
   std::vector<ProjectionHint> hints;
   for (std::size_t i = 0; i < pts.size(); ++i)
@@ -579,6 +639,42 @@ TEST(TrimmedProjection, FreeformPanelWithStarHoleMatchesBruteForce) {
   check_against_brute_force(s, pts, 300);
 }
 
+// The examples' freeform panel (examples/panel.json, bicubic, 7 x 7 spans), read here with
+// nlohmann::json (the engine tests do not link io).
+NurbsSurface examples_panel() {
+  std::ifstream in(std::string(NURBSREG_EXAMPLES_DIR) + "/panel.json");
+  const nlohmann::json j = nlohmann::json::parse(in).at("surfaces").at(0);
+  NurbsSurface s;
+  s.name = j.at("name").get<std::string>();
+  s.degree_u = j.at("degree").at(0).get<int>();
+  s.degree_v = j.at("degree").at(1).get<int>();
+  s.knots_u = j.at("knots_u").get<std::vector<double>>();
+  s.knots_v = j.at("knots_v").get<std::vector<double>>();
+  const auto& net = j.at("control_points");
+  s.count_u = static_cast<int>(net.size());
+  s.count_v = static_cast<int>(net.at(0).size());
+  for (const auto& row : net) {
+    for (const auto& c : row)
+      s.control_points.emplace_back(c.at(0).get<double>(), c.at(1).get<double>(),
+                                    c.at(2).get<double>());
+  }
+  return s;
+}
+
+TEST(TrimmedProjection, ExamplesPanelWithStarHoleMatchesBruteForce) {
+  NurbsSurface s = examples_panel();
+  ASSERT_FALSE(s.validate().has_value());
+  const ParamInterval du = s.domain_u(), dv = s.domain_v();
+  auto at = [&](double a, double b) { return Vec2(du.to_parent(a), dv.to_parent(b)); };
+  s.trim_loops.push_back(
+      polygon_loop({at(0.03, 0.05), at(0.96, 0.02), at(0.98, 0.97), at(0.02, 0.95)}));
+  s.trim_loops.push_back(star_loop(at(0.47, 0.52), 0.1 * du.width(), 0.33 * du.width(), 6, 0.2));
+  std::vector<Vec3> pts = box_points(control_box(s), 150, 7251, 0.15);
+  for (const Vec3& p : near_points(s, 200, 7252, 5.0))
+    pts.push_back(p);
+  check_against_brute_force(s, pts, 300);
+}
+
 TEST(TrimmedProjection, RationalExtremeWeightsMatchesBruteForce) {
   NurbsSurface s = test::random_surface(7301, 3, 2, 6, 5, true);
   std::mt19937_64 rng(7302);
@@ -611,6 +707,55 @@ TEST(TrimmedProjection, TrimmedTorusMatchesBruteForce) {
   for (double a : {0.1, 1.0, 2.5, 4.0, 5.5})
     pts.emplace_back(4.0 * std::cos(a), 4.0 * std::sin(a), 0.0);
   check_against_brute_force(s, pts, 300);
+}
+
+// Several faces in one hierarchy: two trimmed faces, an untrimmed one and a reversed trimmed
+// one. Each point's answer is the best of the faces' answers, each face checked on its own by
+// the tests above (here: projected alone in a one-face model), with the right entity.
+TEST(TrimmedProjection, MultiFaceModelIsTheBestOfItsFaces) {
+  Model model;
+  model.surfaces.push_back(flat_panel());
+  NurbsSurface sphere = make_sphere(Vec3(5.0, 5.0, 4.0), 3.0);
+  sphere.trim_loops.push_back(rectangle_loop(0.1, 0.55, 0.2, 0.9));
+  model.surfaces.push_back(sphere);
+  model.surfaces.push_back(make_torus(Vec3(5.0, 5.0, -3.0), 3.0, 1.0));
+  NurbsSurface freeform = test::random_surface(7501, 3, 3, 6, 6, true);
+  for (Vec3& c : freeform.control_points)
+    c += Vec3(2.0, 2.0, 6.0);
+  const ParamInterval du = freeform.domain_u(), dv = freeform.domain_v();
+  freeform.trim_loops.push_back(star_loop(Vec2(du.to_parent(0.5), dv.to_parent(0.5)),
+                                          0.2 * du.width(), 0.45 * du.width(), 5, 0.0));
+  freeform.reversed = true;
+  model.surfaces.push_back(freeform);
+  const PreparedModel prepared(model);
+  std::vector<Vec3> pts = box_points(prepared.bounds(), 300, 7502, 0.1);
+  for (const Vec3& p : flat_panel_points())
+    pts.push_back(p);
+  Projector projector(prepared);
+  ProjectionResults all;
+  projector.project_serial(PointView::of(pts), {}, all);
+  std::vector<ProjectionResults> alone(model.surfaces.size());
+  for (std::size_t f = 0; f < model.surfaces.size(); ++f) {
+    const PreparedModel one(single(model.surfaces[f]));
+    Projector(one).project_serial(PointView::of(pts), {}, alone[f]);
+  }
+  const double tol = 1e-9 * diagonal(prepared);
+  int failures = 0;
+  for (std::size_t i = 0; i < pts.size(); ++i) {
+    double best = std::numeric_limits<double>::infinity();
+    for (const ProjectionResults& r : alone)
+      best = std::min(best, r.distance[i]);
+    ASSERT_EQ(all.status[i], ProjectionStatus::ok);
+    const bool ok = std::abs(all.distance[i] - best) <= tol &&
+                    std::abs(alone[all.entity[i]].distance[i] - best) <= tol;
+    failures += !ok;
+    EXPECT_TRUE(ok) << i << ": " << all.distance[i] << " on face " << all.entity[i] << ", best "
+                    << best;
+  }
+  EXPECT_EQ(failures, 0);
+  // Every face wins somewhere.
+  for (int f = 0; f < 4; ++f)
+    EXPECT_NE(std::count(all.entity.begin(), all.entity.end(), f), 0) << f;
 }
 
 }  // namespace

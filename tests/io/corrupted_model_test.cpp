@@ -3,7 +3,6 @@
 // CLI relies on this to map every bad input to exit status 3 with a one-line message.
 #include <gtest/gtest.h>
 
-#include <fstream>
 #include <functional>
 #include <random>
 
@@ -14,11 +13,6 @@
 
 namespace nurbsreg::io {
 namespace {
-
-std::string read_all(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  return std::string(std::istreambuf_iterator<char>(in), {});
-}
 
 using Parser = std::function<void(const std::string&)>;
 

@@ -2,6 +2,12 @@
 // Batch projection of point frames onto a prepared model: exact closest point, parameters,
 // distance and normal for every point, in parallel (TBB).
 //
+// Trimmed faces (NurbsSurface::trim_loops): the closest point of the face, i.e. the best of its
+// interior points inside the trimmed region and the points of its boundary edges (the 3-D trim
+// edges, projected with the curve projector). A foot on an edge reports (u, v) = uv(t) of its
+// trim curve at the edge's parameter t, and the surface normal there. A warm-start hint on a
+// trimmed face seeds the search only with face points.
+//
 // Threads: `Projector::project` runs a tbb::parallel_for in the caller's task arena; the number
 // of threads belongs to the application (tbb::global_control / task_arena). Results are written
 // by index and each point is computed independently, so they are bit-identical for any thread
@@ -42,11 +48,13 @@ struct ProjectionHint {
 struct ProjectionResults {
   std::vector<Vec3> foot;
   std::vector<double> distance;         // >= 0, Euclidean
-  std::vector<double> signed_distance;  // positive on the side the normal points to
+  std::vector<double> signed_distance;  // positive on the side the normal points to (0 side: +)
   std::vector<std::int32_t> entity;     // surface (or curve) index in the model, -1 if none
   std::vector<double> u;
-  std::vector<double> v;     // 0 for curves
-  std::vector<Vec3> normal;  // unit surface normal Su x Sv at the foot; 0 for curves
+  std::vector<double> v;  // 0 for curves
+  // Unit surface normal at the foot: Su x Sv, or -(Su x Sv) for a reversed face
+  // (NurbsSurface::reversed); 0 for curves.
+  std::vector<Vec3> normal;
   std::vector<ProjectionStatus> status;
 
   std::size_t size() const { return status.size(); }

@@ -183,6 +183,8 @@ struct SurfaceInversion {
 // A whole NURBS surface prepared for projection: decomposed into Bézier patches (each interior
 // knot at full multiplicity, seed 000 §3.3), each with its cached coefficients. Immutable; all
 // queries are const and thread-safe (one SurfaceScratch per thread).
+// It projects onto the UNTRIMMED surface (trim_loops are ignored); trimmed faces go through
+// PreparedModel + Projector (projection.hpp).
 class SurfaceProjector {
  public:
   // Throws std::invalid_argument naming the field if surface.validate() fails.

@@ -12,6 +12,7 @@
 
 #include <array>
 #include <cstdint>
+#include <utility>
 #include <vector>
 
 #include "nurbsreg/engine/nurbs_curve.hpp"
@@ -34,18 +35,20 @@ class TrimRegion {
 
   // Is (u, v) in the region? Exact up to rounding: a precomputed grid answers at once for points
   // away from the loops; near a loop, the crossings of a ray with the loops' monotone rational
-  // Bézier pieces are counted exactly (bisection on the piece, not a polygon). Points outside the
-  // surface's domain are outside. A point on a loop may get either answer.
+  // Bézier pieces are counted exactly (a bracketing root search on the piece, not a polygon).
+  // Points outside the surface's domain are outside. A point on a loop (within about 1e-14 of
+  // the parameter space's scale) may get either answer. NaN is outside.
   bool contains(double u, double v) const;
 
   // Conservative classification of the closed box [u0, u1] x [v0, v1]: outside and inside are
-  // proofs, boundary is "don't know". O(1) (prefix sums over the grid).
+  // proofs (consistent with contains() at every point of the box), boundary is "don't know".
+  // O(1) (prefix sums over the grid). An empty box (u0 > u1) is outside; NaN gives boundary.
   RegionClass classify(double u0, double u1, double v0, double v1) const;
 
   // Number of monotone Bézier pieces the loops were split into (diagnostics, tests).
   std::size_t piece_count() const;
 
-  struct Piece;  // a monotone-in-v rational Bézier piece of a loop (defined below)
+  struct Piece;  // a rational Bézier piece of a loop, monotone in u and v (defined below)
 
  private:
   // Grid box: the domain intersected with the loops' bounding box (the region lies inside it).
@@ -63,25 +66,34 @@ class TrimRegion {
 
   int cell_u(double u) const;
   int cell_v(double v) const;
+  // Construction: marks boundary cells and lists (row, piece) pairs for one piece.
+  void mark_piece(const Vec3* cw, int degree, std::int32_t piece, int depth, double eps_u,
+                  double eps_v, std::vector<std::pair<std::int32_t, std::int32_t>>& rows);
 };
 
 // Private to TrimRegion (defined here so that TrimRegion stays an ordinary copyable value).
-// Homogeneous control points (w u, w v, w), w > 0, whose v coordinates are monotone: by the
-// variation-diminishing property a line v = const meets the piece at most once.
+// Homogeneous control points (w u, w v, w), w > 0, whose u and v coordinates are monotone: by
+// the variation-diminishing property the piece is monotone in u and v, so a line v = const
+// meets it at most once and the u range of any part of it is that of the part's end points.
 struct TrimRegion::Piece {
-  double u_lo = 0.0, u_hi = 0.0;      // control-point bounds in u
   double v_start = 0.0, v_end = 0.0;  // v at t = 0 and t = 1 (shared exactly with neighbours)
   double u_start = 0.0, u_end = 0.0;
+  double u_lo = 0.0, u_hi = 0.0;  // control-point bounds in u
   int degree = 1;
   std::array<Vec3, kMaxDegree + 1> cw{};
+  std::array<Vec3, kMaxDegree + 1> cb{};  // C(degree, i) cw[i], for Horner evaluation
 };
 
 // The 3-D boundary edges of a trimmed surface, one per trim curve, in loop order:
 // trim_loops[l].curves[c].edge when given; otherwise the exact 3-D image S(uv(t)) of a degree-1
 // uv curve as a rational B-spline (split where the line crosses the surface's knot lines; on
-// each piece S(uv(t)) is a rational polynomial of degree degree_u + degree_v, recovered exactly
-// by interpolating its homogeneous coordinates). Each edge has the same parameter domain as its
-// uv curve. Throws std::invalid_argument when a computed edge would exceed kMaxDegree.
+// each piece S(uv(t)) is a rational polynomial of degree degree_u + degree_v, whose Bernstein
+// coefficients are computed exactly as sums of products of non-negative restricted Bernstein
+// polynomials: see trim_edges.cpp; a piece along an iso line has the lower degree). C0 joints;
+// each edge has the same parameter domain as its uv curve. Measured deviation from
+// S(uv(t)): below 1e-13 x the surface's bounding diagonal (tests/engine/trim_edges_test.cpp).
+// Throws std::invalid_argument when a computed edge would exceed kMaxDegree, or when a uv curve
+// of degree > 1 has no edge. Allocates; run once per model.
 struct TrimEdge {
   int loop = 0, curve = 0;  // indices into NurbsSurface::trim_loops
   NurbsCurve edge;          // 3-D, domain == uv curve's domain

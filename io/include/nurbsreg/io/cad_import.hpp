@@ -7,7 +7,8 @@
 // extrusions become rational B-splines through BRepBuilderAPI_NurbsConvert) -- with its trim
 // loops: every wire of the face, each edge as its 2-D parameter-space curve ("uv") and its 3-D
 // curve ("edge", same parameter domain; a degenerated edge at a pole is a constant curve at
-// the pole). A face whose orientation is REVERSED gets `reversed = true`. Geometry of degree
+// the pole; an edge farther than the tolerance below from S(uv(t)) is replaced by S(uv(t))
+// approximated within it, so that edge(t) and uv(t) agree). A face whose orientation is REVERSED gets `reversed = true`. Geometry of degree
 // above engine::kMaxDegree is approximated within 1e-9 x the model's diagonal when OCCT can
 // (counted in the report); a face that still cannot be converted is recorded in
 // Model::skipped_faces with its index and the reason, never dropped silently. Surfaces are
@@ -37,6 +38,14 @@ struct CadImportReport {
   std::size_t analytic_faces = 0;   // converted faces whose surface was not a B-spline
   std::size_t approximations = 0;   // surfaces and curves approximated to degree <= kMaxDegree
   std::size_t degenerated_edges = 0;
+  // 3-D edges replaced by their exact image S(uv(t)), approximated within the tolerance,
+  // because the file's curve was farther than that from it (CAD edges are only within their
+  // own tolerance, often 1e-7..1e-3 mm); and edges kept although off by more (no approximation).
+  std::size_t rebuilt_edges = 0;
+  std::size_t inconsistent_edges = 0;
+  // uv curves that leave their surface's parameter domain (OCCT extrapolates the surface there,
+  // the engine clamps), after periodic ones are shifted back by whole periods.
+  std::size_t uv_outside_domain = 0;
   std::map<std::string, std::size_t> surface_types;  // OCCT surface type of each face -> count
   // Model::surfaces[k] is face surface_faces[k] of the file.
   std::vector<int> surface_faces;
