@@ -32,6 +32,7 @@
 #include <STEPControl_Reader.hxx>
 #include <TopExp.hxx>
 #include <TopExp_Explorer.hxx>
+#include <TopTools_IndexedDataMapOfShapeListOfShape.hxx>
 #include <TopTools_IndexedMapOfShape.hxx>
 #include <TopoDS.hxx>
 #include <TopoDS_Edge.hxx>
@@ -107,7 +108,7 @@ struct CadFoot {
   double u = 0, v = 0, t = 0;
   // The foot is on the face's boundary: the interior polish was stopped by it, or OCCT's exact
   // classifier says ON (the minimum over the face's closure is on its trim curve, where the file's
-  // 3-D edge may be off the surface: see face_edge_distance).
+  // 3-D edge may be off the surface: see TrimmedFaceCheck::boundary_allowance).
   bool stopped_by_boundary = false;
 };
 
@@ -123,6 +124,7 @@ class CadReference {
       : shape_(shape), options_(options) {
     build_faces();
     build_edges();
+    TopExp::MapShapesAndAncestors(shape_.shape, TopAbs_EDGE, TopAbs_FACE, ancestors_);
   }
 
   const CadShape& shape() const { return shape_; }
@@ -268,23 +270,16 @@ class CadReference {
     return points;
   }
 
-  // Distance from q to the nearest 3-D edge of face f. When the reference's foot is on its
-  // face's boundary curve S(uv(t)) (stopped_by_boundary) and the file's edge is off that curve,
-  // an exact projector that takes the edge as the boundary can be worse than the reference by at
-  // most this much at that foot (triangle inequality).
-  double face_edge_distance(int f, const engine::Vec3& q) const {
-    double best = std::numeric_limits<double>::infinity();
-    for (const int e : faces_[f].edge_ids) {
-      const Edge& edge = edges_[e];
-      int k = 0;
-      double bd = HUGE_VAL;
-      for (std::size_t j = 0; j < edge.points.size(); ++j) {
-        const double d = (edge.points[j] - q).norm();
-        if (d < bd) bd = d, k = static_cast<int>(j);
-      }
-      best = std::min({best, bd, polish_edge(q, e, k).distance});
+  // The faces (0-based) that use shape edge e (0-based).
+  std::vector<int> edge_faces(int e) const {
+    std::vector<int> out;
+    const TopoDS_Shape& edge = shape_.edges(e + 1);
+    if (!ancestors_.Contains(edge)) return out;
+    for (const TopoDS_Shape& face : ancestors_.FindFromKey(edge)) {
+      const int f = shape_.faces.FindIndex(face) - 1;
+      if (f >= 0 && std::find(out.begin(), out.end(), f) == out.end()) out.push_back(f);
     }
-    return best;
+    return out;
   }
 
   // Is the 3-D point q on the trimmed shape (within tol)? The reference distance from q.
@@ -567,7 +562,8 @@ class CadReference {
   CadReferenceOptions options_;
   std::vector<Face> faces_;
   std::vector<Edge> edges_;
-  std::vector<int> edge_index_;  // edges_[k] is shape edge edge_index_[k]
+  std::vector<int> edge_index_;                          // edges_[k] is shape edge edge_index_[k]
+  TopTools_IndexedDataMapOfShapeListOfShape ancestors_;  // edge -> faces
   double spacing_ = 0;
   double max_edge_gap_ = 0;
   std::size_t face_samples_ = 0, edge_samples_ = 0;

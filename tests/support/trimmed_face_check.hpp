@@ -6,6 +6,7 @@
 // surface; not thread-safe.
 
 #include <cmath>
+#include <limits>
 #include <map>
 #include <memory>
 #include <vector>
@@ -34,10 +35,35 @@ class TrimmedFaceCheck {
     const engine::ParamInterval du = s.domain_u(), dv = s.domain_v();
     const bool in_domain = u >= du.lo && u <= du.hi && v >= dv.lo && v <= dv.hi;
     out.in_region = in_domain && (!s.is_trimmed() || face.region->contains(u, v));
-    out.edge_distance = std::numeric_limits<double>::infinity();
-    for (const Edge& e : face.edges)
-      out.edge_distance = std::min(out.edge_distance, e.distance(foot));
+    out.edge_distance = edge_distance(surface, foot);
     return out;
+  }
+
+  // Distance from q to the nearest trim edge of a surface (infinity when it has none).
+  double edge_distance(int surface, const engine::Vec3& q) {
+    double best = std::numeric_limits<double>::infinity();
+    for (const Edge& e : prepared(surface).edges)
+      best = std::min(best, e.distance(q));
+    return best;
+  }
+
+  // How much worse than the brute-force reference (cad_reference.hpp) an exact projector may be
+  // at that reference foot without being wrong: 0, except where the reference's foot is on a
+  // face boundary that the file defines twice (its 3-D edge and the face's trim curve S(uv(t))
+  // differ by the file's tolerance) and the model took the other one. Then the model's own edge
+  // is at most its distance from the reference foot away (triangle inequality). Surfaces must be
+  // the file's faces in order (no skipped face).
+  template <class Reference, class Foot>
+  double boundary_allowance(const Reference& reference, const Foot& ref) {
+    double allowed = 0;
+    if (ref.face >= 0 && ref.stopped_by_boundary) {
+      allowed = edge_distance(ref.face, ref.foot);
+    } else if (ref.edge >= 0) {
+      allowed = std::numeric_limits<double>::infinity();
+      for (const int f : reference.edge_faces(ref.edge))
+        allowed = std::min(allowed, edge_distance(f, ref.foot));
+    }
+    return std::isfinite(allowed) ? allowed : 0.0;
   }
 
  private:
