@@ -75,8 +75,8 @@ engine::NurbsCurve to_engine(const Geom_BSplineCurve& c) {
 // exactly; anything else (conics, offsets) is approximated within `tolerance`.
 template <class Curve, class BSpline, class Line, class Bezier, class Trimmed, class Convert,
           class Approx>
-Handle(BSpline) restricted_bspline(Handle(Curve) curve, double first, double last,
-                                   double tolerance, int& approximations) {
+Handle(BSpline) restricted_bspline(Handle(Curve) curve, double first, double last, double tolerance,
+                                   int& approximations) {
   while (const auto trimmed = Handle(Trimmed)::DownCast(curve))
     curve = trimmed->BasisCurve();
   Handle(BSpline) result;
@@ -99,8 +99,8 @@ Handle(BSpline) restricted_bspline(Handle(Curve) curve, double first, double las
   // Conics and friends: OCCT's exact conversion reparametrises them, which would break the
   // shared parameter of a uv curve and its edge, so they are approximated in their own
   // parameter instead (as is a B-spline of too high a degree).
-  Handle(Curve) source = result.IsNull() ? Handle(Curve)(new Trimmed(curve, first, last))
-                                         : Handle(Curve)(result);
+  Handle(Curve) source =
+      result.IsNull() ? Handle(Curve)(new Trimmed(curve, first, last)) : Handle(Curve)(result);
   Approx approx(source, tolerance, GeomAbs_C2, 1000, engine::kMaxDegree);
   if (!approx.HasResult() || approx.MaxError() > tolerance) {
     throw Unconvertible(std::string("cannot approximate a ") + curve->DynamicType()->Name() +
@@ -110,14 +110,14 @@ Handle(BSpline) restricted_bspline(Handle(Curve) curve, double first, double las
   return approx.Curve();
 }
 
-Handle(Geom2d_BSplineCurve) uv_bspline(const Handle(Geom2d_Curve)& c, double first, double last,
+Handle(Geom2d_BSplineCurve) uv_bspline(const Handle(Geom2d_Curve) & c, double first, double last,
                                        double tolerance, int& approximations) {
   return restricted_bspline<Geom2d_Curve, Geom2d_BSplineCurve, Geom2d_Line, Geom2d_BezierCurve,
                             Geom2d_TrimmedCurve, Geom2dConvert, Geom2dConvert_ApproxCurve>(
       c, first, last, tolerance, approximations);
 }
 
-Handle(Geom_BSplineCurve) edge_bspline(const Handle(Geom_Curve)& c, double first, double last,
+Handle(Geom_BSplineCurve) edge_bspline(const Handle(Geom_Curve) & c, double first, double last,
                                        double tolerance, int& approximations) {
   return restricted_bspline<Geom_Curve, Geom_BSplineCurve, Geom_Line, Geom_BezierCurve,
                             Geom_TrimmedCurve, GeomConvert, GeomConvert_ApproxCurve>(
@@ -162,8 +162,8 @@ struct SurfaceGeometry {
   double period_v = 0;
 };
 
-engine::NurbsSurface surface_of(const TopoDS_Face& converted, double tolerance,
-                                int& approximations, SurfaceGeometry& geometry) {
+engine::NurbsSurface surface_of(const TopoDS_Face& converted, double tolerance, int& approximations,
+                                SurfaceGeometry& geometry) {
   Handle(Geom_Surface) surface = BRep_Tool::Surface(converted);  // located copy
   while (const auto t = Handle(Geom_RectangularTrimmedSurface)::DownCast(surface))
     surface = t->BasisSurface();
@@ -184,13 +184,13 @@ engine::NurbsSurface surface_of(const TopoDS_Face& converted, double tolerance,
     bspline->SetVNotPeriodic();
   }
   if (bspline->UDegree() > engine::kMaxDegree || bspline->VDegree() > engine::kMaxDegree) {
-    GeomConvert_ApproxSurface approx(bspline, tolerance, GeomAbs_C2, GeomAbs_C2,
-                                     engine::kMaxDegree, engine::kMaxDegree, 1000, 0);
+    GeomConvert_ApproxSurface approx(bspline, tolerance, GeomAbs_C2, GeomAbs_C2, engine::kMaxDegree,
+                                     engine::kMaxDegree, 1000, 0);
     if (!approx.HasResult() || approx.MaxError() > tolerance) {
       throw Unconvertible("surface of degree (" + std::to_string(bspline->UDegree()) + ", " +
                           std::to_string(bspline->VDegree()) + ") cannot be approximated within " +
-                          std::to_string(tolerance) + " by degree <= " +
-                          std::to_string(engine::kMaxDegree));
+                          std::to_string(tolerance) +
+                          " by degree <= " + std::to_string(engine::kMaxDegree));
     }
     bspline = approx.Surface();
     ++approximations;
@@ -363,8 +363,8 @@ FaceConversion convert_face(const TopoDS_Face& face, const TopoDS_Face* nurbs_fa
       engine::TrimLoop loop;
       for (BRepTools_WireExplorer edges(TopoDS::Wire(wires.Current()), converted); edges.More();
            edges.Next()) {
-        loop.curves.push_back(trim_curve(edges.Current(), converted, s, geometry, tolerance,
-                                         uv_tolerance, result));
+        loop.curves.push_back(
+            trim_curve(edges.Current(), converted, s, geometry, tolerance, uv_tolerance, result));
       }
       if (!loop.curves.empty()) s.trim_loops.push_back(std::move(loop));
     }

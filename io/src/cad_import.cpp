@@ -16,8 +16,8 @@
 #include <Message.hxx>
 #include <Message_Messenger.hxx>
 #include <OSD.hxx>
-#include <Standard_ErrorHandler.hxx>
 #include <STEPControl_Reader.hxx>
+#include <Standard_ErrorHandler.hxx>
 #include <Standard_Failure.hxx>
 #include <TColStd_SequenceOfAsciiString.hxx>
 #include <TopExp.hxx>
@@ -27,9 +27,9 @@
 #include <algorithm>
 #include <cctype>
 #include <cmath>
+#include <csignal>
 #include <filesystem>
 #include <fstream>
-#include <csignal>
 #include <mutex>
 #include <optional>
 
@@ -152,9 +152,9 @@ engine::Model convert_shape(const std::string& path, const TopoDS_Shape& shape,
     model.surfaces.push_back(std::move(*c.surface));
   }
   if (model.surfaces.empty()) {
-    throw InputError(path, "none of the " + std::to_string(faces.Extent()) +
-                               " faces could be converted (face 0: " +
-                               model.skipped_faces.front().reason + ")");
+    throw InputError(
+        path, "none of the " + std::to_string(faces.Extent()) +
+                  " faces could be converted (face 0: " + model.skipped_faces.front().reason + ")");
   }
   return model;
 }

@@ -92,8 +92,7 @@ std::string format_model_summary(const ModelSummary& m, const std::string& model
     rational_curves += e.rational ? 1 : 0;
   std::string out = "model: " + model_label + " (units " + m.units + ")\n";
   out += "surfaces: " + std::to_string(m.surfaces.size()) + " (" +
-         std::to_string(rational_surfaces) +
-         " rational" +
+         std::to_string(rational_surfaces) + " rational" +
          (m.trimmed_surfaces > 0 ? ", " + std::to_string(m.trimmed_surfaces) + " trimmed" : "") +
          "), Bézier patches: " + std::to_string(m.bezier_patches) + "\n";
   for (const auto& e : m.surfaces) {

@@ -86,7 +86,9 @@ int face_index(const engine::NurbsSurface& s) {
   return std::stoi(s.name.substr(std::string("face ").size()));
 }
 
-engine::Vec3 vec(const gp_Pnt& p) { return {p.X(), p.Y(), p.Z()}; }
+engine::Vec3 vec(const gp_Pnt& p) {
+  return {p.X(), p.Y(), p.Z()};
+}
 
 // Whether uv(t) leaves the surface's parameter domain at 65 sampled t (our own check, finer
 // than the importer's 33 samples).
@@ -117,13 +119,13 @@ TEST_P(CadFiles, EveryFaceConverts) {
     EXPECT_EQ(face_index(l.model.surfaces[k]), l.report.surface_faces[k]);
     trimmed += l.model.surfaces[k].is_trimmed() ? 1 : 0;
   }
-  std::printf("[ report   ] %s: %zu faces, %zu trimmed, %zu analytic converted, %zu approximations, "
-              "%zu degenerated edges, %zu edges rebuilt as S(uv), %zu edges kept off S(uv), "
-              "%zu uv curves outside the domain, file units \"%s\", load %.2f s\n",
-              GetParam(), l.report.faces, trimmed, l.report.analytic_faces,
-              l.report.approximations, l.report.degenerated_edges, l.report.rebuilt_edges,
-              l.report.inconsistent_edges, l.report.uv_outside_domain,
-              l.report.file_units.c_str(), l.seconds);
+  std::printf(
+      "[ report   ] %s: %zu faces, %zu trimmed, %zu analytic converted, %zu approximations, "
+      "%zu degenerated edges, %zu edges rebuilt as S(uv), %zu edges kept off S(uv), "
+      "%zu uv curves outside the domain, file units \"%s\", load %.2f s\n",
+      GetParam(), l.report.faces, trimmed, l.report.analytic_faces, l.report.approximations,
+      l.report.degenerated_edges, l.report.rebuilt_edges, l.report.inconsistent_edges,
+      l.report.uv_outside_domain, l.report.file_units.c_str(), l.seconds);
 }
 
 // Our surface at a grid of (u, v) on the ORIGINAL face surface: evaluated at the same (u, v)
@@ -157,8 +159,8 @@ TEST_P(CadFiles, SurfacesLieOnTheOriginalFaceSurfaces) {
           d = projection.LowerDistance();
         }
         worst = std::max(worst, d);
-        EXPECT_LE(d, tolerance) << s.name << " (" << basis->DynamicType()->Name() << ") at ("
-                                << u << ", " << v << ")";
+        EXPECT_LE(d, tolerance) << s.name << " (" << basis->DynamicType()->Name() << ") at (" << u
+                                << ", " << v << ")";
       }
     }
   }
@@ -175,8 +177,7 @@ TEST_P(CadFiles, TrimCurvesRunOnTheSurfaceAndCloseTheirLoops) {
   double worst_on_surface = 0, worst_gap = 0;
   std::size_t outside = 0;
   for (const engine::NurbsSurface& s : l.model.surfaces) {
-    const TopoDS_Face face =
-        TopoDS::Face(l.faces(face_index(s) + 1).Oriented(TopAbs_FORWARD));
+    const TopoDS_Face face = TopoDS::Face(l.faces(face_index(s) + 1).Oriented(TopAbs_FORWARD));
     std::size_t loop = 0;
     for (TopExp_Explorer wires(face, TopAbs_WIRE); wires.More(); wires.Next()) {
       std::vector<TopoDS_Edge> edges;
@@ -203,42 +204,40 @@ TEST_P(CadFiles, TrimCurvesRunOnTheSurfaceAndCloseTheirLoops) {
           const engine::Vec3 uv = curve.uv.evaluate(t);
           const double gap = (curve.edge->evaluate(t) - s.evaluate(uv.x(), uv.y())).norm();
           worst_on_surface = std::max(worst_on_surface, gap / tolerance);
-          EXPECT_LE(gap, tolerance) << s.name << " loop " << loop - 1 << " curve " << c
-                                    << " t = " << t;
+          EXPECT_LE(gap, tolerance)
+              << s.name << " loop " << loop - 1 << " curve " << c << " t = " << t;
         }
         // The end of this curve and the start of the next (the loop closes on itself).
         const std::size_t next = (c + 1) % edges.size();
         const engine::TrimCurve& after = trim.curves[next];
         TopoDS_Vertex shared = TopExp::LastVertex(edges[c], Standard_True);
-        const double vertex_tolerance =
-            shared.IsNull() ? 0.0 : BRep_Tool::Tolerance(shared);
+        const double vertex_tolerance = shared.IsNull() ? 0.0 : BRep_Tool::Tolerance(shared);
         const double joint_tolerance =
             std::max({tolerance, BRep_Tool::Tolerance(edges[next]), vertex_tolerance});
-        const double joint = (curve.edge->evaluate(d.hi) -
-                              after.edge->evaluate(after.uv.domain().lo))
-                                 .norm();
+        const double joint =
+            (curve.edge->evaluate(d.hi) - after.edge->evaluate(after.uv.domain().lo)).norm();
         worst_gap = std::max(worst_gap, joint / joint_tolerance);
-        EXPECT_LE(joint, joint_tolerance) << s.name << " loop " << loop - 1 << " after curve "
-                                          << c;
+        EXPECT_LE(joint, joint_tolerance) << s.name << " loop " << loop - 1 << " after curve " << c;
       }
     }
     EXPECT_EQ(loop, s.trim_loops.size()) << s.name;
   }
   EXPECT_EQ(outside, l.report.uv_outside_domain);
-  std::printf("[ report   ] %s: edge vs S(uv) <= %.3g x tolerance, joints <= %.3g x tolerance, "
-              "%zu uv curves leave their surface's domain (not checked)\n",
-              GetParam(), worst_on_surface, worst_gap, outside);
+  std::printf(
+      "[ report   ] %s: edge vs S(uv) <= %.3g x tolerance, joints <= %.3g x tolerance, "
+      "%zu uv curves leave their surface's domain (not checked)\n",
+      GetParam(), worst_on_surface, worst_gap, outside);
 }
 
 INSTANTIATE_TEST_SUITE_P(
     RealFiles, CadFiles,
-    ::testing::Values("iea-15mw/IEA_15MW_CFD.stp", "iea-15mw/IEA_15MW_CFD.igs",
-                      "bladex/lower.iges", "bladex/upper.iges",
-                      "dealii/DTMB-5415_bulbous_bow.iges", "dealii/goteborg.iges",
-                      "dealii/goteborg.step", "dealii/wigley.iges", "dealii/wigley.step",
-                      "dealii/wing.iges", "occt/bearing.iges", "occt/hammer.iges",
-                      "occt/linkrods.step", "occt/screw.step", "gmsh/as1-tu-203.stp",
-                      "gmsh/t20_data.step", "nist/nist_ctc_02_asme1_ap242-1.stp"),
+    ::testing::Values("iea-15mw/IEA_15MW_CFD.stp", "iea-15mw/IEA_15MW_CFD.igs", "bladex/lower.iges",
+                      "bladex/upper.iges", "dealii/DTMB-5415_bulbous_bow.iges",
+                      "dealii/goteborg.iges", "dealii/goteborg.step", "dealii/wigley.iges",
+                      "dealii/wigley.step", "dealii/wing.iges", "occt/bearing.iges",
+                      "occt/hammer.iges", "occt/linkrods.step", "occt/screw.step",
+                      "gmsh/as1-tu-203.stp", "gmsh/t20_data.step",
+                      "nist/nist_ctc_02_asme1_ap242-1.stp"),
     [](const ::testing::TestParamInfo<const char*>& info) {
       std::string name = info.param;
       for (char& ch : name)

@@ -8,6 +8,7 @@
 #include <set>
 
 #include "nurbsreg/engine/shapes.hpp"
+#include "nurbsreg/io/cad_import.hpp"
 #include "nurbsreg/io/model_summary.hpp"
 #include "support/random_entities.hpp"
 
@@ -107,6 +108,47 @@ TEST(ModelSummary, TextAndJsonNameEverything) {
   EXPECT_EQ(j["surfaces"][0]["control_points"], nlohmann::json({5, 9}));
   EXPECT_EQ(j["curves"][0]["bezier_pieces"], pieces);
   EXPECT_EQ(j["bounding_box"]["max"][2], 1.0);
+}
+
+// A CAD model: every face listed with its trimming and orientation, skipped faces with reasons.
+TEST(ModelSummary, ListsTrimmingOrientationAndSkippedFaces) {
+  engine::Model m =
+      read_cad_file(std::string(NURBSREG_SHARED_DIR) + "/data/real/occt/screw.step");
+  m.skipped_faces.push_back({10, "a reason"});  // the file has none: add one to see it listed
+  const ModelSummary s = summarize_model(m);
+  ASSERT_EQ(s.surfaces.size(), m.surfaces.size());
+  std::size_t trimmed = 0, reversed = 0;
+  for (std::size_t k = 0; k < m.surfaces.size(); ++k) {
+    std::size_t curves = 0;
+    for (const engine::TrimLoop& loop : m.surfaces[k].trim_loops)
+      curves += loop.curves.size();
+    EXPECT_EQ(s.surfaces[k].trim_loops, m.surfaces[k].trim_loops.size());
+    EXPECT_EQ(s.surfaces[k].trim_curves, curves);
+    EXPECT_EQ(s.surfaces[k].reversed, m.surfaces[k].reversed);
+    trimmed += m.surfaces[k].is_trimmed() ? 1 : 0;
+    reversed += m.surfaces[k].reversed ? 1 : 0;
+  }
+  EXPECT_EQ(s.trimmed_surfaces, trimmed);
+  EXPECT_GT(trimmed, 0u);
+  const std::string text = format_model_summary(s, "screw.step");
+  EXPECT_NE(text.find(std::to_string(trimmed) + " trimmed)"), std::string::npos) << text;
+  EXPECT_NE(text.find("surface 0 \"face 0\""), std::string::npos) << text;
+  EXPECT_NE(text.find("trimmed (" + std::to_string(s.surfaces[0].trim_loops) + " loops, " +
+                      std::to_string(s.surfaces[0].trim_curves) + " curves)"),
+            std::string::npos)
+      << text;
+  EXPECT_NE(text.find("skipped face 10: a reason"), std::string::npos) << text;
+  const auto j = nlohmann::json::parse(model_summary_to_json(s));
+  EXPECT_EQ(j["trimmed_surfaces"], trimmed);
+  EXPECT_EQ(j["surfaces"][0]["trimmed"], true);
+  EXPECT_EQ(j["surfaces"][0]["trim_curves"], s.surfaces[0].trim_curves);
+  std::size_t reversed_json = 0;
+  for (const auto& e : j["surfaces"])
+    reversed_json += e["reversed"].get<bool>() ? 1 : 0;
+  EXPECT_EQ(reversed_json, reversed);
+  ASSERT_EQ(j["skipped_faces"].size(), 1u);
+  EXPECT_EQ(j["skipped_faces"][0]["face"], 10);
+  EXPECT_EQ(j["skipped_faces"][0]["reason"], "a reason");
 }
 
 }  // namespace

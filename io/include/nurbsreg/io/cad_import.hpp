@@ -8,11 +8,11 @@
 // loops: every wire of the face, each edge as its 2-D parameter-space curve ("uv") and its 3-D
 // curve ("edge", same parameter domain; a degenerated edge at a pole is a constant curve at
 // the pole; an edge farther than the tolerance below from S(uv(t)) is replaced by S(uv(t))
-// approximated within it, so that edge(t) and uv(t) agree). A face whose orientation is REVERSED gets `reversed = true`. Geometry of degree
-// above engine::kMaxDegree is approximated within 1e-9 x the model's diagonal when OCCT can
-// (counted in the report); a face that still cannot be converted is recorded in
-// Model::skipped_faces with its index and the reason, never dropped silently. Surfaces are
-// named "face <index>".
+// approximated within it, so that edge(t) and uv(t) agree). A face whose orientation is REVERSED
+// gets `reversed = true`. Geometry of degree above engine::kMaxDegree is approximated within 1e-9 x
+// the model's diagonal when OCCT can (counted in the report); a face that still cannot be converted
+// is recorded in Model::skipped_faces with its index and the reason, never dropped silently.
+// Surfaces are named "face <index>".
 //
 // Units: OCCT converts lengths to millimetres, so Model::units is always "mm"; the file's own
 // length unit is reported in CadImportReport::file_units when the reader exposes it.
@@ -31,12 +31,12 @@
 namespace nurbsreg::io {
 
 struct CadImportReport {
-  std::string format;      // "STEP" or "IGES"
-  std::string file_units;  // the file's length unit as it names it ("MM", "INCH"...), or ""
-  std::size_t faces = 0;   // faces of the file's shape
-  std::size_t trimmed_faces = 0;    // converted faces with trim loops
-  std::size_t analytic_faces = 0;   // converted faces whose surface was not a B-spline
-  std::size_t approximations = 0;   // surfaces and curves approximated to degree <= kMaxDegree
+  std::string format;              // "STEP" or "IGES"
+  std::string file_units;          // the file's length unit as it names it ("MM", "INCH"...), or ""
+  std::size_t faces = 0;           // faces of the file's shape
+  std::size_t trimmed_faces = 0;   // converted faces with trim loops
+  std::size_t analytic_faces = 0;  // converted faces whose surface was not a B-spline
+  std::size_t approximations = 0;  // surfaces and curves approximated to degree <= kMaxDegree
   std::size_t degenerated_edges = 0;
   // 3-D edges replaced by their exact image S(uv(t)), approximated within the tolerance,
   // because the file's curve was farther than that from it (CAD edges are only within their

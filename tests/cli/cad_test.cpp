@@ -1,0 +1,51 @@
+// The CLI on STEP and IGES models (through OpenCASCADE): `info` lists faces with their
+// trimming; malformed CAD files exit 3 with one line naming the file.
+#include <gtest/gtest.h>
+
+#include <fstream>
+#include <nlohmann/json.hpp>
+
+#include "support/run_command.hpp"
+
+namespace nurbsreg::test {
+namespace {
+
+const std::string kReal = std::string(NURBSREG_SHARED_DIR) + "/data/real/";
+
+TEST(CliCad, InfoListsTheFacesOfAStepFile) {
+  ScratchDir dir("cad_info");
+  const CommandResult r =
+      run_nurbsreg("info --json --model " + kReal + "occt/screw.step", dir.path());
+  ASSERT_EQ(r.status, 0) << r.err;
+  const auto doc = nlohmann::json::parse(r.out);  // nothing but JSON on stdout (OCCT is quiet)
+  EXPECT_EQ(doc["units"], "mm");
+  EXPECT_EQ(doc["surfaces"].size(), 10u);
+  EXPECT_EQ(doc["trimmed_surfaces"], 10);
+  EXPECT_EQ(doc["skipped_faces"].size(), 0u);
+  EXPECT_EQ(doc["surfaces"][3]["name"], "face 3");
+  const CommandResult text =
+      run_nurbsreg("info --model " + kReal + "dealii/wigley.iges", dir.path());
+  ASSERT_EQ(text.status, 0) << text.err;
+  EXPECT_NE(text.out.find("surface 0 \"face 0\""), std::string::npos) << text.out;
+  EXPECT_NE(text.out.find("trimmed ("), std::string::npos) << text.out;
+}
+
+TEST(CliCad, MalformedCadFilesExitThreeWithOneLine) {
+  ScratchDir dir("cad_bad");
+  const std::string step = dir / "broken.step";
+  std::ofstream(step) << "ISO-10303-21;\nHEADER;\nthis is not STEP at all (((\n";
+  const std::string iges = dir / "broken.igs";
+  std::ofstream(iges) << "not an IGES file\n";
+  const std::string empty = dir / "empty.stp";
+  std::ofstream(empty) << "";
+  for (const std::string& model : {step, iges, empty}) {
+    const CommandResult r = run_nurbsreg("info --model " + model, dir.path());
+    EXPECT_EQ(r.status, 3) << model << ": " << r.err;
+    EXPECT_EQ(r.err.rfind("error: ", 0), 0u) << r.err;
+    EXPECT_NE(r.err.find(model), std::string::npos) << r.err;
+    EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+  }
+}
+
+}  // namespace
+}  // namespace nurbsreg::test
