@@ -71,7 +71,9 @@ constexpr double kSquareLo = 0.5, kSquareHi = 9.5;
 const Vec2 kHoleCentre(4.5, 5.5);
 constexpr double kHoleRadius = 2.0;
 
-NurbsSurface flat_panel() {
+// inset: the outer loop's distance from the domain's border in (u, v); 0 puts the loop on the
+// domain's own border (the region's boundary is then both a loop and the domain's edge).
+NurbsSurface flat_panel(double inset = 0.05) {
   NurbsSurface s;
   s.name = "flat panel";
   s.degree_u = s.degree_v = 3;
@@ -82,7 +84,7 @@ NurbsSurface flat_panel() {
     for (int j = 0; j < 6; ++j)
       s.control_points.emplace_back(10.0 * greville[i], 10.0 * greville[j], 0.0);
   }
-  s.trim_loops.push_back(rectangle_loop(0.05, 0.95, 0.05, 0.95));
+  s.trim_loops.push_back(rectangle_loop(inset, 1.0 - inset, inset, 1.0 - inset));
   TrimCurve hole;
   hole.uv = make_circle(Vec3(0.45, 0.55, 0.0), 0.2);
   hole.uv.dimension = 2;
@@ -96,14 +98,15 @@ NurbsSurface flat_panel() {
 }
 
 // Closed form: the nearest point of the planar face to p.
-double flat_panel_distance(const Vec3& p) {
+double flat_panel_distance(const Vec3& p, double inset = 0.05) {
+  const double lo = 10.0 * inset, hi = 10.0 - 10.0 * inset;
   const Vec2 q(p.x(), p.y());
   double planar = 0.0;
   const double r = (q - kHoleCentre).norm();
   if (r < kHoleRadius) {
     planar = kHoleRadius - r;  // to the rim (the disc is well inside the square)
   } else {
-    const Vec2 c(std::clamp(q.x(), kSquareLo, kSquareHi), std::clamp(q.y(), kSquareLo, kSquareHi));
+    const Vec2 c(std::clamp(q.x(), lo, hi), std::clamp(q.y(), lo, hi));
     planar = (q - c).norm();  // the clamped point is outside the disc (it is far from the border)
   }
   return std::sqrt(p.z() * p.z() + planar * planar);
@@ -153,8 +156,9 @@ double diagonal(const PreparedModel& m) {
   return (m.bounds().hi - m.bounds().lo).norm();
 }
 
-TEST(TrimmedProjection, FlatPanelWithCircularHoleMatchesClosedForm) {
-  const PreparedModel model(single(flat_panel()));
+void check_flat_panel(double inset) {
+  const double lo = 10.0 * inset, hi = 10.0 - 10.0 * inset;
+  const PreparedModel model(single(flat_panel(inset)));
   const std::vector<Vec3> pts = flat_panel_points();
   Projector projector(model);
   ProjectionResults out;
@@ -164,7 +168,7 @@ TEST(TrimmedProjection, FlatPanelWithCircularHoleMatchesClosedForm) {
   int failures = 0, edge_feet = 0;
   for (std::size_t i = 0; i < pts.size(); ++i) {
     ASSERT_EQ(out.status[i], ProjectionStatus::ok) << i;
-    const double exact = flat_panel_distance(pts[i]);
+    const double exact = flat_panel_distance(pts[i], inset);
     // Both directions at once: not farther than the true distance (nothing missed) and not
     // closer (no point of the hole or of the cut-away border counted).
     const bool ok = std::abs(out.distance[i] - exact) <= tol;
@@ -176,8 +180,8 @@ TEST(TrimmedProjection, FlatPanelWithCircularHoleMatchesClosedForm) {
     EXPECT_NEAR((f - pts[i]).norm(), out.distance[i], tol);
     EXPECT_NEAR(f.z(), 0.0, tol);
     EXPECT_GE((Vec2(f.x(), f.y()) - kHoleCentre).norm(), kHoleRadius - tol) << i;
-    EXPECT_GE(std::min(f.x(), f.y()), kSquareLo - tol) << i;
-    EXPECT_LE(std::max(f.x(), f.y()), kSquareHi + tol) << i;
+    EXPECT_GE(std::min(f.x(), f.y()), lo - tol) << i;
+    EXPECT_LE(std::max(f.x(), f.y()), hi + tol) << i;
     EXPECT_LE((s.evaluate(out.u[i], out.v[i]) - f).norm(), 1e-8 * diagonal(model)) << i;
     edge_feet += (std::abs((Vec2(f.x(), f.y()) - kHoleCentre).norm() - kHoleRadius) < 1e-6);
     // The plane's normal, up to the side.
@@ -185,6 +189,14 @@ TEST(TrimmedProjection, FlatPanelWithCircularHoleMatchesClosedForm) {
   }
   EXPECT_EQ(failures, 0);
   EXPECT_GT(edge_feet, 150);  // the hole's rim was really exercised
+}
+
+TEST(TrimmedProjection, FlatPanelWithCircularHoleMatchesClosedForm) {
+  check_flat_panel(0.05);
+}
+
+TEST(TrimmedProjection, OuterLoopOnTheDomainBorderMatchesClosedForm) {
+  check_flat_panel(0.0);
 }
 
 TEST(TrimmedProjection, TrimmingPrunesOutsidePatchesAndAddsEdgePieces) {

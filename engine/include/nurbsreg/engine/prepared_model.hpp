@@ -27,7 +27,8 @@ namespace nurbsreg::engine {
 
 class PreparedModel {
  public:
-  // Validates the model (throws std::invalid_argument with Model::validate()'s message).
+  // Validates the model (throws std::invalid_argument with Model::validate()'s message; also
+  // when a trimmed surface's region or edges cannot be built: TrimRegion, trim_edges).
   explicit PreparedModel(Model model);
 
   const Model& model() const { return model_; }
