@@ -1,8 +1,8 @@
 #pragma once
 // One entry point for model files, by extension (case-insensitive):
 //   .json          -> read_model (model_json.hpp), the project's own format;
-//   .step, .stp    -> read_step (cad_import.hpp), every face of a CAD file, trimmed, via OCCT;
-//   .iges, .igs    -> read_iges (cad_import.hpp), likewise.
+//   .step, .stp, .iges, .igs -> read_cad_file (cad_import.hpp), every face of a CAD file,
+//                     trimmed, via OpenCASCADE.
 // Anything else throws InputError naming the supported extensions. Thread-safe.
 
 #include <string>
