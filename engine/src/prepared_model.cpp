@@ -29,12 +29,10 @@ PreparedModel::PreparedModel(Model model) : model_(std::move(model)) {
     layout.first = patches_.size();
     const std::vector<BezierPatch> pieces = decompose(model_.surfaces[s]);
     for (const BezierPatch& patch : pieces) {
-      patch_boxes_.push_back(bounding_box(patch));
-      patch_spheres_.push_back(bounding_sphere(patch));
       patches_.push_back(prepare_patch(patch));
       patch_surface_.push_back(static_cast<int>(s));
       patch_class_.push_back(RegionClass::inside);
-      bounds_.extend(patch_boxes_.back());
+      bounds_.extend(patches_.back().box);
     }
     // Recover the span grid from the patches' parameter boxes and check the layout: the warm
     // start's patch lookup relies on it (a mismatch is an internal error, not bad input).
@@ -72,8 +70,9 @@ PreparedModel::PreparedModel(Model model) : model_(std::move(model)) {
   for (std::size_t i = 0; i < patches_.size(); ++i) {
     if (patch_class_[i] == RegionClass::outside) continue;
     item_patch_.push_back(static_cast<std::uint32_t>(i));
-    item_boxes_.push_back(patch_boxes_[i]);
-    item_spheres_.push_back(patch_spheres_[i]);
+    // The prepared patch already holds its bounds.
+    item_boxes_.push_back(patches_[i].box);
+    item_spheres_.push_back(patches_[i].sphere);
   }
   for (std::size_t s = 0; s < model_.surfaces.size(); ++s) {
     const NurbsSurface& surface = model_.surfaces[s];
@@ -112,10 +111,6 @@ std::int64_t PreparedModel::locate_patch(int surface, double u, double v) const 
   const int a = span(layout.breaks_u, u), b = span(layout.breaks_v, v);
   return static_cast<std::int64_t>(layout.first) + static_cast<std::int64_t>(a) * layout.spans_v +
          b;
-}
-
-double PreparedModel::patch_lower_bound(std::size_t i, const Vec3& p) const {
-  return std::max(patch_boxes_[i].squared_distance(p), sphere_lower_bound(patch_spheres_[i], p));
 }
 
 double PreparedModel::item_lower_bound(std::uint32_t k, const Vec3& p) const {

@@ -74,8 +74,6 @@ class PreparedModel {
   // The patch of surface `surface` whose parameter box holds (u, v) (clamped to the domain), by
   // binary search over the surface's patch breakpoints; -1 if the surface has no patches.
   std::int64_t locate_patch(int surface, double u, double v) const;
-  // Squared-distance lower bound from p to patch i (box and sphere).
-  double patch_lower_bound(std::size_t i, const Vec3& p) const;
 
   std::size_t piece_count() const { return pieces_.size(); }
   const PreparedCurvePiece& piece(std::size_t i) const { return pieces_[i]; }
@@ -99,8 +97,6 @@ class PreparedModel {
     std::vector<double> breaks_u, breaks_v;
   };
   std::vector<SurfacePatches> surface_patches_;
-  std::vector<Aabb> patch_boxes_;
-  std::vector<BoundingSphere> patch_spheres_;
   std::vector<RegionClass> patch_class_;
   std::vector<TrimRegion> regions_;
   std::vector<int> surface_region_;  // per surface: index into regions_, -1 untrimmed
