@@ -20,6 +20,7 @@ void ProjectionResults::resize(std::size_t n) {
   v.resize(n);
   normal.resize(n);
   status.resize(n);
+  on_trim_edge.resize(n);
 }
 
 void ProjectionResults::copy_from(const ProjectionResults& part, std::size_t offset) {
@@ -34,6 +35,7 @@ void ProjectionResults::copy_from(const ProjectionResults& part, std::size_t off
   put(v, part.v);
   put(normal, part.normal);
   put(status, part.status);
+  put(on_trim_edge, part.on_trim_edge);
 }
 
 struct Projector::ThreadState {
@@ -60,6 +62,7 @@ void write_missing(ProjectionResults& out, std::size_t i, ProjectionStatus statu
   out.u[i] = kNaN;
   out.v[i] = kNaN;
   out.normal[i] = Vec3::Zero();
+  out.on_trim_edge[i] = 0;
   out.status[i] = status;
 }
 
@@ -239,6 +242,7 @@ void Projector::project_range(PointView points, const ProjectionOptions& options
       out.entity[i] = best_surface;
       out.u[i] = best.u;
       out.v[i] = best.v;
+      out.on_trim_edge[i] = best_edge >= 0 ? 1 : 0;
       out.normal[i] = n;
     } else {
       CurveHit best;
@@ -279,6 +283,7 @@ void Projector::project_range(PointView points, const ProjectionOptions& options
       out.u[i] = best.u;
       out.v[i] = 0.0;
       out.normal[i] = Vec3::Zero();
+      out.on_trim_edge[i] = 0;
     }
     out.status[i] = ProjectionStatus::ok;
   }

@@ -11,13 +11,17 @@ void ModelCorrespondenceFinder::reset(std::size_t scan_size) {
   hints_.assign(scan_size, engine::ProjectionHint{});
 }
 
-// The point lies beyond an open edge of the model when its foot is on the surface's domain
-// boundary and the offset is not along the normal (an interior-type foot, e.g. on a closed seam,
-// has p - foot parallel to the normal).
+// The point lies beyond an open edge of the model when its foot is on a face boundary (a trim
+// edge, as the engine reports, or the surface's domain boundary) and the offset is not along the
+// normal (an interior-type foot, e.g. on a closed seam, has p - foot parallel to the normal).
 bool ModelCorrespondenceFinder::beyond_edge(std::size_t k, const engine::Vec3& p) const {
   const int entity = results_.entity[k];
   const double distance = results_.distance[k];
   if (entity < 0 || !(distance > 0.0)) return false;
+  const auto off_normal = [&] {
+    return std::abs((p - results_.foot[k]).dot(results_.normal[k])) < (1.0 - 1e-6) * distance;
+  };
+  if (results_.on_trim_edge[k]) return off_normal();
   const engine::NurbsSurface& s = projector_.model().model().surfaces[entity];
   const engine::ParamInterval du = s.domain_u();
   const engine::ParamInterval dv = s.domain_v();
@@ -26,8 +30,7 @@ bool ModelCorrespondenceFinder::beyond_edge(std::size_t k, const engine::Vec3& p
   const double eps = 1e-12;
   const bool on_edge = u <= du.lo + eps * du.width() || u >= du.hi - eps * du.width() ||
                        v <= dv.lo + eps * dv.width() || v >= dv.hi - eps * dv.width();
-  if (!on_edge) return false;
-  return std::abs((p - results_.foot[k]).dot(results_.normal[k])) < (1.0 - 1e-6) * distance;
+  return on_edge && off_normal();
 }
 
 void ModelCorrespondenceFinder::find(const CorrespondenceQuery& query,

@@ -183,7 +183,18 @@ void check_flat_panel(double inset) {
     EXPECT_GE(std::min(f.x(), f.y()), lo - tol) << i;
     EXPECT_LE(std::max(f.x(), f.y()), hi + tol) << i;
     EXPECT_LE((s.evaluate(out.u[i], out.v[i]) - f).norm(), 1e-8 * diagonal(model)) << i;
-    edge_feet += (std::abs((Vec2(f.x(), f.y()) - kHoleCentre).norm() - kHoleRadius) < 1e-6);
+    const bool on_rim = std::abs((Vec2(f.x(), f.y()) - kHoleCentre).norm() - kHoleRadius) < 1e-6;
+    edge_feet += on_rim;
+    // A foot strictly inside the face is no trim-edge foot; a rim foot off the plane's normal
+    // (the point is over the hole) can only come from the edge.
+    const bool interior =
+        !on_rim && std::min(f.x(), f.y()) > lo + 1e-6 && std::max(f.x(), f.y()) < hi - 1e-6;
+    if (interior) {
+      EXPECT_EQ(out.on_trim_edge[i], 0) << i;
+    }
+    if (on_rim && std::abs(pts[i].z()) < 0.5 * out.distance[i]) {
+      EXPECT_EQ(out.on_trim_edge[i], 1) << i;
+    }
     // The plane's normal, up to the side.
     EXPECT_NEAR(std::abs(out.normal[i].z()), 1.0, 1e-9) << i;
   }

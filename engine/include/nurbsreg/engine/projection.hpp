@@ -56,6 +56,9 @@ struct ProjectionResults {
   // (NurbsSurface::reversed); 0 for curves.
   std::vector<Vec3> normal;
   std::vector<ProjectionStatus> status;
+  // 1 when the foot lies on a trim edge of its face (a trimmed face's boundary, where the
+  // closest point need not be an orthogonal projection); 0 otherwise.
+  std::vector<std::uint8_t> on_trim_edge;
 
   std::size_t size() const { return status.size(); }
   void resize(std::size_t n);
