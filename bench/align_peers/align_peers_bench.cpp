@@ -29,6 +29,7 @@
 #include <numbers>
 #include <string>
 #include <string_view>
+#include <type_traits>
 #include <vector>
 
 #include "nurbsreg/engine/bounds.hpp"
@@ -387,52 +388,39 @@ int main(int argc, char** argv) try {
       "(not counted)\n",
       dense.size(), std::sqrt(engine::surface_area(model) / double(dense.size())), sampling.wall());
 
+  // One PCL method: kd-tree on the target (prepare), then align from the identity (run).
+  auto run_pcl = [&](const char* method, auto icp, const auto& source_cloud,
+                     const auto& target_cloud) {
+    using Point = typename std::decay_t<decltype(*target_cloud)>::PointType;
+    Outcome o;
+    o.method = method;
+    Stopwatch prep;
+    auto tree = pcl::make_shared<pcl::search::KdTree<Point>>();
+    tree->setInputCloud(target_cloud);
+    o.prepare_wall = prep.wall();
+    o.prepare_cpu = prep.cpu();
+    configure_pcl(icp, settings.pcl_max_iterations);
+    icp.setInputSource(source_cloud);
+    icp.setInputTarget(target_cloud);
+    icp.setSearchMethodTarget(tree, true);
+    pcl::PointCloud<Point> aligned;
+    Stopwatch run;
+    icp.align(aligned);
+    o.wall = run.wall();
+    o.cpu = run.cpu();
+    o.iterations = icp.iterations();
+    o.termination = pcl_state(icp.getConvergeCriteria()->getConvergenceState());
+    measure(o, to_isometry(icp.getFinalTransformation()), T_true, center);
+    outcomes.push_back(o);
+  };
   if (settings.pcl >= 2) {
-    Outcome o;
-    o.method = "PCL IterativeClosestPoint (point-to-point)";
-    Stopwatch prep;
-    auto tree = pcl::make_shared<pcl::search::KdTree<pcl::PointXYZ>>();
-    tree->setInputCloud(target_xyz);
-    o.prepare_wall = prep.wall();
-    o.prepare_cpu = prep.cpu();
-    CountingIcp<pcl::IterativeClosestPoint<pcl::PointXYZ, pcl::PointXYZ>> icp;
-    configure_pcl(icp, settings.pcl_max_iterations);
-    icp.setInputSource(source_xyz);
-    icp.setInputTarget(target_xyz);
-    icp.setSearchMethodTarget(tree, true);
-    pcl::PointCloud<pcl::PointXYZ> aligned;
-    Stopwatch run;
-    icp.align(aligned);
-    o.wall = run.wall();
-    o.cpu = run.cpu();
-    o.iterations = icp.iterations();
-    o.termination = pcl_state(icp.getConvergeCriteria()->getConvergenceState());
-    measure(o, to_isometry(icp.getFinalTransformation()), T_true, center);
-    outcomes.push_back(o);
+    run_pcl("PCL IterativeClosestPoint (point-to-point)",
+            CountingIcp<pcl::IterativeClosestPoint<pcl::PointXYZ, pcl::PointXYZ>>{}, source_xyz,
+            target_xyz);
   }
-  {
-    Outcome o;
-    o.method = "PCL IterativeClosestPointWithNormals (point-to-plane)";
-    Stopwatch prep;
-    auto tree = pcl::make_shared<pcl::search::KdTree<pcl::PointNormal>>();
-    tree->setInputCloud(target);
-    o.prepare_wall = prep.wall();
-    o.prepare_cpu = prep.cpu();
-    CountingIcp<pcl::IterativeClosestPointWithNormals<pcl::PointNormal, pcl::PointNormal>> icp;
-    configure_pcl(icp, settings.pcl_max_iterations);
-    icp.setInputSource(source);
-    icp.setInputTarget(target);
-    icp.setSearchMethodTarget(tree, true);
-    pcl::PointCloud<pcl::PointNormal> aligned;
-    Stopwatch run;
-    icp.align(aligned);
-    o.wall = run.wall();
-    o.cpu = run.cpu();
-    o.iterations = icp.iterations();
-    o.termination = pcl_state(icp.getConvergeCriteria()->getConvergenceState());
-    measure(o, to_isometry(icp.getFinalTransformation()), T_true, center);
-    outcomes.push_back(o);
-  }
+  run_pcl("PCL IterativeClosestPointWithNormals (point-to-plane)",
+          CountingIcp<pcl::IterativeClosestPointWithNormals<pcl::PointNormal, pcl::PointNormal>>{},
+          source, target);
 
   print_table(outcomes, bound_rotation_deg, bound_translation_mm);
   return 0;
