@@ -9,6 +9,7 @@
 
 #include "nurbsreg/engine/surface_projection.hpp"
 #include "nurbsreg/engine/trim_region.hpp"
+#include "warm_certificate.hpp"
 
 namespace nurbsreg::engine {
 namespace {
@@ -142,9 +143,25 @@ int monotone_edge(const FDerivatives& f) {
 // (min F_ss <= 0 or min F_tt <= 0 fails whatever the margin is). Same result as
 // convex(f_derivatives(...)) for a polynomial patch; the first-derivative ranges are not needed
 // there (monotone_edge is used for rational patches only).
+// The raw (unscaled) ranges of the second differences of a coefficient grid.
+struct SecondDifferences {
+  Iv ss, tt, st;
+};
+
+// Scales second-difference ranges to F's second-derivative ranges and applies `convex`.
+bool convex_second_differences(const SecondDifferences& d, int rows, int cols) {
+  const int m = rows - 1, n = cols - 1;
+  // The same scaling and margin as derivative_ranges + convex.
+  const double ks = double(m) * (m - 1), kt = double(n) * (n - 1), kst = double(m) * n;
+  FDerivatives f{};
+  f.ss = {ks * d.ss.lo, ks * d.ss.hi};
+  f.tt = {kt * d.tt.lo, kt * d.tt.hi};
+  f.st = {kst * d.st.lo, kst * d.st.hi};
+  return convex(f);
+}
+
 bool convex_polynomial(const double* a, int rows, int cols) {
   if (rows < 3 || cols < 3) return false;  // F_ss or F_tt identically zero
-  const int m = rows - 1, n = cols - 1;
   double ss_lo = std::numeric_limits<double>::infinity(), ss_hi = -ss_lo;
   for (int i = 0; i + 2 < rows; ++i) {
     const double* r0 = a + i * cols;
@@ -177,13 +194,7 @@ bool convex_polynomial(const double* a, int rows, int cols) {
       st_hi = std::max(st_hi, x);
     }
   }
-  // The same scaling and margin as derivative_ranges + convex.
-  const double ks = double(m) * (m - 1), kt = double(n) * (n - 1), kst = double(m) * n;
-  FDerivatives f{};
-  f.ss = {ks * ss_lo, ks * ss_hi};
-  f.tt = {kt * tt_lo, kt * tt_hi};
-  f.st = {kst * st_lo, kst * st_hi};
-  return convex(f);
+  return convex_second_differences({{ss_lo, ss_hi}, {tt_lo, tt_hi}, {st_lo, st_hi}}, rows, cols);
 }
 
 // Binomial coefficients C(n, i), n <= kMaxDegree, exact in double.
@@ -1032,6 +1043,21 @@ PreparedPatch prepare_patch(const BezierPatch& patch) {
     for (int c = 0; c < 3; ++c)
       pp.e_soa[static_cast<std::size_t>(c * count + k)] = pp.e[k][c];
   }
+  const auto at = [&](int i, int j) { return pp.e[static_cast<std::size_t>(i * pp.cols + j)]; };
+  for (int i = 0; i < pp.rows; ++i) {
+    for (int j = 0; j < pp.cols; ++j) {
+      if (i + 2 < pp.rows) {
+        pp.e_ss = std::max(pp.e_ss, (at(i + 2, j) - 2.0 * at(i + 1, j) + at(i, j)).norm());
+      }
+      if (j + 2 < pp.cols) {
+        pp.e_tt = std::max(pp.e_tt, (at(i, j + 2) - 2.0 * at(i, j + 1) + at(i, j)).norm());
+      }
+      if (i + 1 < pp.rows && j + 1 < pp.cols) {
+        pp.e_st =
+            std::max(pp.e_st, (at(i + 1, j + 1) - at(i + 1, j) - at(i, j + 1) + at(i, j)).norm());
+      }
+    }
+  }
   return pp;
 }
 
@@ -1279,6 +1305,49 @@ bool squared_distance_convex(const PreparedPatch& pp, const Vec3& p, SurfaceScra
   if (!pp.rational) return convex_polynomial(n, pp.rows, pp.cols);
   const CoefficientRange range = coefficient_range(n, pp.d.data(), pp.rows * pp.cols, true);
   return convex(f_derivatives(n, pp.d.data(), pp.rows, pp.cols, true, {range.lo, range.hi}));
+}
+
+double grid_convexity_radius(const double* n, int rows, int cols, double e_ss, double e_tt,
+                             double e_st, double r_max) {
+  if (!convex_polynomial(n, rows, cols)) return 0.0;
+  const double inf = std::numeric_limits<double>::infinity();
+  SecondDifferences d{{inf, -inf}, {inf, -inf}, {inf, -inf}};
+  auto grow = [](Iv& iv, double x) {
+    iv.lo = std::min(iv.lo, x);
+    iv.hi = std::max(iv.hi, x);
+  };
+  for (int i = 0; i < rows; ++i) {
+    const double* r = n + i * cols;
+    for (int j = 0; j < cols; ++j) {
+      if (i + 2 < rows) grow(d.ss, r[2 * cols + j] - 2.0 * r[cols + j] + r[j]);
+      if (j + 2 < cols) grow(d.tt, r[j + 2] - 2.0 * r[j + 1] + r[j]);
+      if (i + 1 < rows && j + 1 < cols) grow(d.st, r[cols + j + 1] - r[cols + j] - r[j + 1] + r[j]);
+    }
+  }
+  // N_ij(q) = G_ij - 2 (q - o).E_ij + |q - o|^2: for |q - a| <= r each second difference moves
+  // by at most 2 r |second difference of E| (the constant term has none).
+  const auto holds = [&](double r) {
+    const double ws = 2.0 * r * e_ss, wt = 2.0 * r * e_tt, wst = 2.0 * r * e_st;
+    return convex_second_differences({{d.ss.lo - ws, d.ss.hi + ws},
+                                      {d.tt.lo - wt, d.tt.hi + wt},
+                                      {d.st.lo - wst, d.st.hi + wst}},
+                                     rows, cols);
+  };
+  if (holds(r_max)) return r_max;
+  double lo = 0.0, hi = r_max;  // holds(lo), !holds(hi)
+  for (int k = 0; k < 30 && hi - lo > 1e-3 * hi; ++k) {
+    const double mid = 0.5 * (lo + hi);
+    (holds(mid) ? lo : hi) = mid;
+  }
+  return lo;
+}
+
+double convexity_radius(const PreparedPatch& pp, const Vec3& a, double r_max,
+                        SurfaceScratch& scratch) {
+  if (pp.rational || !a.allFinite() || !(r_max > 0.0)) return 0.0;
+  double* n = scratch.grids.data();
+  pp.numerator(a, n);
+  return grid_convexity_radius(n, pp.rows, pp.cols, pp.e_ss, pp.e_tt, pp.e_st, r_max);
 }
 
 }  // namespace nurbsreg::engine
