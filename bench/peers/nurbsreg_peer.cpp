@@ -1,5 +1,6 @@
 // The nurbsreg column: PreparedModel + Projector, the engine's public batch API, used exactly as
-// an application would (prepare once, project frames, warm-start from the previous frame).
+// an application would (prepare once, project frames, warm-start from the previous frame, with
+// or without certificates).
 
 #include <algorithm>
 #include <vector>
@@ -37,6 +38,8 @@ class NurbsregPeer final : public Peer {
   }
 
   bool supports_warm() const override { return true; }
+  bool supports_certify() const override { return true; }
+  void set_certify(bool on) override { options_.certify = on; }
 
   void set_hints_from(std::span<const Vec3> previous) override {
     projector_.project(engine::PointView::of(previous), options_, results_);

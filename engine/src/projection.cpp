@@ -12,8 +12,8 @@
 
 namespace nurbsreg::engine {
 
-void ProjectionResults::resize(std::size_t n, bool certify) {
-  certificate.resize(certify ? n : 0);
+void ProjectionResults::resize(std::size_t n) {
+  certificate.resize(n);
   foot.resize(n);
   distance.resize(n);
   signed_distance.resize(n);
@@ -38,10 +38,7 @@ void ProjectionResults::copy_from(const ProjectionResults& part, std::size_t off
   put(normal, part.normal);
   put(status, part.status);
   put(on_trim_edge, part.on_trim_edge);
-  if (!part.certificate.empty()) {
-    if (certificate.size() < size()) certificate.resize(size());
-    put(certificate, part.certificate);
-  }
+  put(certificate, part.certificate);
 }
 
 struct Projector::ThreadState {
@@ -191,12 +188,12 @@ void Projector::project_range(PointView points, const ProjectionOptions& options
     if (!p.allFinite()) {
       ++state.counters.skipped;
       write_missing(out, i, ProjectionStatus::skipped_nonfinite);
-      if (options.certify) out.certificate[i] = WarmCertificate{};
+      out.certificate[i] = WarmCertificate{};
       continue;
     }
     if (entities == 0) {
       write_missing(out, i, ProjectionStatus::no_geometry);
-      if (options.certify) out.certificate[i] = WarmCertificate{};
+      out.certificate[i] = WarmCertificate{};
       continue;
     }
     const ProjectionHint* hint = hints.empty() ? nullptr : &hints[i];
@@ -302,7 +299,7 @@ void Projector::project_range(PointView points, const ProjectionOptions& options
       }
       if (best_surface < 0) {
         write_missing(out, i, ProjectionStatus::beyond_max_distance);
-        if (options.certify) out.certificate[i] = WarmCertificate{};
+        out.certificate[i] = WarmCertificate{};
         continue;
       }
       if (proven) {
@@ -317,6 +314,8 @@ void Projector::project_range(PointView points, const ProjectionOptions& options
         out.certificate[i] =
             tried_here ? hint->certificate
                        : make_certificate(p, best, best_patch, best_edge, certificate_cap, state);
+      } else {
+        out.certificate[i] = WarmCertificate{};
       }
       const NurbsSurface& s = model.surfaces[best_surface];
       if (best_edge >= 0) {
@@ -380,7 +379,7 @@ void Projector::project_range(PointView points, const ProjectionOptions& options
           });
       if (best_curve < 0) {
         write_missing(out, i, ProjectionStatus::beyond_max_distance);
-        if (options.certify) out.certificate[i] = WarmCertificate{};
+        out.certificate[i] = WarmCertificate{};
         continue;
       }
       const double distance = std::sqrt(best.distance_sq);
@@ -392,7 +391,7 @@ void Projector::project_range(PointView points, const ProjectionOptions& options
       out.v[i] = 0.0;
       out.normal[i] = Vec3::Zero();
       out.on_trim_edge[i] = 0;
-      if (options.certify) out.certificate[i] = WarmCertificate{};
+      out.certificate[i] = WarmCertificate{};
     }
     out.status[i] = ProjectionStatus::ok;
   }
@@ -400,7 +399,7 @@ void Projector::project_range(PointView points, const ProjectionOptions& options
 
 void Projector::project(PointView points, const ProjectionOptions& options, ProjectionResults& out,
                         std::span<const ProjectionHint> hints, ProjectionCounters* counters) {
-  out.resize(points.size(), options.certify);
+  out.resize(points.size());
   for (ThreadState& s : impl_->states) {
     s.counters = {};
     s.surface_stats = {};
@@ -431,7 +430,7 @@ void Projector::project(PointView points, const ProjectionOptions& options, Proj
 void Projector::project_serial(PointView points, const ProjectionOptions& options,
                                ProjectionResults& out, std::span<const ProjectionHint> hints,
                                ProjectionCounters* counters) {
-  out.resize(points.size(), options.certify);
+  out.resize(points.size());
   ThreadState& state = impl_->states.local();
   state.counters = {};
   state.surface_stats = {};

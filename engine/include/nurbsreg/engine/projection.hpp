@@ -89,20 +89,17 @@ struct ProjectionResults {
   // 1 when the foot lies on a trim edge of its face (a trimmed face's boundary, where the
   // closest point need not be an orthogonal projection); 0 otherwise.
   std::vector<std::uint8_t> on_trim_edge;
-  // With ProjectionOptions::certify: the certificate that proves this point's answer (the
-  // hint's, when it still held, so its anchor may be an earlier point), or radius 0 if none.
-  // Empty otherwise.
+  // The certificate that proves this point's answer: the hint's, when it still held (so its
+  // anchor may be an earlier point), or a new one (ProjectionOptions::certify); radius 0 if none.
   std::vector<WarmCertificate> certificate;
 
   std::size_t size() const { return status.size(); }
-  // Resizes every array; `certificate` to n only when `certify`, else to 0.
-  void resize(std::size_t n, bool certify = false);
+  void resize(std::size_t n);
   // Copies `part` into entries [offset, offset + part.size()) (frames projected in blocks).
   void copy_from(const ProjectionResults& part, std::size_t offset);
   ProjectionHint hint(std::size_t i) const {
     if (status[i] != ProjectionStatus::ok) return ProjectionHint{};
-    return ProjectionHint{entity[i], u[i], v[i],
-                          i < certificate.size() ? certificate[i] : WarmCertificate{}};
+    return ProjectionHint{entity[i], u[i], v[i], certificate[i]};
   }
 };
 
