@@ -49,7 +49,12 @@ class NurbsregPeer final : public Peer {
   }
 
   void project_warm(std::span<const Vec3> points, std::span<double> distance) override {
-    projector_.project(engine::PointView::of(points), options_, results_,
+    // Uses the hints' certificates but makes none, as ICP's full-resolution passes do
+    // (icp::ModelCorrespondenceFinder): a point whose certificate no longer holds is projected
+    // with the plain warm start.
+    engine::ProjectionOptions warm = options_;
+    warm.certify = false;
+    projector_.project(engine::PointView::of(points), warm, results_,
                        std::span<const engine::ProjectionHint>(hints_).first(points.size()));
     copy_distances(distance);
   }

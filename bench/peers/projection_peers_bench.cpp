@@ -372,8 +372,8 @@ ModelReport run_model(const nb::BenchModel& bench_model, const Options& options)
     }
     if (peer->supports_certify()) {
       // The same two steps with certificates: a cold frame that also makes them (its own cost,
-      // timed), then the moved points with the hints that carry them (and making new ones
-      // where they no longer hold, as ICP's next iteration would).
+      // timed), then the moved points with the hints that carry them (making no new ones where
+      // they no longer hold, as ICP's full-resolution passes do).
       peer->set_certify(true);
       measure("cold, certifying", false);
       full.execute([&] { peer->set_hints_from(std::span<const Vec3>(points.base).first(n)); });

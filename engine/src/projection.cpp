@@ -215,7 +215,19 @@ void Projector::project_range(PointView points, const ProjectionOptions& options
         const NurbsSurface& s = model.surfaces[hint->entity];
         const double u = std::clamp(hint->u, s.domain_u().lo, s.domain_u().hi);
         const double v = std::clamp(hint->v, s.domain_v().lo, s.domain_v().hi);
-        hint_patch = model_.locate_patch(hint->entity, u, v);
+        // A certificate names its patch: no search when (u, v) lies in that patch's box.
+        const std::int32_t certified_patch = hint->certificate.patch;
+        const auto holds_uv = [&](std::int32_t k) {
+          if (k < 0 || static_cast<std::size_t>(k) >= model_.patch_count() ||
+              model_.patch_surface(static_cast<std::size_t>(k)) != hint->entity) {
+            return false;
+          }
+          const BezierPatch& bp = model_.patch(static_cast<std::size_t>(k)).patch;
+          return u >= bp.param_u.lo && u <= bp.param_u.hi && v >= bp.param_v.lo &&
+                 v <= bp.param_v.hi;
+        };
+        hint_patch =
+            holds_uv(certified_patch) ? certified_patch : model_.locate_patch(hint->entity, u, v);
         if (hint_patch >= 0) {
           const BezierPatch& bp = model_.patch(static_cast<std::size_t>(hint_patch)).patch;
           hint_s = std::clamp(bp.param_u.to_local(u), 0.0, 1.0);
@@ -230,8 +242,8 @@ void Projector::project_range(PointView points, const ProjectionOptions& options
             if (moved <= c.radius) {
               s_loc = std::clamp(hint_s, double(c.s0), double(c.s1));
               t_loc = std::clamp(hint_t, double(c.t0), double(c.t1));
-              const double f = newton_on_patch(bp, p, c.s0, c.s1, c.t0, c.t1, s_loc, t_loc,
-                                               best.foot, nullptr, &best.normal, &stationary);
+              const double f = newton_in_certified_box(bp, p, c.s0, c.s1, c.t0, c.t1, s_loc, t_loc,
+                                                       best.foot, &best.normal, &stationary);
               proven = stationary && f < limit_sq && std::sqrt(f) + moved <= c.clearance;
               if (proven) best.distance_sq = f;
             }

@@ -18,7 +18,8 @@ constexpr int kMaxGridSide = 2 * kMaxDegree + 1;
 
 double newton_core(const BezierPatch& patch, const Vec3& p, double s0, double s1, double t0,
                    double t1, double& s, double& t, Vec3& foot, SurfaceProjectionStats* stats,
-                   Vec3* normal, double abort_at, bool* converged = nullptr);
+                   Vec3* normal, double abort_at, bool* converged = nullptr,
+                   double settled_step = 1e-15);
 
 double binomial(int n, int k) {
   double r = 1.0;
@@ -1080,7 +1081,7 @@ namespace {
 // returns +infinity (nothing to offer; s, t and foot are then meaningless).
 double newton_core(const BezierPatch& patch, const Vec3& p, double s0, double s1, double t0,
                    double t1, double& s, double& t, Vec3& foot, SurfaceProjectionStats* stats,
-                   Vec3* normal, double abort_at, bool* converged);
+                   Vec3* normal, double abort_at, bool* converged, double settled_step);
 
 }  // namespace
 
@@ -1091,11 +1092,21 @@ double newton_on_patch(const BezierPatch& patch, const Vec3& p, double s0, doubl
                      std::numeric_limits<double>::infinity(), converged);
 }
 
+double newton_in_certified_box(const BezierPatch& patch, const Vec3& p, double s0, double s1,
+                               double t0, double t1, double& s, double& t, Vec3& foot, Vec3* normal,
+                               bool* converged) {
+  // 1e-10 of the patch's parameter range: the foot's error is then ~1e-10 of the patch's size
+  // along the surface at most, and the squared distance's ~|H| 1e-20, far below the 1e-11 R the
+  // clipping itself does not pursue.
+  return newton_core(patch, p, s0, s1, t0, t1, s, t, foot, nullptr, normal,
+                     std::numeric_limits<double>::infinity(), converged, 1e-10);
+}
+
 namespace {
 
 double newton_core(const BezierPatch& patch, const Vec3& p, double s0, double s1, double t0,
                    double t1, double& s, double& t, Vec3& foot, SurfaceProjectionStats* stats,
-                   Vec3* normal, double abort_at, bool* converged) {
+                   Vec3* normal, double abort_at, bool* converged, double settled_step) {
   s = std::clamp(s, s0, s1);
   t = std::clamp(t, t0, t1);
   // Set when the iteration ends at a stationary (KKT) point of the box, not by the iteration cap,
@@ -1121,16 +1132,18 @@ double newton_core(const BezierPatch& patch, const Vec3& p, double s0, double s1
         return std::numeric_limits<double>::infinity();
       }
     }
-    const double hss = su.dot(su) + r.dot(d[3]);
+    const double suu = su.dot(su), svv = sv.dot(sv);
+    const double hss = suu + r.dot(d[3]);
     const double hst = su.dot(sv) + r.dot(d[4]);
-    const double htt = sv.dot(sv) + r.dot(d[5]);
+    const double htt = svv + r.dot(d[5]);
     // Projected Newton: a variable at a bound whose gradient pushes outward is held fixed.
-    // A gradient component below rounding (relative 1e-15) counts as zero: stationary.
-    const double noise = 1e-15 * r.norm() * std::max(su.norm(), sv.norm());
+    // A gradient component below rounding (relative 1e-15) counts as zero: stationary. Compared
+    // squared: |g| > 1e-15 |r| max(|S_s|, |S_t|) without the three roots.
+    const double noise_sq = 1e-30 * f * std::max(suu, svv);
     const bool free_s =
-        s1 > s0 && std::abs(gs) > noise && !((s <= s0 && gs > 0) || (s >= s1 && gs < 0));
+        s1 > s0 && gs * gs > noise_sq && !((s <= s0 && gs > 0) || (s >= s1 && gs < 0));
     const bool free_t =
-        t1 > t0 && std::abs(gt) > noise && !((t <= t0 && gt > 0) || (t >= t1 && gt < 0));
+        t1 > t0 && gt * gt > noise_sq && !((t <= t0 && gt > 0) || (t >= t1 && gt < 0));
     if (!free_s && !free_t) {
       stationary = true;
       break;
@@ -1170,8 +1183,10 @@ double newton_core(const BezierPatch& patch, const Vec3& p, double s0, double s1
       dt /= reach;
     }
     // Converged: the step is below what a parameter in [0, 1] can resolve (the same threshold as
-    // `moved` below, without spending an evaluation on it).
-    if (std::max(std::abs(ds), std::abs(dt)) <= 1e-15) {
+    // `moved` below, without spending an evaluation on it), or below `settled_step` for a Newton
+    // step where the caller has proven F strictly convex (the point is then that close to the
+    // minimiser and F within ~|H| settled_step^2 of the minimum).
+    if (std::max(std::abs(ds), std::abs(dt)) <= (newton_step ? settled_step : 1e-15)) {
       stationary = true;
       break;
     }
