@@ -1,6 +1,7 @@
 #include "nurbsreg/engine/prepared_model.hpp"
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <stdexcept>
 
@@ -16,7 +17,11 @@ double sphere_lower_bound(const BoundingSphere& s, const Vec3& p) {
 
 }  // namespace
 
-PreparedModel::PreparedModel(Model model) : model_(std::move(model)) {
+namespace {
+std::atomic<std::uint32_t> next_serial{1};
+}  // namespace
+
+PreparedModel::PreparedModel(Model model) : model_(std::move(model)), serial_(next_serial++) {
   if (auto error = model_.validate()) throw std::invalid_argument(*error);
   for (std::size_t s = 0; s < model_.surfaces.size(); ++s) {
     const NurbsSurface& surface = model_.surfaces[s];

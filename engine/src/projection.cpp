@@ -177,6 +177,7 @@ WarmCertificate Projector::make_certificate(const Vec3& p, const SurfaceHit& bes
   if (!(c.radius > 0.0f) || !(static_cast<double>(c.clearance) > d)) return tried;
   ++state.counters.certificates_made;
   c.patch = static_cast<std::int32_t>(patch);
+  c.model = model_.serial();
   c.s0 = local.s0;
   c.s1 = local.s1;
   c.t0 = local.t0;
@@ -247,7 +248,7 @@ void Projector::project_range(PointView points, const ProjectionOptions& options
           // Cheapest: the hint's WarmCertificate covers p. One Newton on its box N proves the
           // answer (see WarmCertificate); otherwise the usual warm start below.
           const WarmCertificate& c = hint->certificate;
-          if (c.radius > 0.0 && c.patch == hint_patch) {
+          if (c.radius > 0.0 && c.patch == hint_patch && c.model == model_.serial()) {
             const double moved = c.distance_to_anchor(p);
             if (moved <= c.radius) {
               s_loc = std::clamp(hint_s, double(c.s0), double(c.s1));

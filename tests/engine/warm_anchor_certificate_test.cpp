@@ -267,6 +267,32 @@ TEST(WarmAnchorCertificate, SameCertificatesForAnyThreadCount) {
   }
 }
 
+TEST(WarmAnchorCertificate, CertificatesOfAnotherModelAreNotTrusted) {
+  // The same patch layout, the geometry moved by 0.05: a certificate made for `a` proves
+  // nothing about `b`, and `b` must not use it.
+  NurbsSurface surface = test::random_surface(11, 3, 3, 9, 9, false);
+  const PreparedModel a{model_of({surface})};
+  for (Vec3& c : surface.control_points)
+    c.z() += 0.05;
+  const PreparedModel b{model_of({surface})};
+  ASSERT_NE(a.serial(), b.serial());
+  const std::vector<Vec3> points = query_points(a, 200, 6);
+  ProjectionOptions options;
+  options.certify = true;
+  ProjectionResults made, warm, cold;
+  Projector pa(a), pb(b);
+  pa.project(PointView::of(points), options, made);
+  std::vector<ProjectionHint> hints;
+  for (std::size_t i = 0; i < points.size(); ++i)
+    hints.push_back(made.hint(i));
+  ProjectionCounters counters;
+  pb.project(PointView::of(points), ProjectionOptions{}, warm, hints, &counters);
+  pb.project(PointView::of(points), ProjectionOptions{}, cold);
+  EXPECT_EQ(counters.certified, 0u);
+  for (std::size_t i = 0; i < points.size(); ++i)
+    EXPECT_NEAR(warm.distance[i], cold.distance[i], 1e-12 * b.bounds().diagonal()) << i;
+}
+
 TEST(WarmAnchorCertificate, RationalSurfacesGetNoneAndStayExact) {
   const PreparedModel pm{model_of({make_sphere(Vec3(1, 2, 3), 5.0)})};
   const std::vector<Vec3> points = query_points(pm, 60, 4);
