@@ -273,7 +273,8 @@ void rational_from_homogeneous(const Vec4& a00, const Vec4& a10, const Vec4& a01
 
 // Fixed degree N: Bernstein values and derivatives with compile-time loop bounds (unrolled).
 template <int N>
-void bernstein_012_fixed(double t, double* b0, double* b1, double* b2) {
+[[gnu::always_inline]] inline void bernstein_012_fixed(double t, double* b0, double* b1,
+                                                       double* b2) {
   static_assert(N >= 2 && N <= kMaxDegree);
   const double u = 1.0 - t;
   double tp[N + 1], up[N + 1];
@@ -1047,6 +1048,8 @@ PreparedPatch prepare_patch(const BezierPatch& patch) {
   const auto at = [&](int i, int j) { return pp.e[static_cast<std::size_t>(i * pp.cols + j)]; };
   for (int i = 0; i < pp.rows; ++i) {
     for (int j = 0; j < pp.cols; ++j) {
+      if (i + 1 < pp.rows) pp.e_s = std::max(pp.e_s, (at(i + 1, j) - at(i, j)).norm());
+      if (j + 1 < pp.cols) pp.e_t = std::max(pp.e_t, (at(i, j + 1) - at(i, j)).norm());
       if (i + 2 < pp.rows) {
         pp.e_ss = std::max(pp.e_ss, (at(i + 2, j) - 2.0 * at(i + 1, j) + at(i, j)).norm());
       }

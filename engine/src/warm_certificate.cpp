@@ -72,6 +72,61 @@ double outside_lower_bound(const double* full, double* grid, int rows, int cols,
   return std::max(bound, 0.0);
 }
 
+// Feet on the patch's own edge or corner (points beyond the surface's boundary): F need not be
+// convex around them. Instead F strictly increasing away from that edge on the box (first
+// differences of one sign) and, along the edge, strictly convex (second differences of the edge's
+// row) put the box's minimum on the edge, where it is unique; at a corner F increasing in both
+// directions puts it at the corner. Projected Newton's only KKT point on the box is then that
+// minimum. The largest radius for which this holds for every q within it of the anchor (first
+// and second differences move by at most 2 r times those of E, scaled by the box's widths);
+// 0 if it does not hold at the anchor.
+double edge_radius(const double* n, int rows, int cols, int s_edge, int t_edge, double e_s,
+                   double e_t, double e_ss, double e_tt, double r_max) {
+  double radius = r_max;
+  const auto limit = [&](double least, double e, double scale) {
+    // least - 2 r e > 1e-12 scale (rounding) for r < radius.
+    const double slack = least - 1e-12 * scale;
+    if (!(slack > 0.0)) return false;
+    if (e > 0.0) radius = std::min(radius, slack / (2.0 * e));
+    return true;
+  };
+  double scale = 0.0;
+  for (int k = 0; k < rows * cols; ++k)
+    scale = std::max(scale, std::abs(n[k]));
+  const auto at = [&](int i, int j) { return n[i * cols + j]; };
+  if (s_edge != 0) {  // +1: F increases with s (edge s = 0); -1: decreases (edge s = 1)
+    double least = std::numeric_limits<double>::infinity();
+    for (int i = 0; i + 1 < rows; ++i) {
+      for (int j = 0; j < cols; ++j)
+        least = std::min(least, s_edge * (at(i + 1, j) - at(i, j)));
+    }
+    if (!limit(least, e_s, scale)) return 0.0;
+  }
+  if (t_edge != 0) {
+    double least = std::numeric_limits<double>::infinity();
+    for (int i = 0; i < rows; ++i) {
+      for (int j = 0; j + 1 < cols; ++j)
+        least = std::min(least, t_edge * (at(i, j + 1) - at(i, j)));
+    }
+    if (!limit(least, e_t, scale)) return 0.0;
+  }
+  if (s_edge != 0 && t_edge == 0) {  // convex in t along the edge row
+    const int i = s_edge > 0 ? 0 : rows - 1;
+    double least = std::numeric_limits<double>::infinity();
+    for (int j = 0; j + 2 < cols; ++j)
+      least = std::min(least, at(i, j + 2) - 2.0 * at(i, j + 1) + at(i, j));
+    if (!limit(least, e_tt, scale)) return 0.0;
+  }
+  if (t_edge != 0 && s_edge == 0) {  // convex in s along the edge column
+    const int j = t_edge > 0 ? 0 : cols - 1;
+    double least = std::numeric_limits<double>::infinity();
+    for (int i = 0; i + 2 < rows; ++i)
+      least = std::min(least, at(i + 2, j) - 2.0 * at(i + 1, j) + at(i, j));
+    if (!limit(least, e_ss, scale)) return 0.0;
+  }
+  return radius;
+}
+
 // The float box [center - h, center + h] clipped to [0, 1], rounded outward so it holds center.
 void float_range(double center, double h, float& lo, float& hi) {
   lo = static_cast<float>(std::max(0.0, center - h));
@@ -100,16 +155,25 @@ PatchCertificate certify_patch(const PreparedPatch& pp, const Vec3& a, double s,
   // The same rounding allowance as the clipping's (coefficients carry ~eps reach^2).
   const double reach = pp.sphere.radius + (a - pp.origin).norm();
   const double rounding = 1e-14 * reach * reach;
-  for (const double h : {0.25, 0.1}) {
+  // A foot on the patch's edge: which edge (s = 0 edge: F must increase with s, and so on).
+  const int s_edge = s <= 0.0 ? 1 : (s >= 1.0 ? -1 : 0);
+  const int t_edge = t <= 0.0 ? 1 : (t >= 1.0 ? -1 : 0);
+  for (const double h : {1.0, 0.25, 0.1}) {
+    if (h == 1.0 && s_edge == 0 && t_edge == 0) continue;  // all of P: tested above
     float_range(s, h, c.s0, c.s1);
     float_range(t, h, c.t0, c.t1);
     const double ws = double(c.s1) - c.s0, wt = double(c.t1) - c.t0;
     if (!(ws > 0.0) || !(wt > 0.0)) continue;
     restrict_grid(full, grid, rows, cols, c.s0, c.s1, c.t0, c.t1);
-    // E restricted to the box: its second differences are those of the second derivatives'
+    // E restricted to the box: its first and second differences are those of the derivatives'
     // coefficients scaled by the box's widths, convex combinations of the whole patch's.
-    c.radius = grid_convexity_radius(grid, rows, cols, pp.e_ss * ws * ws, pp.e_tt * wt * wt,
-                                     pp.e_st * ws * wt, r_max);
+    c.radius = h == 1.0 ? 0.0
+                        : grid_convexity_radius(grid, rows, cols, pp.e_ss * ws * ws,
+                                                pp.e_tt * wt * wt, pp.e_st * ws * wt, r_max);
+    if (!(c.radius > 0.0) && (s_edge != 0 || t_edge != 0)) {
+      c.radius = edge_radius(grid, rows, cols, s_edge, t_edge, pp.e_s * ws, pp.e_t * wt,
+                             pp.e_ss * ws * ws, pp.e_tt * wt * wt, r_max);
+    }
     if (c.radius > 0.0) {
       const double target = (d + 2.0 * c.radius) * (d + 2.0 * c.radius);
       c.outside_sq =

@@ -116,7 +116,7 @@ class WarmAnchorClaims : public ::testing::TestWithParam<double> {};
 // wide cap the radius is set by the convexity test itself, so the ball's sphere is where the
 // Hessian is closest to losing definiteness.
 TEST_P(WarmAnchorClaims, ConvexityAndClearanceHoldAgainstSampling) {
-  int checked = 0;
+  int checked = 0, edge_feet = 0;
   for (const Model& model : test_models()) {
     const PreparedModel pm{Model(model)};
     Projector projector(pm);
@@ -156,16 +156,49 @@ TEST_P(WarmAnchorClaims, ConvexityAndClearanceHoldAgainstSampling) {
       EXPECT_GT(c.clearance, results.distance[i]);
       const PreparedPatch& pp = pm.patch(static_cast<std::size_t>(c.patch));
       EXPECT_EQ(pm.patch_surface(static_cast<std::size_t>(c.patch)), results.entity[i]);
-      // Convexity over N for points in the ball, its sphere included.
+      // The foot in the patch's local parameters: inside, or on the patch's edge or corner.
+      const double foot_s = pp.patch.param_u.to_local(results.u[i]);
+      const double foot_t = pp.patch.param_v.to_local(results.v[i]);
+      const int s_edge = foot_s <= 0.0 ? 1 : (foot_s >= 1.0 ? -1 : 0);
+      const int t_edge = foot_t <= 0.0 ? 1 : (foot_t >= 1.0 ? -1 : 0);
+      edge_feet += s_edge != 0 || t_edge != 0;
+      // For points in the ball, its sphere included: an inner foot's N has F convex; an edge
+      // foot's N has F increasing away from the edge (or convex); and in every case no point of a
+      // dense grid over N is below the Newton minimum on N.
       for (int k = 0; k < 6; ++k) {
         const double reach = k == 0 ? 0.0 : (k < 4 ? c.radius : uniform(rng, 0, c.radius));
         const Vec3 q = anchor + reach * random_direction(rng);
-        for (int a = 0; a <= 8; ++a) {
-          for (int b = 0; b <= 8; ++b) {
-            const double s = c.s0 + (c.s1 - c.s0) * a / 8.0, t = c.t0 + (c.t1 - c.t0) * b / 8.0;
-            ASSERT_TRUE(hessian_positive_definite(pp.patch, q, s, t))
-                << "point " << i << ": not convex at (" << s << ", " << t << ") of patch "
-                << c.patch << ", |q - a| = " << reach;
+        double s_min = 0.5 * (c.s0 + c.s1), t_min = 0.5 * (c.t0 + c.t1);
+        Vec3 foot;
+        bool stationary = false;
+        const double minimum = newton_on_patch(pp.patch, q, c.s0, c.s1, c.t0, c.t1, s_min, t_min,
+                                               foot, nullptr, nullptr, &stationary);
+        ASSERT_TRUE(stationary);
+        for (int a = 0; a <= 24; ++a) {
+          for (int b = 0; b <= 24; ++b) {
+            const double s = c.s0 + (c.s1 - c.s0) * a / 24.0, t = c.t0 + (c.t1 - c.t0) * b / 24.0;
+            const double f = (pp.patch.evaluate(s, t) - q).squaredNorm();
+            ASSERT_GE(f, minimum - 1e-12 * diagonal * diagonal)
+                << "point " << i << ": F below the Newton minimum on N at (" << s << ", " << t
+                << ") of patch " << c.patch << ", |q - a| = " << reach;
+            if (a % 3 != 0 || b % 3 != 0) continue;
+            const bool convex = hessian_positive_definite(pp.patch, q, s, t);
+            if (s_edge == 0 && t_edge == 0) {
+              ASSERT_TRUE(convex) << "point " << i << ": not convex at (" << s << ", " << t
+                                  << ") of patch " << c.patch << ", |q - a| = " << reach;
+            } else if (!convex) {
+              Vec3 d[6];
+              pp.patch.derivatives(s, t, d);
+              const Vec3 r = d[0] - q;
+              if (s_edge != 0) {
+                ASSERT_GT(s_edge * r.dot(d[1]), 0.0)
+                    << "point " << i << ": F not increasing away from its edge";
+              }
+              if (t_edge != 0) {
+                ASSERT_GT(t_edge * r.dot(d[2]), 0.0)
+                    << "point " << i << ": F not increasing away from its edge";
+              }
+            }
           }
         }
       }
@@ -184,7 +217,9 @@ TEST_P(WarmAnchorClaims, ConvexityAndClearanceHoldAgainstSampling) {
     }
   }
   EXPECT_GT(checked, 100) << "too few certificates to check";
-  std::printf("[ report ] %d certificates checked\n", checked);
+  EXPECT_GT(edge_feet, 10) << "too few certificates for feet on an edge";
+  std::printf("[ report ] %d certificates checked, %d with the foot on a patch edge\n", checked,
+              edge_feet);
 }
 
 INSTANTIATE_TEST_SUITE_P(RadiusCaps, WarmAnchorClaims, ::testing::Values(0.0, 0.2));

@@ -41,7 +41,9 @@ enum class ProjectionStatus : std::uint8_t {
 //   - F_q = |S - q|^2 is strictly convex on N for every q with |q - a| <= radius (the clipping's
 //     convexity test on F_a's Bézier coefficients over N, widened by the most the coefficients'
 //     second differences can move when the point moves by `radius`), so Newton's KKT point on N
-//     is N's minimum for every such q;
+//     is N's minimum for every such q; for a foot on P's edge or corner (a point beyond the
+//     surface's boundary), F_q strictly increasing away from that edge on N and convex along it
+//     serves instead;
 //   - everything of the model outside N is at least `clearance` away from a: Bézier bounds over
 //     the rest of P, and an exact best-first search over the rest of the model against
 //     alpha = (d_a + 2 radius)^2.

@@ -66,6 +66,8 @@ struct PreparedPatch {
   // moving the point by e changes N's second differences by -2 e . (those of E), at most
   // 2 |e| times these (convexity_radius).
   double e_ss = 0.0, e_tt = 0.0, e_st = 0.0;
+  // The same for E's first differences in s and in t (a warm certificate's monotone edge test).
+  double e_s = 0.0, e_t = 0.0;
 
   const BezierPatch& bezier() const { return patch; }
   // N_ij for the point p into out[rows * cols].
