@@ -142,8 +142,20 @@ int monotone_edge(const FDerivatives& f) {
 // (min F_ss <= 0 or min F_tt <= 0 fails whatever the margin is). Same result as
 // convex(f_derivatives(...)) for a polynomial patch; the first-derivative ranges are not needed
 // there (monotone_edge is used for rational patches only).
+// convex_polynomial for a fixed grid (R, C): the same differences (element-wise, in the same
+// order of operations) and the same minima and maxima (they do not depend on the order they are
+// taken in), with the columns of a row in vector lanes (vector_lanes below) and one horizontal
+// pass per derivative.
+template <int R, int C>
+bool convex_polynomial_fixed(const double* a);
+
 bool convex_polynomial(const double* a, int rows, int cols) {
   if (rows < 3 || cols < 3) return false;  // F_ss or F_tt identically zero
+  // The grids of bicubic and biquadratic patches (and their mixes) get unrolled code.
+  if (rows == 7 && cols == 7) return convex_polynomial_fixed<7, 7>(a);
+  if (rows == 5 && cols == 5) return convex_polynomial_fixed<5, 5>(a);
+  if (rows == 5 && cols == 7) return convex_polynomial_fixed<5, 7>(a);
+  if (rows == 7 && cols == 5) return convex_polynomial_fixed<7, 5>(a);
   const int m = rows - 1, n = cols - 1;
   double ss_lo = std::numeric_limits<double>::infinity(), ss_hi = -ss_lo;
   for (int i = 0; i + 2 < rows; ++i) {
@@ -334,6 +346,117 @@ inline Lanes load_lanes(const double* x) {
 
 inline void store_lanes(double* x, Lanes v) {
   std::memcpy(x, &v, sizeof v);
+}
+
+// Running minimum and maximum of L values per slot, the first L - L % kLanes slots in vector
+// lanes. add(j, x) folds x into slots [j, j + kLanes) (j a multiple of kLanes below the vector
+// part's end); add_scalar(j, x) into slot j of the rest. min/max as std::min(acc, x) and
+// std::max(acc, x) per slot (a NaN x is ignored, as there).
+template <int L>
+struct SlotRange {
+  static constexpr int kVec = L / kLanes;
+  static constexpr int kRest = L % kLanes;
+  Lanes lo[kVec > 0 ? kVec : 1], hi[kVec > 0 ? kVec : 1];
+  double rest_lo[kRest > 0 ? kRest : 1], rest_hi[kRest > 0 ? kRest : 1];
+  SlotRange() {
+    const double inf = std::numeric_limits<double>::infinity();
+    Lanes plus, minus;
+    for (int k = 0; k < kLanes; ++k) {
+      plus[k] = inf;
+      minus[k] = -inf;
+    }
+    for (int v = 0; v < kVec; ++v) {
+      lo[v] = plus;
+      hi[v] = minus;
+    }
+    for (int k = 0; k < kRest; ++k) {
+      rest_lo[k] = inf;
+      rest_hi[k] = -inf;
+    }
+  }
+  void add(int v, Lanes x) {
+    lo[v] = x < lo[v] ? x : lo[v];
+    hi[v] = hi[v] < x ? x : hi[v];
+  }
+  void add_scalar(int k, double x) {
+    rest_lo[k] = std::min(rest_lo[k], x);
+    rest_hi[k] = std::max(rest_hi[k], x);
+  }
+  Iv reduce() const {
+    double l = std::numeric_limits<double>::infinity(), h = -l;
+    for (int v = 0; v < kVec; ++v) {
+      for (int k = 0; k < kLanes; ++k) {
+        l = std::min(l, lo[v][k]);
+        h = std::max(h, hi[v][k]);
+      }
+    }
+    for (int k = 0; k < kRest; ++k) {
+      l = std::min(l, rest_lo[k]);
+      h = std::max(h, rest_hi[k]);
+    }
+    return {l, h};
+  }
+};
+
+template <int R, int C>
+bool convex_polynomial_fixed(const double* a) {
+  static_assert(R >= 3 && C >= 3);
+  constexpr int m = R - 1, n = C - 1;
+  // F_ss: second differences down the columns, all C columns.
+  SlotRange<C> ss;
+  for (int i = 0; i + 2 < R; ++i) {
+    const double* r0 = a + i * C;
+    const double* r1 = r0 + C;
+    const double* r2 = r1 + C;
+    for (int v = 0; v < SlotRange<C>::kVec; ++v) {
+      const int j = v * kLanes;
+      ss.add(v, load_lanes(r2 + j) - 2.0 * load_lanes(r1 + j) + load_lanes(r0 + j));
+    }
+    for (int k = 0; k < SlotRange<C>::kRest; ++k) {
+      const int j = SlotRange<C>::kVec * kLanes + k;
+      ss.add_scalar(k, r2[j] - 2.0 * r1[j] + r0[j]);
+    }
+  }
+  const Iv ss_range = ss.reduce();
+  if (!(ss_range.lo > 0.0)) return false;
+  // F_tt: second differences along the rows, C - 2 per row.
+  SlotRange<C - 2> tt;
+  for (int i = 0; i < R; ++i) {
+    const double* r = a + i * C;
+    for (int v = 0; v < SlotRange<C - 2>::kVec; ++v) {
+      const int j = v * kLanes;
+      tt.add(v, load_lanes(r + j + 2) - 2.0 * load_lanes(r + j + 1) + load_lanes(r + j));
+    }
+    for (int k = 0; k < SlotRange<C - 2>::kRest; ++k) {
+      const int j = SlotRange<C - 2>::kVec * kLanes + k;
+      tt.add_scalar(k, r[j + 2] - 2.0 * r[j + 1] + r[j]);
+    }
+  }
+  const Iv tt_range = tt.reduce();
+  if (!(tt_range.lo > 0.0)) return false;
+  // F_st: mixed differences, (R - 1) x (C - 1).
+  SlotRange<C - 1> st;
+  for (int i = 0; i + 1 < R; ++i) {
+    const double* r0 = a + i * C;
+    const double* r1 = r0 + C;
+    for (int v = 0; v < SlotRange<C - 1>::kVec; ++v) {
+      const int j = v * kLanes;
+      st.add(v, load_lanes(r1 + j + 1) - load_lanes(r1 + j) - load_lanes(r0 + j + 1) +
+                    load_lanes(r0 + j));
+    }
+    for (int k = 0; k < SlotRange<C - 1>::kRest; ++k) {
+      const int j = SlotRange<C - 1>::kVec * kLanes + k;
+      st.add_scalar(k, r1[j + 1] - r1[j] - r0[j + 1] + r0[j]);
+    }
+  }
+  const Iv st_range = st.reduce();
+  // The same scaling and margin as derivative_ranges + convex.
+  const double ks = double(m) * (m - 1), kt = double(n) * (n - 1), kst = double(m) * n;
+  FDerivatives f{};
+  f.ss = {ks * ss_range.lo, ks * ss_range.hi};
+  f.tt = {kt * tt_range.lo, kt * tt_range.hi};
+  f.st = {kst * st_range.lo, kst * st_range.hi};
+  return convex(f);
 }
 
 // patch_derivatives for fixed degrees (P, Q): the same sums, fully unrolled by the compiler.
