@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 
 #include "nurbsreg/engine/decompose.hpp"
@@ -12,6 +13,32 @@ namespace {
 double sphere_lower_bound(const BoundingSphere& s, const Vec3& p) {
   const double d = std::max(0.0, (p - s.center).norm() - s.radius);
   return d * d;
+}
+
+// The frame of a patch's control net: a = the direction between its first and last rows, n the
+// normal of the net's two diagonals' plane made orthogonal to a, b = n x a. Any orthonormal
+// frame gives a valid bound (the control points are projected on each axis); this one makes the
+// box thin along the normal for a nearly flat patch.
+void oriented_axes(const BezierPatch& bp, Vec3 axis[3]) {
+  const int p = bp.degree_u, q = bp.degree_v;
+  auto point = [&](int i, int j) -> Vec3 {
+    const Vec4& c = bp.at(i, j);
+    return c.head<3>() / c[3];
+  };
+  Vec3 a = point(p, 0) + point(p, q) - point(0, 0) - point(0, q);
+  Vec3 b = point(0, q) + point(p, q) - point(0, 0) - point(p, 0);
+  Vec3 n = a.cross(b);
+  if (!(a.norm() > 0.0) || !(n.norm() > 1e-12 * a.norm() * b.norm())) {
+    axis[0] = Vec3::UnitX();
+    axis[1] = Vec3::UnitY();
+    axis[2] = Vec3::UnitZ();
+    return;
+  }
+  a.normalize();
+  n.normalize();
+  axis[0] = a;
+  axis[1] = n.cross(a).normalized();
+  axis[2] = n;
 }
 
 }  // namespace
@@ -73,6 +100,30 @@ PreparedModel::PreparedModel(Model model) : model_(std::move(model)) {
     // The prepared patch already holds its bounds.
     item_boxes_.push_back(patches_[i].box);
     item_spheres_.push_back(patches_[i].sphere);
+    const BezierPatch& bp = patches_[i].patch;
+    OrientedBox ob;
+    oriented_axes(bp, ob.axis);
+    for (int k = 0; k < 3; ++k) {
+      ob.lo[k] = std::numeric_limits<double>::infinity();
+      ob.hi[k] = -ob.lo[k];
+    }
+    for (const Vec4& c : bp.cw) {
+      const Vec3 x = c.head<3>() / c[3];
+      for (int k = 0; k < 3; ++k) {
+        const double y = ob.axis[k].dot(x);
+        ob.lo[k] = std::min(ob.lo[k], y);
+        ob.hi[k] = std::max(ob.hi[k], y);
+      }
+    }
+    // Rounding in the projections (relative 1e-15 of |x|): widen so the box still holds every
+    // control point's true projection.
+    for (int k = 0; k < 3; ++k) {
+      const double slack = 1e-14 * (std::abs(ob.lo[k]) + std::abs(ob.hi[k]) +
+                                    (patches_[i].box.hi - patches_[i].box.lo).norm());
+      ob.lo[k] -= slack;
+      ob.hi[k] += slack;
+    }
+    item_oriented_.push_back(ob);
   }
   for (std::size_t s = 0; s < model_.surfaces.size(); ++s) {
     const NurbsSurface& surface = model_.surfaces[s];
@@ -114,7 +165,17 @@ std::int64_t PreparedModel::locate_patch(int surface, double u, double v) const 
 }
 
 double PreparedModel::item_lower_bound(std::uint32_t k, const Vec3& p) const {
-  return std::max(item_boxes_[k].squared_distance(p), sphere_lower_bound(item_spheres_[k], p));
+  const double bound =
+      std::max(item_boxes_[k].squared_distance(p), sphere_lower_bound(item_spheres_[k], p));
+  if (k >= item_oriented_.size()) return bound;  // a trim-edge piece
+  const OrientedBox& ob = item_oriented_[k];
+  double oriented = 0.0;
+  for (int a = 0; a < 3; ++a) {
+    const double y = ob.axis[a].dot(p);
+    const double out = std::max(std::max(ob.lo[a] - y, 0.0), y - ob.hi[a]);
+    oriented += out * out;
+  }
+  return std::max(bound, oriented);
 }
 
 Vec2 PreparedModel::edge_uv(std::size_t i, double t) const {

@@ -58,7 +58,8 @@ class PreparedModel {
   const Bvh& patch_hierarchy() const { return patch_bvh_; }
   std::size_t hierarchy_patch_items() const { return item_patch_.size(); }
   std::uint32_t item_patch(std::uint32_t k) const { return item_patch_[k]; }
-  // Squared-distance lower bound from p to item k (box and sphere).
+  // Squared-distance lower bound from p to item k (box and sphere; for a patch also its
+  // oriented box, see OrientedBox).
   double item_lower_bound(std::uint32_t k, const Vec3& p) const;
 
   // Trim-edge pieces: Bézier pieces of the faces' 3-D boundary edges (trim_edges).
@@ -103,6 +104,16 @@ class PreparedModel {
   std::vector<std::uint32_t> item_patch_;
   std::vector<Aabb> item_boxes_;  // per hierarchy item (patches, then edge pieces)
   std::vector<BoundingSphere> item_spheres_;
+  // A box in the patch's own frame (two tangent directions and the normal of its control net),
+  // per patch item: much tighter than the axis-aligned box for a tilted or curved patch, so a
+  // patch the axis-aligned bound lets through is often rejected before its clipping starts.
+  // `axis` holds orthonormal axes; the patch lies in lo[k] <= axis[k] . x <= hi[k] (convex hull
+  // property of the control points).
+  struct OrientedBox {
+    Vec3 axis[3] = {Vec3::UnitX(), Vec3::UnitY(), Vec3::UnitZ()};
+    double lo[3] = {0, 0, 0}, hi[3] = {0, 0, 0};
+  };
+  std::vector<OrientedBox> item_oriented_;  // per patch item (k < hierarchy_patch_items())
   std::vector<PreparedCurvePiece> edge_pieces_;
   std::vector<EdgePiece> edge_piece_info_;
   Bvh patch_bvh_;
