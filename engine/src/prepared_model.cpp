@@ -124,6 +124,14 @@ PreparedModel::PreparedModel(Model model) : model_(std::move(model)) {
       ob.hi[k] += slack;
     }
     item_oriented_.push_back(ob);
+    std::array<double, 12> corners;
+    for (int corner = 0; corner < 4; ++corner) {
+      const Vec4& c = bp.at(corner >> 1 ? bp.degree_u : 0, corner & 1 ? bp.degree_v : 0);
+      const Vec3 x = c.head<3>() / c[3];
+      for (int k = 0; k < 3; ++k)
+        corners[static_cast<std::size_t>(3 * corner + k)] = x[k];
+    }
+    item_corners_.push_back(corners);
   }
   for (std::size_t s = 0; s < model_.surfaces.size(); ++s) {
     const NurbsSurface& surface = model_.surfaces[s];
@@ -176,6 +184,39 @@ double PreparedModel::item_lower_bound(std::uint32_t k, const Vec3& p) const {
     oriented += out * out;
   }
   return std::max(bound, oriented);
+}
+
+bool PreparedModel::seed_from_corner(const Vec3& p, double limit_sq, SurfaceHit& best, int& surface,
+                                     std::int64_t& patch) const {
+  const std::int64_t item = patch_bvh_.greedy_primitive(p);
+  if (item < 0 || static_cast<std::size_t>(item) >= item_patch_.size()) return false;
+  const std::uint32_t k = item_patch_[static_cast<std::size_t>(item)];
+  if (patch_class_[k] != RegionClass::inside) return false;
+  const double* corners = item_corners_[static_cast<std::size_t>(item)].data();
+  double best_sq = limit_sq;
+  int best_corner = -1;
+  for (int corner = 0; corner < 4; ++corner) {
+    const double* x = corners + 3 * corner;
+    const double dx = x[0] - p.x(), dy = x[1] - p.y(), dz = x[2] - p.z();
+    const double d = dx * dx + dy * dy + dz * dz;
+    if (d < best_sq) {
+      best_sq = d;
+      best_corner = corner;
+    }
+  }
+  if (best_corner < 0) return false;
+  const BezierPatch& bp = patches_[k].patch;
+  const double* x = corners + 3 * best_corner;
+  best.s = best_corner >> 1 ? 1.0 : 0.0;
+  best.t = best_corner & 1 ? 1.0 : 0.0;
+  best.u = bp.param_u.to_parent(best.s);
+  best.v = bp.param_v.to_parent(best.t);
+  best.distance_sq = best_sq;
+  best.foot = Vec3(x[0], x[1], x[2]);
+  best.normal = Vec3::Zero();
+  surface = patch_surface_[k];
+  patch = static_cast<std::int64_t>(k);
+  return true;
 }
 
 Vec2 PreparedModel::edge_uv(std::size_t i, double t) const {

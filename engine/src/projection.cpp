@@ -168,6 +168,12 @@ void Projector::project_range(PointView points, const ProjectionOptions& options
         best_patch = -1;
         hint_certified = false;
       }
+      // Cold start: seed alpha with an exact surface point near p (a patch corner), so the walk
+      // prunes from its first step. Only an upper bound: the answer stays exact.
+      bool seeded = false;
+      if (best_surface < 0) {
+        seeded = model_.seed_from_corner(p, limit_sq, best, best_surface, best_patch);
+      }
       double alpha = best.distance_sq;
       // Hierarchy items: patches first (item_patch maps them), then trim-edge pieces.
       const std::uint32_t patch_items = static_cast<std::uint32_t>(model_.hierarchy_patch_items());
@@ -188,6 +194,7 @@ void Projector::project_range(PointView points, const ProjectionOptions& options
                 best_surface = model_.patch_surface(patch);
                 best_patch = patch;
                 best_edge = -1;
+                seeded = false;
                 a = best.distance_sq;
               }
               return;
@@ -204,12 +211,21 @@ void Projector::project_range(PointView points, const ProjectionOptions& options
               best_patch = -1;
               best_edge = static_cast<std::int64_t>(e);
               best_edge_t = hit.u;
+              seeded = false;
               a = best.distance_sq;
             }
           });
       if (best_surface < 0) {
         write_missing(out, i, ProjectionStatus::beyond_max_distance);
         continue;
+      }
+      if (seeded) {
+        // The seed corner is the answer: its foot and normal on the patch geometry, as the
+        // clipping's polishing Newton would report them there (a zero-size Newton box).
+        const BezierPatch& bp = model_.patch(static_cast<std::size_t>(best_patch)).patch;
+        double s_loc = best.s, t_loc = best.t;
+        best.distance_sq = newton_on_patch(bp, p, s_loc, s_loc, t_loc, t_loc, s_loc, t_loc,
+                                           best.foot, nullptr, &best.normal);
       }
       const NurbsSurface& s = model.surfaces[best_surface];
       if (best_edge >= 0) {

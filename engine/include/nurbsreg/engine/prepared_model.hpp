@@ -14,6 +14,7 @@
 // Built once (allocates); afterwards const and thread-safe: any number of threads may project
 // against one PreparedModel at the same time.
 
+#include <array>
 #include <cstdint>
 #include <vector>
 
@@ -58,6 +59,16 @@ class PreparedModel {
   const Bvh& patch_hierarchy() const { return patch_bvh_; }
   std::size_t hierarchy_patch_items() const { return item_patch_.size(); }
   std::uint32_t item_patch(std::uint32_t k) const { return item_patch_[k]; }
+  // Cold start: an upper bound on p's squared distance to the surfaces before any clipping, so
+  // that the hierarchy walk prunes from its first step. The nearest corner (an exact surface
+  // point: a Bézier patch interpolates its corner control points) of the patch that
+  // patch_hierarchy().greedy_primitive(p) reaches, when that item is a patch that is not
+  // trimmed (class inside) and the corner is below limit_sq. Then writes the corner to best
+  // (distance_sq, foot, u, v, local s and t; normal zero: the caller evaluates it if the corner
+  // stays the answer), its surface and patch, and returns true; otherwise changes nothing.
+  bool seed_from_corner(const Vec3& p, double limit_sq, SurfaceHit& best, int& surface,
+                        std::int64_t& patch) const;
+
   // Squared-distance lower bound from p to item k (box and sphere; for a patch also its
   // oriented box, see OrientedBox).
   double item_lower_bound(std::uint32_t k, const Vec3& p) const;
@@ -114,6 +125,9 @@ class PreparedModel {
     double lo[3] = {0, 0, 0}, hi[3] = {0, 0, 0};
   };
   std::vector<OrientedBox> item_oriented_;  // per patch item (k < hierarchy_patch_items())
+  // Per patch item: its four corner points (x, y, z of corner (0, 0), (0, 1), (1, 0), (1, 1) in
+  // local (s, t)), for seed_from_corner.
+  std::vector<std::array<double, 12>> item_corners_;
   std::vector<PreparedCurvePiece> edge_pieces_;
   std::vector<EdgePiece> edge_piece_info_;
   Bvh patch_bvh_;
