@@ -635,7 +635,10 @@ int boundary_edge(const double* f, int rows, int cols) {
 // relative to f'' (linear, not square-root, in it), so the geometric Newton then needs one
 // step instead of four or five. Stops where f'' <= 0 (returns the point reached), at a bound
 // whose derivative points outward, and after a few iterations.
-double bernstein_minimiser(const double* c, int count, double u) {
+// kCount > 0: a fixed number of coefficients (unrolled loops); 0: count at run time.
+template <int kCount>
+double bernstein_minimiser_impl(const double* c, int count, double u) {
+  if constexpr (kCount > 0) count = kCount;
   const int n = count - 1;
   if (n < 2) return u;
   double d1[2 * kMaxDegree], d2[2 * kMaxDegree];
@@ -643,22 +646,19 @@ double bernstein_minimiser(const double* c, int count, double u) {
     d1[j] = n * (c[j + 1] - c[j]);
   for (int j = 0; j + 1 < n; ++j)
     d2[j] = double(n) * (n - 1) * (c[j + 2] - 2.0 * c[j + 1] + c[j]);
-  // Bernstein sum of degree m with coefficients a at x, from the powers of x and 1 - x.
-  auto bernstein_sum = [](const double* a, int m, const double* xp, const double* yp) {
-    double sum = 0.0;
-    for (int j = 0; j <= m; ++j)
-      sum += kWideBinomial.c[m][j] * xp[j] * yp[m - j] * a[j];
-    return sum;
-  };
   for (int it = 0; it < 8; ++it) {
+    // Bernstein sums of degree n - 1 (d1) and n - 2 (d2) at u, from the powers of u and 1 - u.
     double xp[2 * kMaxDegree + 1], yp[2 * kMaxDegree + 1];
     xp[0] = yp[0] = 1.0;
     for (int k = 1; k < n; ++k) {
       xp[k] = xp[k - 1] * u;
       yp[k] = yp[k - 1] * (1.0 - u);
     }
-    const double g = bernstein_sum(d1, n - 1, xp, yp);
-    const double h = bernstein_sum(d2, n - 2, xp, yp);
+    double g = 0.0, h = 0.0;
+    for (int j = 0; j < n; ++j)
+      g += kWideBinomial.c[n - 1][j] * xp[j] * yp[n - 1 - j] * d1[j];
+    for (int j = 0; j + 1 < n; ++j)
+      h += kWideBinomial.c[n - 2][j] * xp[j] * yp[n - 2 - j] * d2[j];
     if (!(h > 0.0)) break;
     if ((u <= 0.0 && g >= 0.0) || (u >= 1.0 && g <= 0.0)) break;
     const double next = std::clamp(u - g / h, 0.0, 1.0);
@@ -668,6 +668,12 @@ double bernstein_minimiser(const double* c, int count, double u) {
     if (moved <= 1e-15) break;
   }
   return u;
+}
+
+double bernstein_minimiser(const double* c, int count, double u) {
+  if (count == 7) return bernstein_minimiser_impl<7>(c, count, u);  // bicubic
+  if (count == 5) return bernstein_minimiser_impl<5>(c, count, u);  // biquadratic
+  return bernstein_minimiser_impl<0>(c, count, u);
 }
 
 // The state of one clipping run on one patch.
