@@ -1278,11 +1278,12 @@ double newton_core(const BezierPatch& patch, const Vec3& p, double s0, double s1
     const double htt = sv.dot(sv) + r.dot(d[5]);
     // Projected Newton: a variable at a bound whose gradient pushes outward is held fixed.
     // A gradient component below rounding (relative 1e-15) counts as zero: stationary.
-    const double noise = 1e-15 * r.norm() * std::max(su.norm(), sv.norm());
+    // Compared squared (|g| > 1e-15 |r| max(|S_s|, |S_t|)): no square roots per iteration.
+    const double noise_sq = 1e-30 * r.squaredNorm() * std::max(su.squaredNorm(), sv.squaredNorm());
     const bool free_s =
-        s1 > s0 && std::abs(gs) > noise && !((s <= s0 && gs > 0) || (s >= s1 && gs < 0));
+        s1 > s0 && gs * gs > noise_sq && !((s <= s0 && gs > 0) || (s >= s1 && gs < 0));
     const bool free_t =
-        t1 > t0 && std::abs(gt) > noise && !((t <= t0 && gt > 0) || (t >= t1 && gt < 0));
+        t1 > t0 && gt * gt > noise_sq && !((t <= t0 && gt > 0) || (t >= t1 && gt < 0));
     if (!free_s && !free_t) {
       stationary = true;
       break;
