@@ -1044,7 +1044,17 @@ void Clipper<kTrim>::run() {
     ++st.subdivisions;
     // Split across the direction in which F varies most: that is where the box is "long".
     double var_s = 0.0, var_t = 0.0;
-    for (int i = 0; i < rows; ++i) {
+    if (!pp.rational) {
+      // The same maxima without the per-element branches (max is order-independent).
+      for (int k = 0; k + cols < count; ++k)
+        var_s = std::max(var_s, std::abs(n[k + cols] - n[k]));
+      for (int i = 0; i < rows; ++i) {
+        const double* row = n + i * cols;
+        for (int j = 0; j + 1 < cols; ++j)
+          var_t = std::max(var_t, std::abs(row[j + 1] - row[j]));
+      }
+    }
+    for (int i = 0; pp.rational && i < rows; ++i) {
       for (int j = 0; j < cols; ++j) {
         const int k = i * cols + j;
         const double f = pp.rational ? n[k] / d[k] : n[k];
