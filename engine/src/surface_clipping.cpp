@@ -587,6 +587,25 @@ struct CoefficientRange {
 CoefficientRange coefficient_range(const double* n, const double* d, int count, bool rational) {
   CoefficientRange r{std::numeric_limits<double>::infinity(),
                      -std::numeric_limits<double>::infinity(), 0};
+  if (!rational) {
+    // The minimum and maximum only, in vector lanes (order-independent; a NaN is ignored as
+    // below). The index of the minimum is wanted only where a box ends in Newton: arg = -1, and
+    // first_index_of finds it then (the first index holding the minimum, as the strict test
+    // below keeps).
+    SlotRange<kLanes> lanes;
+    int k = 0;
+    for (; k + kLanes <= count; k += kLanes)
+      lanes.add(0, load_lanes(n + k));
+    Iv range = lanes.reduce();
+    for (; k < count; ++k) {
+      range.lo = std::min(range.lo, n[k]);
+      range.hi = std::max(range.hi, n[k]);
+    }
+    r.lo = range.lo;
+    r.hi = range.hi;
+    r.arg = -1;
+    return r;
+  }
   for (int k = 0; k < count; ++k) {
     const double f = rational ? n[k] / d[k] : n[k];
     if (f < r.lo) {
@@ -596,6 +615,14 @@ CoefficientRange coefficient_range(const double* n, const double* d, int count, 
     r.hi = std::max(r.hi, f);
   }
   return r;
+}
+
+// The first index k with a[k] == value (0 if none): the arg of coefficient_range's minimum.
+int first_index_of(const double* a, int count, double value) {
+  for (int k = 0; k < count; ++k) {
+    if (a[k] == value) return k;
+  }
+  return 0;
 }
 
 // Theorem 2 of seed 001 for a polynomial F: if the coefficients of one boundary row (column) are
@@ -1078,7 +1105,8 @@ void Clipper<kTrim>::run() {
     // Newton on this box, started at the Greville abscissa (i / (rows - 1), j / (cols - 1)) of
     // F's smallest coefficient: near the minimiser when the box is nearly convex.
     auto newton_box = [&](bool convex = false) {
-      const int i = b.arg / cols, j = b.arg % cols;
+      const int arg = b.arg >= 0 ? b.arg : first_index_of(n, count, b.lower);
+      const int i = arg / cols, j = arg % cols;
       double s = rows > 1 ? b.s0 + (b.s1 - b.s0) * i / (rows - 1) : 0.5 * (b.s0 + b.s1);
       double t = cols > 1 ? b.t0 + (b.t1 - b.t0) * j / (cols - 1) : 0.5 * (b.t0 + b.t1);
       // A polynomial F proven convex on the box: start at its own minimiser (polynomial_start)
