@@ -156,6 +156,32 @@ PreparedModel::PreparedModel(Model model) : model_(std::move(model)) {
     }
   }
   patch_bvh_ = Bvh(item_boxes_, 2);
+  // The seed grid: about 16 cells along the model's longest side, each cell's item from a greedy
+  // descent at its centre (seed_from_corner). Outside the model's box the nearest cell is used.
+  if (!patch_bvh_.empty() && !item_patch_.empty() && !bounds_.empty()) {
+    constexpr int kCellsAlongLongest = 16;
+    const Vec3 extent = bounds_.hi - bounds_.lo;
+    const double cell = std::max(extent.maxCoeff() / kCellsAlongLongest, 1e-300);
+    seed_lo_ = bounds_.lo;
+    seed_inv_cell_ = 1.0 / cell;
+    for (int a = 0; a < 3; ++a)
+      seed_dims_[a] =
+          std::clamp(static_cast<int>(std::ceil(extent[a] / cell)), 1, kCellsAlongLongest);
+    seed_cells_.resize(static_cast<std::size_t>(seed_dims_[0]) * seed_dims_[1] * seed_dims_[2]);
+    for (int z = 0; z < seed_dims_[2]; ++z) {
+      for (int y = 0; y < seed_dims_[1]; ++y) {
+        for (int x = 0; x < seed_dims_[0]; ++x) {
+          const Vec3 centre = seed_lo_ + cell * Vec3(x + 0.5, y + 0.5, z + 0.5);
+          const std::int64_t item = patch_bvh_.greedy_primitive(centre);
+          const bool usable =
+              item >= 0 && static_cast<std::size_t>(item) < item_patch_.size() &&
+              patch_class_[item_patch_[static_cast<std::size_t>(item)]] == RegionClass::inside;
+          seed_cells_[(static_cast<std::size_t>(z) * seed_dims_[1] + y) * seed_dims_[0] + x] =
+              usable ? static_cast<std::int32_t>(item) : -1;
+        }
+      }
+    }
+  }
   piece_bvh_ = Bvh(piece_boxes_, 2);
 }
 
@@ -188,10 +214,18 @@ double PreparedModel::item_lower_bound(std::uint32_t k, const Vec3& p) const {
 
 bool PreparedModel::seed_from_corner(const Vec3& p, double limit_sq, SurfaceHit& best, int& surface,
                                      std::int64_t& patch) const {
-  const std::int64_t item = patch_bvh_.greedy_primitive(p);
-  if (item < 0 || static_cast<std::size_t>(item) >= item_patch_.size()) return false;
+  if (seed_cells_.empty()) return false;
+  int cell[3];
+  for (int a = 0; a < 3; ++a) {
+    const double x = (p[a] - seed_lo_[a]) * seed_inv_cell_;
+    // NaN-safe: the caller passes finite points only, but a clamp of NaN must not index.
+    cell[a] = x > 0.0 ? static_cast<int>(std::min(x, double(seed_dims_[a] - 1))) : 0;
+  }
+  const std::int32_t item =
+      seed_cells_[(static_cast<std::size_t>(cell[2]) * seed_dims_[1] + cell[1]) * seed_dims_[0] +
+                  cell[0]];
+  if (item < 0) return false;
   const std::uint32_t k = item_patch_[static_cast<std::size_t>(item)];
-  if (patch_class_[k] != RegionClass::inside) return false;
   const double* corners = item_corners_[static_cast<std::size_t>(item)].data();
   double best_sq = limit_sq;
   int best_corner = -1;

@@ -61,9 +61,11 @@ class PreparedModel {
   std::uint32_t item_patch(std::uint32_t k) const { return item_patch_[k]; }
   // Cold start: an upper bound on p's squared distance to the surfaces before any clipping, so
   // that the hierarchy walk prunes from its first step. The nearest corner (an exact surface
-  // point: a Bézier patch interpolates its corner control points) of the patch that
-  // patch_hierarchy().greedy_primitive(p) reaches, when that item is a patch that is not
-  // trimmed (class inside) and the corner is below limit_sq. Then writes the corner to best
+  // point: a Bézier patch interpolates its corner control points) of a patch near p: the patch
+  // stored for p's cell of a coarse grid over the model (the one
+  // patch_hierarchy().greedy_primitive reaches from the cell's centre, computed at
+  // construction), when that item is a patch that is not trimmed (class inside) and the corner
+  // is below limit_sq. Then writes the corner to best
   // (distance_sq, foot, u, v, local s and t; normal zero: the caller evaluates it if the corner
   // stays the answer), its surface and patch, and returns true; otherwise changes nothing.
   bool seed_from_corner(const Vec3& p, double limit_sq, SurfaceHit& best, int& surface,
@@ -128,6 +130,12 @@ class PreparedModel {
   // Per patch item: its four corner points (x, y, z of corner (0, 0), (0, 1), (1, 0), (1, 1) in
   // local (s, t)), for seed_from_corner.
   std::vector<std::array<double, 12>> item_corners_;
+  // The seed grid: seed_cells_ cells of side seed_cell_ from seed_lo_, x fastest; each holds a
+  // hierarchy item near its centre, or -1 (a trim-edge piece or a trimmed patch: no seed).
+  Vec3 seed_lo_ = Vec3::Zero();
+  double seed_inv_cell_ = 0.0;
+  int seed_dims_[3] = {0, 0, 0};
+  std::vector<std::int32_t> seed_cells_;
   std::vector<PreparedCurvePiece> edge_pieces_;
   std::vector<EdgePiece> edge_piece_info_;
   Bvh patch_bvh_;
