@@ -71,8 +71,9 @@ class PreparedModel {
   bool seed_from_corner(const Vec3& p, double limit_sq, SurfaceHit& best, int& surface,
                         std::int64_t& patch) const;
 
-  // Squared-distance lower bound from p to item k (box and sphere; for a patch also its
-  // oriented box, see OrientedBox).
+  // Squared-distance lower bound from p to item k, to be combined with the item's box distance
+  // (the hierarchy walk does, Bvh::nearest): a patch's oriented box (OrientedBox), an edge
+  // piece's bounding sphere.
   double item_lower_bound(std::uint32_t k, const Vec3& p) const;
 
   // Trim-edge pieces: Bézier pieces of the faces' 3-D boundary edges (trim_edges).
