@@ -124,14 +124,6 @@ PreparedModel::PreparedModel(Model model) : model_(std::move(model)) {
       ob.hi[k] += slack;
     }
     item_oriented_.push_back(ob);
-    std::array<double, 12> corners;
-    for (int corner = 0; corner < 4; ++corner) {
-      const Vec4& c = bp.at(corner >> 1 ? bp.degree_u : 0, corner & 1 ? bp.degree_v : 0);
-      const Vec3 x = c.head<3>() / c[3];
-      for (int k = 0; k < 3; ++k)
-        corners[static_cast<std::size_t>(3 * corner + k)] = x[k];
-    }
-    item_corners_.push_back(corners);
   }
   for (std::size_t s = 0; s < model_.surfaces.size(); ++s) {
     const NurbsSurface& surface = model_.surfaces[s];
@@ -156,10 +148,11 @@ PreparedModel::PreparedModel(Model model) : model_(std::move(model)) {
     }
   }
   patch_bvh_ = Bvh(item_boxes_, 2);
-  // The seed grid: about 16 cells along the model's longest side, each cell's item from a greedy
-  // descent at its centre (seed_from_corner). Outside the model's box the nearest cell is used.
+  // The seed grid: about 32 cells along the model's longest side; each cell's point is the
+  // sample nearest to its centre of the patch a greedy descent from the centre reaches
+  // (seed_from_grid). Outside the model's box the nearest cell is used.
   if (!patch_bvh_.empty() && !item_patch_.empty() && !bounds_.empty()) {
-    constexpr int kCellsAlongLongest = 16;
+    constexpr int kCellsAlongLongest = 32;
     const Vec3 extent = bounds_.hi - bounds_.lo;
     const double cell = std::max(extent.maxCoeff() / kCellsAlongLongest, 1e-300);
     seed_lo_ = bounds_.lo;
@@ -173,11 +166,24 @@ PreparedModel::PreparedModel(Model model) : model_(std::move(model)) {
         for (int x = 0; x < seed_dims_[0]; ++x) {
           const Vec3 centre = seed_lo_ + cell * Vec3(x + 0.5, y + 0.5, z + 0.5);
           const std::int64_t item = patch_bvh_.greedy_primitive(centre);
-          const bool usable =
-              item >= 0 && static_cast<std::size_t>(item) < item_patch_.size() &&
-              patch_class_[item_patch_[static_cast<std::size_t>(item)]] == RegionClass::inside;
-          seed_cells_[(static_cast<std::size_t>(z) * seed_dims_[1] + y) * seed_dims_[0] + x] =
-              usable ? static_cast<std::int32_t>(item) : -1;
+          if (item < 0 || static_cast<std::size_t>(item) >= item_patch_.size()) continue;
+          const std::uint32_t k = item_patch_[static_cast<std::size_t>(item)];
+          if (patch_class_[k] != RegionClass::inside) continue;
+          SeedCell& c =
+              seed_cells_[(static_cast<std::size_t>(z) * seed_dims_[1] + y) * seed_dims_[0] + x];
+          double nearest = std::numeric_limits<double>::infinity();
+          for (int a = 0; a < kSeedSamples; ++a) {
+            for (int b = 0; b < kSeedSamples; ++b) {
+              const double s_loc = double(a) / (kSeedSamples - 1);
+              const double t_loc = double(b) / (kSeedSamples - 1);
+              const Vec3 point = patches_[k].patch.evaluate(s_loc, t_loc);
+              const double d = (point - centre).squaredNorm();
+              if (d < nearest) {
+                nearest = d;
+                c = {static_cast<std::int64_t>(k), s_loc, t_loc, point};
+              }
+            }
+          }
         }
       }
     }
@@ -212,8 +218,8 @@ double PreparedModel::item_lower_bound(std::uint32_t k, const Vec3& p) const {
   return oriented;
 }
 
-bool PreparedModel::seed_from_corner(const Vec3& p, double limit_sq, SurfaceHit& best, int& surface,
-                                     std::int64_t& patch) const {
+bool PreparedModel::seed_from_grid(const Vec3& p, double limit_sq, SurfaceHit& best, int& surface,
+                                   std::int64_t& patch) const {
   if (seed_cells_.empty()) return false;
   int cell[3];
   for (int a = 0; a < 3; ++a) {
@@ -221,35 +227,22 @@ bool PreparedModel::seed_from_corner(const Vec3& p, double limit_sq, SurfaceHit&
     // NaN-safe: the caller passes finite points only, but a clamp of NaN must not index.
     cell[a] = x > 0.0 ? static_cast<int>(std::min(x, double(seed_dims_[a] - 1))) : 0;
   }
-  const std::int32_t item =
+  const SeedCell& c =
       seed_cells_[(static_cast<std::size_t>(cell[2]) * seed_dims_[1] + cell[1]) * seed_dims_[0] +
                   cell[0]];
-  if (item < 0) return false;
-  const std::uint32_t k = item_patch_[static_cast<std::size_t>(item)];
-  const double* corners = item_corners_[static_cast<std::size_t>(item)].data();
-  double best_sq = limit_sq;
-  int best_corner = -1;
-  for (int corner = 0; corner < 4; ++corner) {
-    const double* x = corners + 3 * corner;
-    const double dx = x[0] - p.x(), dy = x[1] - p.y(), dz = x[2] - p.z();
-    const double d = dx * dx + dy * dy + dz * dz;
-    if (d < best_sq) {
-      best_sq = d;
-      best_corner = corner;
-    }
-  }
-  if (best_corner < 0) return false;
-  const BezierPatch& bp = patches_[k].patch;
-  const double* x = corners + 3 * best_corner;
-  best.s = best_corner >> 1 ? 1.0 : 0.0;
-  best.t = best_corner & 1 ? 1.0 : 0.0;
-  best.u = bp.param_u.to_parent(best.s);
-  best.v = bp.param_v.to_parent(best.t);
-  best.distance_sq = best_sq;
-  best.foot = Vec3(x[0], x[1], x[2]);
+  if (c.patch < 0) return false;
+  const double d = (c.point - p).squaredNorm();
+  if (!(d < limit_sq)) return false;
+  const BezierPatch& bp = patches_[static_cast<std::size_t>(c.patch)].patch;
+  best.s = c.s;
+  best.t = c.t;
+  best.u = bp.param_u.to_parent(c.s);
+  best.v = bp.param_v.to_parent(c.t);
+  best.distance_sq = d;
+  best.foot = c.point;
   best.normal = Vec3::Zero();
-  surface = patch_surface_[k];
-  patch = static_cast<std::int64_t>(k);
+  surface = patch_surface_[static_cast<std::size_t>(c.patch)];
+  patch = c.patch;
   return true;
 }
 

@@ -172,7 +172,7 @@ void Projector::project_range(PointView points, const ProjectionOptions& options
       // prunes from its first step. Only an upper bound: the answer stays exact.
       bool seeded = false;
       if (best_surface < 0) {
-        seeded = model_.seed_from_corner(p, limit_sq, best, best_surface, best_patch);
+        seeded = model_.seed_from_grid(p, limit_sq, best, best_surface, best_patch);
       }
       double alpha = best.distance_sq;
       // Hierarchy items: patches first (item_patch maps them), then trim-edge pieces.

@@ -14,7 +14,6 @@
 // Built once (allocates); afterwards const and thread-safe: any number of threads may project
 // against one PreparedModel at the same time.
 
-#include <array>
 #include <cstdint>
 #include <vector>
 
@@ -60,16 +59,15 @@ class PreparedModel {
   std::size_t hierarchy_patch_items() const { return item_patch_.size(); }
   std::uint32_t item_patch(std::uint32_t k) const { return item_patch_[k]; }
   // Cold start: an upper bound on p's squared distance to the surfaces before any clipping, so
-  // that the hierarchy walk prunes from its first step. The nearest corner (an exact surface
-  // point: a Bézier patch interpolates its corner control points) of a patch near p: the patch
-  // stored for p's cell of a coarse grid over the model (the one
-  // patch_hierarchy().greedy_primitive reaches from the cell's centre, computed at
-  // construction), when that item is a patch that is not trimmed (class inside) and the corner
-  // is below limit_sq. Then writes the corner to best
+  // that the hierarchy walk prunes from its first step. A surface point stored for p's cell of a
+  // coarse grid over the model (computed at construction: of the patch that
+  // patch_hierarchy().greedy_primitive reaches from the cell's centre, if it is a patch that is
+  // not trimmed (class inside), the sample of a small (s, t) grid nearest to the centre), when
+  // its squared distance is below limit_sq. Then writes the corner to best
   // (distance_sq, foot, u, v, local s and t; normal zero: the caller evaluates it if the corner
   // stays the answer), its surface and patch, and returns true; otherwise changes nothing.
-  bool seed_from_corner(const Vec3& p, double limit_sq, SurfaceHit& best, int& surface,
-                        std::int64_t& patch) const;
+  bool seed_from_grid(const Vec3& p, double limit_sq, SurfaceHit& best, int& surface,
+                      std::int64_t& patch) const;
 
   // Squared-distance lower bound from p to item k, to be combined with the item's box distance
   // (the hierarchy walk does, Bvh::nearest): a patch's oriented box (OrientedBox), an edge
@@ -128,15 +126,19 @@ class PreparedModel {
     double lo[3] = {0, 0, 0}, hi[3] = {0, 0, 0};
   };
   std::vector<OrientedBox> item_oriented_;  // per patch item (k < hierarchy_patch_items())
-  // Per patch item: its four corner points (x, y, z of corner (0, 0), (0, 1), (1, 0), (1, 1) in
-  // local (s, t)), for seed_from_corner.
-  std::vector<std::array<double, 12>> item_corners_;
-  // The seed grid: seed_cells_ cells of side seed_cell_ from seed_lo_, x fastest; each holds a
-  // hierarchy item near its centre, or -1 (a trim-edge piece or a trimmed patch: no seed).
+  // The seed grid: cells of side 1 / seed_inv_cell_ from seed_lo_, x fastest. Each holds a
+  // surface point near its centre: a sample of a patch (local (s, t) on a kSeedSamples^2 grid,
+  // corners included) with its coordinates, or patch -1 (none: trimmed surfaces).
+  static constexpr int kSeedSamples = 5;
+  struct SeedCell {
+    std::int64_t patch = -1;
+    double s = 0, t = 0;
+    Vec3 point = Vec3::Zero();
+  };
   Vec3 seed_lo_ = Vec3::Zero();
   double seed_inv_cell_ = 0.0;
   int seed_dims_[3] = {0, 0, 0};
-  std::vector<std::int32_t> seed_cells_;
+  std::vector<SeedCell> seed_cells_;
   std::vector<PreparedCurvePiece> edge_pieces_;
   std::vector<EdgePiece> edge_piece_info_;
   Bvh patch_bvh_;
