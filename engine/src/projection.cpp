@@ -168,8 +168,8 @@ void Projector::project_range(PointView points, const ProjectionOptions& options
         best_patch = -1;
         hint_certified = false;
       }
-      // Cold start: seed alpha with an exact surface point near p (a patch corner), so the walk
-      // prunes from its first step. Only an upper bound: the answer stays exact.
+      // Cold start: seed alpha with a surface point near p (PreparedModel::seed_from_grid), so
+      // the walk prunes from its first step. Only an upper bound: the answer stays exact.
       bool seeded = false;
       if (best_surface < 0) {
         seeded = model_.seed_from_grid(p, limit_sq, best, best_surface, best_patch);
@@ -220,12 +220,18 @@ void Projector::project_range(PointView points, const ProjectionOptions& options
         continue;
       }
       if (seeded) {
-        // The seed corner is the answer: its foot and normal on the patch geometry, as the
-        // clipping's polishing Newton would report them there (a zero-size Newton box).
+        // The seed point is the answer (nothing was found closer by more than the clipping's
+        // accepted 1e-11 R): polished on its patch as the clipping polishes a corner value, by a
+        // descent-only Newton over the whole patch from it (at a stationary point, as a corner
+        // minimum is, it stays put and only evaluates foot and normal there).
         const BezierPatch& bp = model_.patch(static_cast<std::size_t>(best_patch)).patch;
         double s_loc = best.s, t_loc = best.t;
-        best.distance_sq = newton_on_patch(bp, p, s_loc, s_loc, t_loc, t_loc, s_loc, t_loc,
-                                           best.foot, nullptr, &best.normal);
+        best.distance_sq = newton_on_patch(bp, p, 0.0, 1.0, 0.0, 1.0, s_loc, t_loc, best.foot,
+                                           nullptr, &best.normal);
+        best.s = s_loc;
+        best.t = t_loc;
+        best.u = bp.param_u.to_parent(s_loc);
+        best.v = bp.param_v.to_parent(t_loc);
       }
       const NurbsSurface& s = model.surfaces[best_surface];
       if (best_edge >= 0) {
