@@ -1,5 +1,6 @@
 // The nurbsreg column: PreparedModel + Projector, the engine's public batch API, used exactly as
-// an application would (prepare once, project frames, warm-start from the previous frame).
+// an application would (prepare once, project frames, warm-start from the previous frame, with
+// or without certificates).
 
 #include <algorithm>
 #include <vector>
@@ -37,6 +38,8 @@ class NurbsregPeer final : public Peer {
   }
 
   bool supports_warm() const override { return true; }
+  bool supports_certify() const override { return true; }
+  void set_certify(bool on) override { options_.certify = on; }
 
   void set_hints_from(std::span<const Vec3> previous) override {
     projector_.project(engine::PointView::of(previous), options_, results_);
@@ -46,7 +49,12 @@ class NurbsregPeer final : public Peer {
   }
 
   void project_warm(std::span<const Vec3> points, std::span<double> distance) override {
-    projector_.project(engine::PointView::of(points), options_, results_,
+    // Uses the hints' certificates but makes none, as ICP's full-resolution passes do
+    // (icp::ModelCorrespondenceFinder): a point whose certificate no longer holds is projected
+    // with the plain warm start.
+    engine::ProjectionOptions warm = options_;
+    warm.certify = false;
+    projector_.project(engine::PointView::of(points), warm, results_,
                        std::span<const engine::ProjectionHint>(hints_).first(points.size()));
     copy_distances(distance);
   }

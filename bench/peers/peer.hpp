@@ -34,6 +34,10 @@ class Peer {
   virtual void set_hints_from(std::span<const engine::Vec3> /*previous*/) {}
   virtual void project_warm(std::span<const engine::Vec3> /*points*/,
                             std::span<double> /*distance*/) {}
+  // Certified warm starts (nurbsreg: engine::WarmCertificate): when on, every projection also
+  // makes certificates and the hints carry them, as ICP's iterations do.
+  virtual bool supports_certify() const { return false; }
+  virtual void set_certify(bool /*on*/) {}
 };
 
 // Factories; each is defined only when its library was found (see CMakeLists.txt), and throws

@@ -8,10 +8,12 @@
 #include <limits>
 
 #include "nurbsreg/engine/sampling.hpp"
+#include "warm_certificate.hpp"
 
 namespace nurbsreg::engine {
 
 void ProjectionResults::resize(std::size_t n) {
+  certificate.resize(n);
   foot.resize(n);
   distance.resize(n);
   signed_distance.resize(n);
@@ -36,6 +38,7 @@ void ProjectionResults::copy_from(const ProjectionResults& part, std::size_t off
   put(normal, part.normal);
   put(status, part.status);
   put(on_trim_edge, part.on_trim_edge);
+  put(certificate, part.certificate);
 }
 
 struct Projector::ThreadState {
@@ -66,6 +69,13 @@ void write_missing(ProjectionResults& out, std::size_t i, ProjectionStatus statu
   out.status[i] = status;
 }
 
+// The default largest certificate radius: 0.1% of the model's size (ICP's late iterations and
+// tracking frames move points far less; a larger radius makes each certificate's search wider).
+double certificate_radius_cap(const ProjectionOptions& options, const PreparedModel& model) {
+  return options.certificate_radius > 0.0 ? options.certificate_radius
+                                          : 1e-3 * model.bounds().diagonal();
+}
+
 bool valid_hint(const ProjectionHint* hint, std::size_t entities) {
   return hint != nullptr && hint->entity >= 0 &&
          static_cast<std::size_t>(hint->entity) < entities && std::isfinite(hint->u) &&
@@ -78,22 +88,112 @@ Projector::Projector(const PreparedModel& model) : model_(model), impl_(std::mak
 
 Projector::~Projector() = default;
 
+void Projector::search_surfaces(const Vec3& p, SurfaceSearch& search, std::int64_t skip_patch,
+                                std::int64_t guess_patch, double guess_s, double guess_t,
+                                ThreadState& state) const {
+  // Hierarchy items: patches first (item_patch maps them), then trim-edge pieces.
+  const std::uint32_t patch_items = static_cast<std::uint32_t>(model_.hierarchy_patch_items());
+  SurfaceHit& best = search.best;
+  double alpha = best.distance_sq;
+  model_.patch_hierarchy().nearest(
+      p, alpha, state.bvh_scratch,
+      [this](std::uint32_t k, const Vec3& x) { return model_.item_lower_bound(k, x); },
+      [&](std::uint32_t k, double& a) {
+        ++state.counters.patches_visited;
+        if (k < patch_items) {
+          const std::uint32_t patch = model_.item_patch(k);
+          if (static_cast<std::int64_t>(patch) == skip_patch) return;
+          const bool guessed = static_cast<std::int64_t>(patch) == guess_patch;
+          if (project_onto_patch(model_.patch(patch), p, best, state.surface_scratch,
+                                 &state.surface_stats, guessed ? guess_s : kNaN,
+                                 guessed ? guess_t : kNaN, model_.patch_region(patch))) {
+            search.surface = model_.patch_surface(patch);
+            search.patch = patch;
+            search.edge = -1;
+            a = best.distance_sq;
+          }
+          return;
+        }
+        // A trim edge of a face (the loops' points, which the trimmed clipping leaves to the
+        // edges): the curve projector, exact on the piece.
+        const std::size_t e = k - patch_items;
+        CurveHit hit;
+        hit.distance_sq = best.distance_sq;
+        if (project_onto_piece(model_.edge_piece(e), p, hit, &state.curve_stats)) {
+          best.distance_sq = hit.distance_sq;
+          best.foot = hit.foot;
+          search.surface = model_.edge_piece_info(e).surface;
+          search.patch = -1;
+          search.edge = static_cast<std::int64_t>(e);
+          search.edge_t = hit.u;
+          a = best.distance_sq;
+        }
+      });
+}
+
+WarmCertificate Projector::make_certificate(const Vec3& p, const SurfaceHit& best,
+                                            std::int64_t patch, std::int64_t edge,
+                                            double radius_cap, ThreadState& state) const {
+  WarmCertificate tried;
+  tried.anchor = p;
+  tried.patch = WarmCertificate::kTried;
+  // Only a foot on an untrimmed polynomial patch (a foot on a trim edge, or on a patch edge
+  // shared with a neighbour, gets no clearance anyway).
+  if (patch < 0 || edge >= 0) return tried;
+  const std::size_t k = static_cast<std::size_t>(patch);
+  if (model_.surface_region(model_.patch_surface(k)) != nullptr) return tried;
+  const double d = std::sqrt(best.distance_sq);
+  const PatchCertificate local =
+      certify_patch(model_.patch(k), p, best.s, best.t, d, radius_cap, state.surface_scratch);
+  if (!(local.radius > 0.0)) return tried;
+  // The rest of the model, searched exactly (the same best-first walk without patch k) against
+  // alpha = (d + 2 radius)^2, or the bound over the rest of the patch if lower: whatever it ends
+  // with is a lower bound of the distance from p to everything outside N, and nothing beyond
+  // d + 2 radius is ever needed (a query within radius of p has its own distance at most
+  // d + radius).
+  SurfaceHit other;
+  other.distance_sq =
+      std::min((d + 2.0 * local.radius) * (d + 2.0 * local.radius), local.outside_sq);
+  int other_surface = -1;
+  std::int64_t other_patch = -1, other_edge = -1;
+  double other_edge_t = 0.0;
+  SurfaceSearch search{other, other_surface, other_patch, other_edge, other_edge_t};
+  search_surfaces(p, search, patch, -1, kNaN, kNaN, state);
+  const double clearance = std::sqrt(other.distance_sq);
+  if (!(clearance > d)) return tried;
+  ++state.counters.certificates_made;
+  WarmCertificate c;
+  c.anchor = p;
+  c.radius = local.radius;
+  c.clearance = clearance;
+  c.patch = static_cast<std::int32_t>(patch);
+  c.s0 = local.s0;
+  c.s1 = local.s1;
+  c.t0 = local.t0;
+  c.t1 = local.t1;
+  return c;
+}
+
 void Projector::project_range(PointView points, const ProjectionOptions& options,
                               ProjectionResults& out, std::span<const ProjectionHint> hints,
                               std::size_t begin, std::size_t end, ThreadState& state) const {
   const Model& model = model_.model();
   const bool surfaces = options.target == ProjectionTarget::surfaces;
   const std::size_t entities = surfaces ? model.surfaces.size() : model.curves.size();
+  const double certificate_cap = certificate_radius_cap(options, model_);
+
   for (std::size_t i = begin; i < end; ++i) {
     const Vec3 p = points[i];
     ++state.counters.points;
     if (!p.allFinite()) {
       ++state.counters.skipped;
       write_missing(out, i, ProjectionStatus::skipped_nonfinite);
+      out.certificate[i] = WarmCertificate{};
       continue;
     }
     if (entities == 0) {
       write_missing(out, i, ProjectionStatus::no_geometry);
+      out.certificate[i] = WarmCertificate{};
       continue;
     }
     const ProjectionHint* hint = hints.empty() ? nullptr : &hints[i];
@@ -109,19 +209,51 @@ void Projector::project_range(PointView points, const ProjectionOptions& options
       std::int64_t hint_patch = -1;
       double hint_s = kNaN, hint_t = kNaN;
       bool hint_certified = false;  // the hinted patch's minimum is already `best`
+      bool proven = false;          // `best` is the answer: the hint's certificate proves it
+      const double limit_sq = options.max_distance * options.max_distance;
       if (valid_hint(hint, entities)) {
         const NurbsSurface& s = model.surfaces[hint->entity];
         const double u = std::clamp(hint->u, s.domain_u().lo, s.domain_u().hi);
         const double v = std::clamp(hint->v, s.domain_v().lo, s.domain_v().hi);
-        hint_patch = model_.locate_patch(hint->entity, u, v);
+        // A certificate names its patch: no search when (u, v) lies in that patch's box.
+        const std::int32_t certified_patch = hint->certificate.patch;
+        const auto holds_uv = [&](std::int32_t k) {
+          if (k < 0 || static_cast<std::size_t>(k) >= model_.patch_count() ||
+              model_.patch_surface(static_cast<std::size_t>(k)) != hint->entity) {
+            return false;
+          }
+          const BezierPatch& bp = model_.patch(static_cast<std::size_t>(k)).patch;
+          return u >= bp.param_u.lo && u <= bp.param_u.hi && v >= bp.param_v.lo &&
+                 v <= bp.param_v.hi;
+        };
+        hint_patch =
+            holds_uv(certified_patch) ? certified_patch : model_.locate_patch(hint->entity, u, v);
         if (hint_patch >= 0) {
           const BezierPatch& bp = model_.patch(static_cast<std::size_t>(hint_patch)).patch;
           hint_s = std::clamp(bp.param_u.to_local(u), 0.0, 1.0);
           hint_t = std::clamp(bp.param_v.to_local(v), 0.0, 1.0);
           double s_loc = hint_s, t_loc = hint_t;
           bool stationary = false;
-          best.distance_sq = newton_on_patch(bp, p, 0.0, 1.0, 0.0, 1.0, s_loc, t_loc, best.foot,
-                                             nullptr, &best.normal, &stationary);
+          // Cheapest: the hint's WarmCertificate covers p. One Newton on its box N proves the
+          // answer (see WarmCertificate); otherwise the usual warm start below.
+          const WarmCertificate& c = hint->certificate;
+          if (c.radius > 0.0 && c.patch == hint_patch) {
+            const double moved = (p - c.anchor).norm();
+            if (moved <= c.radius) {
+              s_loc = std::clamp(hint_s, double(c.s0), double(c.s1));
+              t_loc = std::clamp(hint_t, double(c.t0), double(c.t1));
+              const double f = newton_in_certified_box(bp, p, c.s0, c.s1, c.t0, c.t1, s_loc, t_loc,
+                                                       best.foot, &best.normal, &stationary);
+              proven = stationary && f < limit_sq && std::sqrt(f) + moved <= c.clearance;
+              if (proven) best.distance_sq = f;
+            }
+          }
+          if (!proven) {
+            s_loc = hint_s;
+            t_loc = hint_t;
+            best.distance_sq = newton_on_patch(bp, p, 0.0, 1.0, 0.0, 1.0, s_loc, t_loc, best.foot,
+                                               nullptr, &best.normal, &stationary);
+          }
           best.s = s_loc;
           best.t = t_loc;
           best.u = bp.param_u.to_parent(s_loc);
@@ -133,7 +265,9 @@ void Projector::project_range(PointView points, const ProjectionOptions& options
           // chooses where the clipping's Newton starts), plus the hint's own point if that one
           // is in the region (a zero-size Newton box evaluates it).
           const TrimRegion* region = model_.surface_region(hint->entity);
-          if (region == nullptr || region->contains(best.u, best.v)) {
+          if (proven) {
+            // Certificates are made on untrimmed surfaces only: nothing more to check.
+          } else if (region == nullptr || region->contains(best.u, best.v)) {
             // The clipping of this patch restarts Newton from the converged point (one step).
             hint_s = s_loc;
             hint_t = t_loc;
@@ -160,78 +294,61 @@ void Projector::project_range(PointView points, const ProjectionOptions& options
           }
         }
       }
-      const double limit_sq = options.max_distance * options.max_distance;
       if (best.distance_sq >= limit_sq) {
         best = SurfaceHit{};
         best.distance_sq = limit_sq;
         best_surface = -1;
         best_patch = -1;
         hint_certified = false;
+        proven = false;
       }
-      // Cold start: seed alpha with a surface point near p (PreparedModel::seed_from_grid), so
-      // the walk prunes from its first step. Only an upper bound: the answer stays exact.
-      bool seeded = false;
-      if (best_surface < 0) {
-        seeded = model_.seed_from_grid(p, limit_sq, best, best_surface, best_patch);
-      }
-      double alpha = best.distance_sq;
-      // Hierarchy items: patches first (item_patch maps them), then trim-edge pieces.
-      const std::uint32_t patch_items = static_cast<std::uint32_t>(model_.hierarchy_patch_items());
       std::int64_t best_edge = -1;  // the best point is on this trim-edge piece
       double best_edge_t = 0.0;
-      model_.patch_hierarchy().nearest(
-          p, alpha, state.bvh_scratch,
-          [this](std::uint32_t k, const Vec3& x) { return model_.item_lower_bound(k, x); },
-          [&](std::uint32_t k, double& a) {
-            ++state.counters.patches_visited;
-            if (k < patch_items) {
-              const std::uint32_t patch = model_.item_patch(k);
-              const bool hinted = static_cast<std::int64_t>(patch) == hint_patch;
-              if (hinted && hint_certified) return;
-              if (project_onto_patch(model_.patch(patch), p, best, state.surface_scratch,
-                                     &state.surface_stats, hinted ? hint_s : kNaN,
-                                     hinted ? hint_t : kNaN, model_.patch_region(patch))) {
-                best_surface = model_.patch_surface(patch);
-                best_patch = patch;
-                best_edge = -1;
-                seeded = false;
-                a = best.distance_sq;
-              }
-              return;
-            }
-            // A trim edge of a face (the loops' points, which the trimmed clipping leaves to
-            // the edges): the curve projector, exact on the piece.
-            const std::size_t e = k - patch_items;
-            CurveHit hit;
-            hit.distance_sq = best.distance_sq;
-            if (project_onto_piece(model_.edge_piece(e), p, hit, &state.curve_stats)) {
-              best.distance_sq = hit.distance_sq;
-              best.foot = hit.foot;
-              best_surface = model_.edge_piece_info(e).surface;
-              best_patch = -1;
-              best_edge = static_cast<std::int64_t>(e);
-              best_edge_t = hit.u;
-              seeded = false;
-              a = best.distance_sq;
-            }
-          });
+      if (!proven) {
+        // Cold start: seed alpha with a surface point near p (PreparedModel::seed_from_grid), so
+        // the walk prunes from its first step. Only an upper bound: the answer stays exact.
+        double seed_sq = -1.0;  // the seed's squared distance when seeded
+        if (best_surface < 0 &&
+            model_.seed_from_grid(p, limit_sq, best, best_surface, best_patch)) {
+          seed_sq = best.distance_sq;
+        }
+        SurfaceSearch search{best, best_surface, best_patch, best_edge, best_edge_t};
+        search_surfaces(p, search, hint_certified ? hint_patch : -1, hint_patch, hint_s, hint_t,
+                        state);
+        if (best_edge < 0 && best.distance_sq == seed_sq) {
+          // The seed point is the answer (every improvement is strict: nothing was found closer
+          // by more than the clipping's accepted 1e-11 R). Polished on its patch as the clipping
+          // polishes a corner value, by a descent-only Newton over the whole patch from it (at a
+          // stationary point it stays put and only evaluates foot and normal there).
+          const BezierPatch& bp = model_.patch(static_cast<std::size_t>(best_patch)).patch;
+          double s_loc = best.s, t_loc = best.t;
+          best.distance_sq = newton_on_patch(bp, p, 0.0, 1.0, 0.0, 1.0, s_loc, t_loc, best.foot,
+                                             nullptr, &best.normal);
+          best.s = s_loc;
+          best.t = t_loc;
+          best.u = bp.param_u.to_parent(s_loc);
+          best.v = bp.param_v.to_parent(t_loc);
+        }
+      }
       if (best_surface < 0) {
         write_missing(out, i, ProjectionStatus::beyond_max_distance);
+        out.certificate[i] = WarmCertificate{};
         continue;
       }
-      if (seeded) {
-        // The seed point is the answer (nothing was found closer by more than the clipping's
-        // accepted 1e-11 R): polished on its patch as the clipping polishes a corner value, by a
-        // descent-only Newton over the whole patch from it (at a stationary point, as a corner
-        // minimum is, it stays put and only evaluates foot and normal there).
-        const BezierPatch& bp = model_.patch(static_cast<std::size_t>(best_patch)).patch;
-        double s_loc = best.s, t_loc = best.t;
-        best.distance_sq = newton_on_patch(bp, p, 0.0, 1.0, 0.0, 1.0, s_loc, t_loc, best.foot,
-                                           nullptr, &best.normal);
-        best.s = s_loc;
-        best.t = t_loc;
-        best.u = bp.param_u.to_parent(s_loc);
-        best.v = bp.param_v.to_parent(t_loc);
+      if (proven) {
+        ++state.counters.certified;
+        out.certificate[i] = hint->certificate;
+      } else if (options.certify) {
+        // A hint that says a certificate was sought near here and could not be made is not
+        // retried until the point has moved by the radius cap.
+        const bool tried_here = hint != nullptr &&
+                                hint->certificate.patch == WarmCertificate::kTried &&
+                                (p - hint->certificate.anchor).norm() <= certificate_cap;
+        out.certificate[i] =
+            tried_here ? hint->certificate
+                       : make_certificate(p, best, best_patch, best_edge, certificate_cap, state);
+      } else {
+        out.certificate[i] = WarmCertificate{};
       }
       const NurbsSurface& s = model.surfaces[best_surface];
       if (best_edge >= 0) {
@@ -295,6 +412,7 @@ void Projector::project_range(PointView points, const ProjectionOptions& options
           });
       if (best_curve < 0) {
         write_missing(out, i, ProjectionStatus::beyond_max_distance);
+        out.certificate[i] = WarmCertificate{};
         continue;
       }
       const double distance = std::sqrt(best.distance_sq);
@@ -306,6 +424,7 @@ void Projector::project_range(PointView points, const ProjectionOptions& options
       out.v[i] = 0.0;
       out.normal[i] = Vec3::Zero();
       out.on_trim_edge[i] = 0;
+      out.certificate[i] = WarmCertificate{};
     }
     out.status[i] = ProjectionStatus::ok;
   }
@@ -335,6 +454,8 @@ void Projector::project(PointView points, const ProjectionOptions& options, Proj
       counters->subdivisions += static_cast<std::uint64_t>(s.surface_stats.subdivisions) +
                                 static_cast<std::uint64_t>(s.curve_stats.subdivisions);
       counters->newton_iterations += static_cast<std::uint64_t>(s.surface_stats.newton_iterations);
+      counters->certified += s.counters.certified;
+      counters->certificates_made += s.counters.certificates_made;
     }
   }
 }

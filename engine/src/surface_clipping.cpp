@@ -9,6 +9,7 @@
 
 #include "nurbsreg/engine/surface_projection.hpp"
 #include "nurbsreg/engine/trim_region.hpp"
+#include "warm_certificate.hpp"
 
 namespace nurbsreg::engine {
 namespace {
@@ -17,7 +18,8 @@ constexpr int kMaxGridSide = 2 * kMaxDegree + 1;
 
 double newton_core(const BezierPatch& patch, const Vec3& p, double s0, double s1, double t0,
                    double t1, double& s, double& t, Vec3& foot, SurfaceProjectionStats* stats,
-                   Vec3* normal, double abort_at, bool* converged = nullptr);
+                   Vec3* normal, double abort_at, bool* converged = nullptr,
+                   double settled_step = 1e-15);
 
 double binomial(int n, int k) {
   double r = 1.0;
@@ -142,6 +144,23 @@ int monotone_edge(const FDerivatives& f) {
 // (min F_ss <= 0 or min F_tt <= 0 fails whatever the margin is). Same result as
 // convex(f_derivatives(...)) for a polynomial patch; the first-derivative ranges are not needed
 // there (monotone_edge is used for rational patches only).
+// The raw (unscaled) ranges of the second differences of a coefficient grid.
+struct SecondDifferences {
+  Iv ss, tt, st;
+};
+
+// Scales second-difference ranges to F's second-derivative ranges and applies `convex`.
+bool convex_second_differences(const SecondDifferences& d, int rows, int cols) {
+  const int m = rows - 1, n = cols - 1;
+  // The same scaling and margin as derivative_ranges + convex.
+  const double ks = double(m) * (m - 1), kt = double(n) * (n - 1), kst = double(m) * n;
+  FDerivatives f{};
+  f.ss = {ks * d.ss.lo, ks * d.ss.hi};
+  f.tt = {kt * d.tt.lo, kt * d.tt.hi};
+  f.st = {kst * d.st.lo, kst * d.st.hi};
+  return convex(f);
+}
+
 // convex_polynomial for a fixed grid (R, C): the same differences (element-wise, in the same
 // order of operations) and the same minima and maxima (they do not depend on the order they are
 // taken in), with the columns of a row in vector lanes (vector_lanes below) and one horizontal
@@ -156,7 +175,6 @@ bool convex_polynomial(const double* a, int rows, int cols) {
   if (rows == 5 && cols == 5) return convex_polynomial_fixed<5, 5>(a);
   if (rows == 5 && cols == 7) return convex_polynomial_fixed<5, 7>(a);
   if (rows == 7 && cols == 5) return convex_polynomial_fixed<7, 5>(a);
-  const int m = rows - 1, n = cols - 1;
   double ss_lo = std::numeric_limits<double>::infinity(), ss_hi = -ss_lo;
   for (int i = 0; i + 2 < rows; ++i) {
     const double* r0 = a + i * cols;
@@ -189,13 +207,7 @@ bool convex_polynomial(const double* a, int rows, int cols) {
       st_hi = std::max(st_hi, x);
     }
   }
-  // The same scaling and margin as derivative_ranges + convex.
-  const double ks = double(m) * (m - 1), kt = double(n) * (n - 1), kst = double(m) * n;
-  FDerivatives f{};
-  f.ss = {ks * ss_lo, ks * ss_hi};
-  f.tt = {kt * tt_lo, kt * tt_hi};
-  f.st = {kst * st_lo, kst * st_hi};
-  return convex(f);
+  return convex_second_differences({{ss_lo, ss_hi}, {tt_lo, tt_hi}, {st_lo, st_hi}}, rows, cols);
 }
 
 // Binomial coefficients C(n, i), n <= N, exact in double.
@@ -1367,6 +1379,21 @@ PreparedPatch prepare_patch(const BezierPatch& patch) {
     for (int c = 0; c < 3; ++c)
       pp.e_soa[static_cast<std::size_t>(c * count + k)] = pp.e[k][c];
   }
+  const auto at = [&](int i, int j) { return pp.e[static_cast<std::size_t>(i * pp.cols + j)]; };
+  for (int i = 0; i < pp.rows; ++i) {
+    for (int j = 0; j < pp.cols; ++j) {
+      if (i + 2 < pp.rows) {
+        pp.e_ss = std::max(pp.e_ss, (at(i + 2, j) - 2.0 * at(i + 1, j) + at(i, j)).norm());
+      }
+      if (j + 2 < pp.cols) {
+        pp.e_tt = std::max(pp.e_tt, (at(i, j + 2) - 2.0 * at(i, j + 1) + at(i, j)).norm());
+      }
+      if (i + 1 < pp.rows && j + 1 < pp.cols) {
+        pp.e_st =
+            std::max(pp.e_st, (at(i + 1, j + 1) - at(i + 1, j) - at(i, j + 1) + at(i, j)).norm());
+      }
+    }
+  }
   return pp;
 }
 
@@ -1389,7 +1416,7 @@ namespace {
 // returns +infinity (nothing to offer; s, t and foot are then meaningless).
 double newton_core(const BezierPatch& patch, const Vec3& p, double s0, double s1, double t0,
                    double t1, double& s, double& t, Vec3& foot, SurfaceProjectionStats* stats,
-                   Vec3* normal, double abort_at, bool* converged);
+                   Vec3* normal, double abort_at, bool* converged, double settled_step);
 
 }  // namespace
 
@@ -1400,11 +1427,21 @@ double newton_on_patch(const BezierPatch& patch, const Vec3& p, double s0, doubl
                      std::numeric_limits<double>::infinity(), converged);
 }
 
+double newton_in_certified_box(const BezierPatch& patch, const Vec3& p, double s0, double s1,
+                               double t0, double t1, double& s, double& t, Vec3& foot, Vec3* normal,
+                               bool* converged) {
+  // 1e-10 of the patch's parameter range: the foot's error is then ~1e-10 of the patch's size
+  // along the surface at most, and the squared distance's ~|H| 1e-20, far below the 1e-11 R the
+  // clipping itself does not pursue.
+  return newton_core(patch, p, s0, s1, t0, t1, s, t, foot, nullptr, normal,
+                     std::numeric_limits<double>::infinity(), converged, 1e-10);
+}
+
 namespace {
 
 double newton_core(const BezierPatch& patch, const Vec3& p, double s0, double s1, double t0,
                    double t1, double& s, double& t, Vec3& foot, SurfaceProjectionStats* stats,
-                   Vec3* normal, double abort_at, bool* converged) {
+                   Vec3* normal, double abort_at, bool* converged, double settled_step) {
   s = std::clamp(s, s0, s1);
   t = std::clamp(t, t0, t1);
   // Set when the iteration ends at a stationary (KKT) point of the box, not by the iteration cap,
@@ -1430,13 +1467,14 @@ double newton_core(const BezierPatch& patch, const Vec3& p, double s0, double s1
         return std::numeric_limits<double>::infinity();
       }
     }
-    const double hss = su.dot(su) + r.dot(d[3]);
+    const double suu = su.dot(su), svv = sv.dot(sv);
+    const double hss = suu + r.dot(d[3]);
     const double hst = su.dot(sv) + r.dot(d[4]);
-    const double htt = sv.dot(sv) + r.dot(d[5]);
+    const double htt = svv + r.dot(d[5]);
     // Projected Newton: a variable at a bound whose gradient pushes outward is held fixed.
-    // A gradient component below rounding (relative 1e-15) counts as zero: stationary.
-    // Compared squared (|g| > 1e-15 |r| max(|S_s|, |S_t|)): no square roots per iteration.
-    const double noise_sq = 1e-30 * r.squaredNorm() * std::max(su.squaredNorm(), sv.squaredNorm());
+    // A gradient component below rounding (relative 1e-15) counts as zero: stationary. Compared
+    // squared: |g| > 1e-15 |r| max(|S_s|, |S_t|) without the three roots.
+    const double noise_sq = 1e-30 * f * std::max(suu, svv);
     const bool free_s =
         s1 > s0 && gs * gs > noise_sq && !((s <= s0 && gs > 0) || (s >= s1 && gs < 0));
     const bool free_t =
@@ -1480,8 +1518,10 @@ double newton_core(const BezierPatch& patch, const Vec3& p, double s0, double s1
       dt /= reach;
     }
     // Converged: the step is below what a parameter in [0, 1] can resolve (the same threshold as
-    // `moved` below, without spending an evaluation on it).
-    if (std::max(std::abs(ds), std::abs(dt)) <= 1e-15) {
+    // `moved` below, without spending an evaluation on it), or below `settled_step` for a Newton
+    // step where the caller has proven F strictly convex (the point is then that close to the
+    // minimiser and F within ~|H| settled_step^2 of the minimum).
+    if (std::max(std::abs(ds), std::abs(dt)) <= (newton_step ? settled_step : 1e-15)) {
       stationary = true;
       break;
     }
@@ -1615,6 +1655,49 @@ bool squared_distance_convex(const PreparedPatch& pp, const Vec3& p, SurfaceScra
   if (!pp.rational) return convex_polynomial(n, pp.rows, pp.cols);
   const CoefficientRange range = coefficient_range(n, pp.d.data(), pp.rows * pp.cols, true);
   return convex(f_derivatives(n, pp.d.data(), pp.rows, pp.cols, true, {range.lo, range.hi}));
+}
+
+double grid_convexity_radius(const double* n, int rows, int cols, double e_ss, double e_tt,
+                             double e_st, double r_max) {
+  if (!convex_polynomial(n, rows, cols)) return 0.0;
+  const double inf = std::numeric_limits<double>::infinity();
+  SecondDifferences d{{inf, -inf}, {inf, -inf}, {inf, -inf}};
+  auto grow = [](Iv& iv, double x) {
+    iv.lo = std::min(iv.lo, x);
+    iv.hi = std::max(iv.hi, x);
+  };
+  for (int i = 0; i < rows; ++i) {
+    const double* r = n + i * cols;
+    for (int j = 0; j < cols; ++j) {
+      if (i + 2 < rows) grow(d.ss, r[2 * cols + j] - 2.0 * r[cols + j] + r[j]);
+      if (j + 2 < cols) grow(d.tt, r[j + 2] - 2.0 * r[j + 1] + r[j]);
+      if (i + 1 < rows && j + 1 < cols) grow(d.st, r[cols + j + 1] - r[cols + j] - r[j + 1] + r[j]);
+    }
+  }
+  // N_ij(q) = G_ij - 2 (q - o).E_ij + |q - o|^2: for |q - a| <= r each second difference moves
+  // by at most 2 r |second difference of E| (the constant term has none).
+  const auto holds = [&](double r) {
+    const double ws = 2.0 * r * e_ss, wt = 2.0 * r * e_tt, wst = 2.0 * r * e_st;
+    return convex_second_differences({{d.ss.lo - ws, d.ss.hi + ws},
+                                      {d.tt.lo - wt, d.tt.hi + wt},
+                                      {d.st.lo - wst, d.st.hi + wst}},
+                                     rows, cols);
+  };
+  if (holds(r_max)) return r_max;
+  double lo = 0.0, hi = r_max;  // holds(lo), !holds(hi)
+  for (int k = 0; k < 30 && hi - lo > 1e-3 * hi; ++k) {
+    const double mid = 0.5 * (lo + hi);
+    (holds(mid) ? lo : hi) = mid;
+  }
+  return lo;
+}
+
+double convexity_radius(const PreparedPatch& pp, const Vec3& a, double r_max,
+                        SurfaceScratch& scratch) {
+  if (pp.rational || !a.allFinite() || !(r_max > 0.0)) return 0.0;
+  double* n = scratch.grids.data();
+  pp.numerator(a, n);
+  return grid_convexity_radius(n, pp.rows, pp.cols, pp.e_ss, pp.e_tt, pp.e_st, r_max);
 }
 
 }  // namespace nurbsreg::engine

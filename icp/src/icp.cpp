@@ -165,12 +165,13 @@ void transform_points(const Isometry3d& T, std::span<const Vec3> scan, Buffers& 
 
 // Step 2, correspond: f_i, n_i, d_i = |q_i - f_i| from the model's closest-point step.
 void find_correspondences(CorrespondenceFinder& finder, double max_distance, bool parallel,
-                          Buffers& b) {
+                          double expected_motion, Buffers& b) {
   CorrespondenceQuery query;
   query.points = b.moved;
   query.scan_indices = b.ids;
   query.max_distance = max_distance;
   query.parallel = parallel;
+  query.expected_motion = expected_motion;
   finder.find(query, b.matches);
 }
 
@@ -591,6 +592,8 @@ IcpResult IcpSolver::align(CorrespondenceFinder& finder, std::span<const Vec3> s
   double final_sigma2 = 0.0;
   // Latest observed contraction rate of successive steps (|xi_s| ratio), for prediction.
   double rate = std::numeric_limits<double>::quiet_NaN();
+  // The last step's displacement of the points (CorrespondenceQuery::expected_motion).
+  double expected_motion = std::numeric_limits<double>::infinity();
   for (std::size_t stage = 0; stage < stage_sizes.size(); ++stage) {
     const bool last_stage = stage + 1 == stage_sizes.size();
     const Tolerances tol{o.rotation_tolerance, translation_tolerance,
@@ -606,7 +609,7 @@ IcpResult IcpSolver::align(CorrespondenceFinder& finder, std::span<const Vec3> s
       const auto t0 = Clock::now();
       final_system.reset();
       transform_points(T, scan, b, o.parallel);
-      find_correspondences(finder, o.max_correspondence_distance, o.parallel, b);
+      find_correspondences(finder, o.max_correspondence_distance, o.parallel, expected_motion, b);
       reject_outliers(o, b);
       IcpIteration it;
       it.kernel_scale = compute_weights(o, L, b);
@@ -637,6 +640,9 @@ IcpResult IcpSolver::align(CorrespondenceFinder& finder, std::span<const Vec3> s
       }
       it.rotation_step = step.xi.head<3>().norm();
       it.translation_step = step.xi.tail<3>().norm();
+      // How far this step moved the points (those within about 2 L of the centre), as the
+      // finder's guess for the next move: steps shrink as ICP converges.
+      expected_motion = 2.0 * L * it.rotation_step + it.translation_step;
       it.step_sigmas = step.sigmas;
       if (previous_step > 0.0) rate = step.scaled_norm / previous_step;
       previous_step = step.scaled_norm;
@@ -680,7 +686,7 @@ IcpResult IcpSolver::align(CorrespondenceFinder& finder, std::span<const Vec3> s
     select_points(scan.size(), scan.size(), 0, b.ids);
     b.resize(b.ids.size());
     transform_points(T, scan, b, o.parallel);
-    find_correspondences(finder, o.max_correspondence_distance, o.parallel, b);
+    find_correspondences(finder, o.max_correspondence_distance, o.parallel, expected_motion, b);
     reject_outliers(o, b);
     compute_weights(o, L, b);
     const Rejection kept = inlier_statistics(b);

@@ -1,14 +1,26 @@
 #include "nurbsreg/icp/model_finder.hpp"
 
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
 #include <cmath>
 
 namespace nurbsreg::icp {
 
 ModelCorrespondenceFinder::ModelCorrespondenceFinder(const engine::PreparedModel& model)
-    : projector_(model) {}
+    : projector_(model), certificate_radius_(1e-2 * model.bounds().diagonal()) {
+  atlas_.reset(cell_side());
+}
+
+// Atlas cells of a quarter of the radius cap: any point of a cell is within 0.43 cap of an
+// anchor in the same cell, inside most certificates' radius.
+double ModelCorrespondenceFinder::cell_side() const {
+  return certificate_radius_ > 0.0 ? 0.25 * certificate_radius_ : 1.0;
+}
 
 void ModelCorrespondenceFinder::reset(std::size_t scan_size) {
   hints_.assign(scan_size, engine::ProjectionHint{});
+  atlas_.reset(cell_side());
 }
 
 // The point lies beyond an open edge of the model when its foot is on a face boundary (a trim
@@ -39,13 +51,36 @@ void ModelCorrespondenceFinder::find(const CorrespondenceQuery& query,
   auto scan_index = [&](std::size_t k) {
     return query.scan_indices.empty() ? k : query.scan_indices[k];
   };
+  // Certificates are made on the coarse stages' subsamples once the solver expects small moves:
+  // the full-resolution stage then borrows them for the points between (about 90% of its first
+  // pass). Making one costs about two cold projections, so at full resolution, where ICP
+  // usually ends after one more pass, they are used but not made.
+  const bool subsample = !query.scan_indices.empty() && query.scan_indices.size() < hints_.size();
+  const bool certify = subsample && query.expected_motion < 0.5 * certificate_radius_;
   query_hints_.resize(n);
-  for (std::size_t k = 0; k < n; ++k) {
-    const std::size_t s = scan_index(k);
-    query_hints_[k] = s < hints_.size() ? hints_[s] : engine::ProjectionHint{};
+  const auto gather = [&](std::size_t begin, std::size_t end) {
+    for (std::size_t k = begin; k < end; ++k) {
+      const std::size_t s = scan_index(k);
+      query_hints_[k] = s < hints_.size() ? hints_[s] : engine::ProjectionHint{};
+      // A point whose own certificate does not cover it borrows a neighbour's, if one does.
+      const engine::WarmCertificate& c = query_hints_[k].certificate;
+      const bool covered = c.radius > 0.0 && (query.points[k] - c.anchor).norm() <= c.radius;
+      if (!covered) {
+        if (const engine::ProjectionHint* h = atlas_.find(query.points[k])) query_hints_[k] = *h;
+      }
+    }
+  };
+  if (query.parallel) {
+    tbb::parallel_for(
+        tbb::blocked_range<std::size_t>(0, n, 4096),
+        [&](const tbb::blocked_range<std::size_t>& r) { gather(r.begin(), r.end()); });
+  } else {
+    gather(0, n);
   }
   engine::ProjectionOptions options;
   options.max_distance = query.max_distance;
+  options.certify = certify;
+  options.certificate_radius = certificate_radius_;
   const auto points = engine::PointView::of(query.points);
   if (query.parallel) {
     projector_.project(points, options, results_, query_hints_, &counters_);
@@ -63,6 +98,10 @@ void ModelCorrespondenceFinder::find(const CorrespondenceQuery& query,
     const std::size_t s = scan_index(k);
     if (s >= hints_.size()) hints_.resize(s + 1);
     hints_[s] = results_.hint(k);
+    // New certificates (anchored at this query's point) join the atlas.
+    if (hints_[s].certificate.radius > 0.0 && hints_[s].certificate.anchor == query.points[k]) {
+      atlas_.insert(hints_[s]);
+    }
   }
 }
 

@@ -35,13 +35,43 @@ enum class ProjectionStatus : std::uint8_t {
   beyond_max_distance,  // nothing of the model within ProjectionOptions::max_distance
 };
 
+// A proof, made while projecting an anchor point a, that lets later queries q near a skip the
+// search (ProjectionOptions::certify). With P the patch of a's closest point and N a box of P's
+// local parameters around it (all of P when possible):
+//   - F_q = |S - q|^2 is strictly convex on N for every q with |q - a| <= radius (the clipping's
+//     convexity test on F_a's Bézier coefficients over N, widened by the most the coefficients'
+//     second differences can move when the point moves by `radius`), so Newton's KKT point on N
+//     is N's minimum for every such q;
+//   - everything of the model outside N is at least `clearance` away from a: Bézier bounds over
+//     the rest of P, and an exact best-first search over the rest of the model against
+//     alpha = (d_a + 2 radius)^2.
+// For a query q with |q - a| <= radius whose Newton minimum on N has distance d, everything else
+// is at least clearance - |q - a| away by the triangle inequality: d + |q - a| <= clearance
+// proves d is the model's distance without looking at anything else. Only untrimmed,
+// polynomial patches get one. radius == 0: none (patch == kTried: a certificate was sought at
+// `anchor` and could not be made; the projector does not retry within the radius cap of it).
+struct WarmCertificate {
+  static constexpr std::int32_t kTried = -2;
+  Vec3 anchor = Vec3::Zero();
+  double radius = 0.0;
+  double clearance = 0.0;
+  std::int32_t patch = -1;                           // PreparedModel patch index
+  float s0 = 0.0f, s1 = 1.0f, t0 = 0.0f, t1 = 1.0f;  // N, in the patch's local [0, 1]^2
+};
+
 // Where a point's closest point was last time (e.g. the previous ICP iteration): entity index
-// and parameters. entity < 0 means no hint. A hint only speeds the search up: the answer is
-// exact whatever it says.
+// and parameters, and optionally the certificate made then. entity < 0 means no hint. A hint
+// only speeds the search up: the answer is exact whatever it says (a certificate is checked
+// against the query point, so it may come from any earlier query).
 struct ProjectionHint {
+  ProjectionHint() = default;
+  ProjectionHint(std::int32_t entity_, double u_, double v_, WarmCertificate certificate_ = {})
+      : entity(entity_), u(u_), v(v_), certificate(certificate_) {}
+
   std::int32_t entity = -1;
   double u = 0.0;
   double v = 0.0;
+  WarmCertificate certificate;
 };
 
 // Structure of arrays, one entry per input point, written by index.
@@ -59,14 +89,17 @@ struct ProjectionResults {
   // 1 when the foot lies on a trim edge of its face (a trimmed face's boundary, where the
   // closest point need not be an orthogonal projection); 0 otherwise.
   std::vector<std::uint8_t> on_trim_edge;
+  // The certificate that proves this point's answer: the hint's, when it still held (so its
+  // anchor may be an earlier point), or a new one (ProjectionOptions::certify); radius 0 if none.
+  std::vector<WarmCertificate> certificate;
 
   std::size_t size() const { return status.size(); }
   void resize(std::size_t n);
   // Copies `part` into entries [offset, offset + part.size()) (frames projected in blocks).
   void copy_from(const ProjectionResults& part, std::size_t offset);
   ProjectionHint hint(std::size_t i) const {
-    return status[i] == ProjectionStatus::ok ? ProjectionHint{entity[i], u[i], v[i]}
-                                             : ProjectionHint{};
+    if (status[i] != ProjectionStatus::ok) return ProjectionHint{};
+    return ProjectionHint{entity[i], u[i], v[i], certificate[i]};
   }
 };
 
@@ -78,6 +111,15 @@ struct ProjectionOptions {
   // without an exact foot: the search starts with alpha = max_distance^2, so far points (ICP
   // outliers) cost almost nothing. Infinity: every point gets its exact closest point.
   double max_distance = std::numeric_limits<double>::infinity();
+  // Make a WarmCertificate for every point whose answer is not already proven by its hint's
+  // (ProjectionResults::certificate), so that the next frame's hints (ProjectionResults::hint)
+  // carry them: a query within `certificate_radius` of its anchor then costs one Newton on one
+  // patch. Making one costs a second, wider search (about a cold projection), so it pays when
+  // points come back near where they were (ICP iterations, tracking frames).
+  bool certify = false;
+  // Largest anchor radius sought (the certificate's radius is also limited by convexity); <= 0:
+  // 0.1% of the model's bounding-box diagonal.
+  double certificate_radius = 0.0;
 };
 
 // Work counters summed over a frame (for benchmarks and progress logs).
@@ -87,6 +129,8 @@ struct ProjectionCounters {
   std::uint64_t patches_visited = 0;
   std::uint64_t subdivisions = 0;
   std::uint64_t newton_iterations = 0;  // of the per-patch box-constrained Newton (surfaces)
+  std::uint64_t certified = 0;          // answers proven by the hint's WarmCertificate
+  std::uint64_t certificates_made = 0;  // new WarmCertificates (ProjectionOptions::certify)
 };
 
 // A frame of points without copying: any container that can hand out point i.
@@ -124,6 +168,22 @@ class Projector {
  private:
   struct ThreadState;
   struct Impl;
+  // The state of one best-first search over the surfaces' hierarchy (the caller's variables).
+  struct SurfaceSearch {
+    SurfaceHit& best;
+    int& surface;
+    std::int64_t& patch;
+    std::int64_t& edge;  // the best point is on this trim-edge piece (then patch is -1)
+    double& edge_t;
+  };
+  // Exact best-first search over patches and trim edges, improving search.best; skip_patch is
+  // not visited (its minimum is already known), guess_patch's clipping starts Newton at
+  // (guess_s, guess_t).
+  void search_surfaces(const Vec3& p, SurfaceSearch& search, std::int64_t skip_patch,
+                       std::int64_t guess_patch, double guess_s, double guess_t,
+                       ThreadState& state) const;
+  WarmCertificate make_certificate(const Vec3& p, const SurfaceHit& best, std::int64_t patch,
+                                   std::int64_t edge, double radius_cap, ThreadState& state) const;
   void project_range(PointView points, const ProjectionOptions& options, ProjectionResults& out,
                      std::span<const ProjectionHint> hints, std::size_t begin, std::size_t end,
                      ThreadState& state) const;

@@ -43,6 +43,11 @@ struct CorrespondenceQuery {
   double max_distance = std::numeric_limits<double>::infinity();
   // false: answer on the calling thread only (the solver's serial path).
   bool parallel = true;
+  // How far the points are expected to move before the next query (the solver's estimate from
+  // its last step; +infinity when unknown). A finder may use it to decide whether per-point work
+  // that pays off only for nearby later queries (ModelCorrespondenceFinder's certificates) is
+  // worth doing; answers never depend on it.
+  double expected_motion = std::numeric_limits<double>::infinity();
 };
 
 // Contract for implementations:

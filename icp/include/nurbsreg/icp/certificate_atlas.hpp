@@ -1,0 +1,44 @@
+#pragma once
+// Warm certificates (engine::WarmCertificate) by where their anchors are: a point that has none
+// of its own may borrow one made for a neighbouring point, since a certificate proves the answer
+// for every query within its radius of its anchor, whichever scan point asks. ICP's
+// coarse-to-fine schedule makes certificates on a subsample and the full-resolution pass borrows
+// them (ModelCorrespondenceFinder).
+//
+// A hash table over a cubic grid (open addressing, linear probing) keeping, per cell, the hint
+// (foot and certificate) of the last anchor inserted there. Built and read by the owner's thread;
+// `find` is const and may be called from many threads at once while nothing is inserted.
+
+#include <cstdint>
+#include <vector>
+
+#include "nurbsreg/engine/projection.hpp"
+
+namespace nurbsreg::icp {
+
+class CertificateAtlas {
+ public:
+  // Forget everything; cells of side `cell` (> 0) from now on.
+  void reset(double cell);
+  // Adds a hint whose certificate has radius > 0 (others are ignored).
+  void insert(const engine::ProjectionHint& hint);
+  // A hint kept for p's cell or one of its six face neighbours whose certificate covers p
+  // (|p - anchor| <= radius), else null.
+  const engine::ProjectionHint* find(const engine::Vec3& p) const;
+  std::size_t size() const { return hints_.size(); }
+
+ private:
+  std::uint64_t key(const engine::Vec3& p) const;
+  const engine::ProjectionHint* find_in_cell(const engine::Vec3& p,
+                                             const engine::Vec3& cell_point) const;
+  void grow();
+  struct Slot {
+    std::uint64_t key = 0;  // 0: empty (keys are never 0, see key())
+    std::uint32_t hint = 0;
+  };
+  double inverse_cell_ = 1.0;
+  std::vector<Slot> slots_;  // size a power of two, at most half full
+  std::vector<engine::ProjectionHint> hints_;
+};
+
+}  // namespace nurbsreg::icp

@@ -1,0 +1,101 @@
+#include "nurbsreg/icp/certificate_atlas.hpp"
+
+#include <cmath>
+
+namespace nurbsreg::icp {
+
+namespace {
+
+// 64-bit finaliser of MurmurHash3: spreads neighbouring cells over the table.
+std::uint64_t mix(std::uint64_t x) {
+  x ^= x >> 33;
+  x *= 0xff51afd7ed558ccdULL;
+  x ^= x >> 33;
+  x *= 0xc4ceb9fe1a85ec53ULL;
+  x ^= x >> 33;
+  return x;
+}
+
+}  // namespace
+
+void CertificateAtlas::reset(double cell) {
+  inverse_cell_ = 1.0 / cell;
+  slots_.assign(1024, Slot{});
+  hints_.clear();
+}
+
+std::uint64_t CertificateAtlas::key(const engine::Vec3& p) const {
+  // 21 bits per axis, offset so that every coordinate is positive; the top bit makes 0 unused.
+  // Cells beyond +-2^20 of the origin wrap around: such a cell may share a key with another,
+  // which costs a miss or a certificate that does not cover p (find checks), never a wrong answer.
+  const auto axis = [&](double x) {
+    const auto c = static_cast<std::int64_t>(std::floor(x * inverse_cell_)) + (1 << 20);
+    return static_cast<std::uint64_t>(c) & ((1u << 21) - 1);
+  };
+  return (1ULL << 63) | (axis(p.x()) << 42) | (axis(p.y()) << 21) | axis(p.z());
+}
+
+void CertificateAtlas::grow() {
+  std::vector<Slot> old(slots_.size() * 2);
+  old.swap(slots_);
+  const std::size_t mask = slots_.size() - 1;
+  for (const Slot& s : old) {
+    if (s.key == 0) continue;
+    std::size_t i = mix(s.key) & mask;
+    while (slots_[i].key != 0)
+      i = (i + 1) & mask;
+    slots_[i] = s;
+  }
+}
+
+void CertificateAtlas::insert(const engine::ProjectionHint& hint) {
+  if (!(hint.certificate.radius > 0.0) || slots_.empty()) return;
+  const std::uint64_t k = key(hint.certificate.anchor);
+  std::size_t mask = slots_.size() - 1;
+  std::size_t i = mix(k) & mask;
+  while (slots_[i].key != 0 && slots_[i].key != k)
+    i = (i + 1) & mask;
+  if (slots_[i].key == k) {
+    hints_[slots_[i].hint] = hint;  // the newest anchor of the cell
+    return;
+  }
+  if (2 * (hints_.size() + 1) > slots_.size()) {
+    grow();
+    mask = slots_.size() - 1;
+    i = mix(k) & mask;
+    while (slots_[i].key != 0)
+      i = (i + 1) & mask;
+  }
+  slots_[i] = Slot{k, static_cast<std::uint32_t>(hints_.size())};
+  hints_.push_back(hint);
+}
+
+const engine::ProjectionHint* CertificateAtlas::find_in_cell(const engine::Vec3& p,
+                                                             const engine::Vec3& cell_point) const {
+  const std::uint64_t k = key(cell_point);
+  const std::size_t mask = slots_.size() - 1;
+  for (std::size_t i = mix(k) & mask; slots_[i].key != 0; i = (i + 1) & mask) {
+    if (slots_[i].key != k) continue;
+    const engine::ProjectionHint& h = hints_[slots_[i].hint];
+    return (p - h.certificate.anchor).norm() <= h.certificate.radius ? &h : nullptr;
+  }
+  return nullptr;
+}
+
+const engine::ProjectionHint* CertificateAtlas::find(const engine::Vec3& p) const {
+  if (hints_.empty()) return nullptr;
+  if (const engine::ProjectionHint* h = find_in_cell(p, p)) return h;
+  // The six face neighbours: a surface sampled more sparsely than the cells leaves some of its
+  // cells empty.
+  const double side = 1.0 / inverse_cell_;
+  for (int axis = 0; axis < 3; ++axis) {
+    for (const double sign : {-1.0, 1.0}) {
+      engine::Vec3 q = p;
+      q[axis] += sign * side;
+      if (const engine::ProjectionHint* h = find_in_cell(p, q)) return h;
+    }
+  }
+  return nullptr;
+}
+
+}  // namespace nurbsreg::icp

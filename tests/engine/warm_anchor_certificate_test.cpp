@@ -1,0 +1,310 @@
+// WarmCertificate (ProjectionOptions::certify), checked claim by claim against references that
+// share nothing with it:
+//  - convexity: for points q anywhere in the anchor's ball (its sphere included), the Hessian of
+//    F_q = |S - q|^2 computed from the patch's own derivatives is positive definite on a grid
+//    over the certificate's box N;
+//  - clearance: no sample of a dense parameter grid of the model outside N is closer to the
+//    anchor than the clearance;
+//  - answers: warm queries that carry certificates (moves inside, on and beyond the radius, and
+//    certificates of other points) give the brute-force distance (SurfaceReference), the same
+//    as cold queries, and the certificate path is really taken (not vacuous).
+// Models: a bicubic sheet with C0 creases (random knots of full multiplicity), a hairpin (two
+// layers 0.3 apart: two near-equal minima everywhere between them), two stacked sheets (the
+// clearance must see the other surface), and the rational sphere (no certificates).
+#include <gtest/gtest.h>
+#include <tbb/global_control.h>
+
+#include <cmath>
+#include <random>
+
+#include "nurbsreg/engine/prepared_model.hpp"
+#include "nurbsreg/engine/projection.hpp"
+#include "nurbsreg/engine/sampling.hpp"
+#include "nurbsreg/engine/shapes.hpp"
+#include "support/random_entities.hpp"
+#include "support/surface_reference.hpp"
+
+namespace nurbsreg::engine {
+namespace {
+
+using test::uniform;
+
+// A bicubic hairpin: the sheet runs out along x, turns around and comes back `gap` above itself.
+NurbsSurface hairpin(double gap) {
+  NurbsSurface s;
+  s.name = "hairpin";
+  s.degree_u = 3;
+  s.degree_v = 3;
+  const double xs[] = {10, 7, 4, 1.5, 0, -0.4, -0.4, 0, 1.5, 4, 7, 10};
+  s.count_u = 12;
+  s.count_v = 6;
+  for (int k = 0; k <= 3; ++k)
+    s.knots_u.push_back(0.0);
+  for (int k = 1; k < s.count_u - 3; ++k)
+    s.knots_u.push_back(static_cast<double>(k) / (s.count_u - 3));
+  for (int k = 0; k <= 3; ++k)
+    s.knots_u.push_back(1.0);
+  s.knots_v = {0, 0, 0, 0, 1.0 / 3, 2.0 / 3, 1, 1, 1, 1};
+  for (int i = 0; i < s.count_u; ++i) {
+    for (int j = 0; j < s.count_v; ++j) {
+      const double z = (i < 6 ? 0.0 : gap) + 0.2 * std::sin(0.7 * xs[i]) * std::cos(1.1 * j);
+      s.control_points.emplace_back(xs[i], 1.2 * j, z);
+    }
+  }
+  return s;
+}
+
+Model model_of(std::vector<NurbsSurface> surfaces) {
+  Model m;
+  m.surfaces = std::move(surfaces);
+  return m;
+}
+
+std::vector<Model> test_models() {
+  std::vector<Model> models;
+  models.push_back(model_of({test::random_surface(11, 3, 3, 9, 9, false)}));
+  models.push_back(model_of({hairpin(0.3)}));
+  NurbsSurface lower = test::random_surface(12, 3, 2, 7, 6, false);
+  NurbsSurface upper = test::random_surface(12, 3, 2, 7, 6, false);
+  for (Vec3& c : upper.control_points)
+    c.z() += 0.6;
+  models.push_back(model_of({lower, upper}));
+  return models;
+}
+
+// Points near the model (offsets along the normal) and anywhere in its enlarged box.
+std::vector<Vec3> query_points(const PreparedModel& pm, std::size_t count, std::uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  const auto samples = sample_surfaces(pm.model(), count / 2 + 1, seed);
+  const Aabb box = pm.bounds();
+  const Vec3 extent = box.hi - box.lo;
+  std::vector<Vec3> points;
+  for (std::size_t i = 0; i < count; ++i) {
+    if (i % 2 == 0) {
+      const auto& s = samples[i / 2];
+      points.push_back(s.point + s.normal * uniform(rng, -0.4, 0.4));
+    } else {
+      points.push_back(box.lo - 0.25 * extent +
+                       Vec3(uniform(rng, 0, 1.5) * extent.x(), uniform(rng, 0, 1.5) * extent.y(),
+                            uniform(rng, 0, 1.5) * extent.z()));
+    }
+  }
+  return points;
+}
+
+bool hessian_positive_definite(const BezierPatch& patch, const Vec3& q, double s, double t) {
+  Vec3 d[6];
+  patch.derivatives(s, t, d);
+  const Vec3 r = d[0] - q;
+  const double hss = d[1].dot(d[1]) + r.dot(d[3]);
+  const double hst = d[1].dot(d[2]) + r.dot(d[4]);
+  const double htt = d[2].dot(d[2]) + r.dot(d[5]);
+  const double scale = std::abs(hss) + std::abs(htt) + std::abs(hst);
+  const double tolerance = 1e-10 * scale;
+  return hss > -tolerance && htt > -tolerance && hss * htt - hst * hst > -tolerance * scale;
+}
+
+Vec3 random_direction(std::mt19937_64& rng) {
+  std::normal_distribution<double> gauss;
+  Vec3 d(gauss(rng), gauss(rng), gauss(rng));
+  return d.normalized();
+}
+
+class WarmAnchorClaims : public ::testing::TestWithParam<double> {};
+
+// Parameter: the radius cap as a fraction of the model's diagonal (0: the default). With the
+// wide cap the radius is set by the convexity test itself, so the ball's sphere is where the
+// Hessian is closest to losing definiteness.
+TEST_P(WarmAnchorClaims, ConvexityAndClearanceHoldAgainstSampling) {
+  int checked = 0;
+  for (const Model& model : test_models()) {
+    const PreparedModel pm{Model(model)};
+    Projector projector(pm);
+    ProjectionOptions options;
+    options.certify = true;
+    options.certificate_radius = GetParam() * pm.bounds().diagonal();
+    const std::vector<Vec3> points = query_points(pm, 80, 5);
+    ProjectionResults results;
+    projector.project(PointView::of(points), options, results);
+    ASSERT_EQ(results.certificate.size(), points.size());
+    // The model sampled once: (surface, u, v) and the point.
+    struct Sample {
+      int surface;
+      double u, v;
+      Vec3 point;
+    };
+    std::vector<Sample> samples;
+    const int n = 240;
+    for (int k = 0; k < static_cast<int>(model.surfaces.size()); ++k) {
+      const NurbsSurface& s = model.surfaces[k];
+      for (int i = 0; i <= n; ++i) {
+        for (int j = 0; j <= n; ++j) {
+          const double u = s.domain_u().to_parent(double(i) / n);
+          const double v = s.domain_v().to_parent(double(j) / n);
+          samples.push_back({k, u, v, s.evaluate(u, v)});
+        }
+      }
+    }
+    const double diagonal = pm.bounds().diagonal();
+    std::mt19937_64 rng(17);
+    for (std::size_t i = 0; i < points.size(); ++i) {
+      const WarmCertificate& c = results.certificate[i];
+      if (!(c.radius > 0.0)) continue;
+      ++checked;
+      EXPECT_EQ(c.anchor, points[i]);
+      EXPECT_GT(c.clearance, results.distance[i]);
+      const PreparedPatch& pp = pm.patch(static_cast<std::size_t>(c.patch));
+      EXPECT_EQ(pm.patch_surface(static_cast<std::size_t>(c.patch)), results.entity[i]);
+      // Convexity over N for points in the ball, its sphere included.
+      for (int k = 0; k < 6; ++k) {
+        const double reach = k == 0 ? 0.0 : (k < 4 ? c.radius : uniform(rng, 0, c.radius));
+        const Vec3 q = c.anchor + reach * random_direction(rng);
+        for (int a = 0; a <= 8; ++a) {
+          for (int b = 0; b <= 8; ++b) {
+            const double s = c.s0 + (c.s1 - c.s0) * a / 8.0, t = c.t0 + (c.t1 - c.t0) * b / 8.0;
+            ASSERT_TRUE(hessian_positive_definite(pp.patch, q, s, t))
+                << "point " << i << ": not convex at (" << s << ", " << t << ") of patch "
+                << c.patch << ", |q - a| = " << reach;
+          }
+        }
+      }
+      // Clearance: every model sample outside N is at least that far from the anchor.
+      for (const Sample& sample : samples) {
+        const std::int64_t patch = pm.locate_patch(sample.surface, sample.u, sample.v);
+        if (patch == c.patch) {
+          const double s = pp.patch.param_u.to_local(sample.u);
+          const double t = pp.patch.param_v.to_local(sample.v);
+          if (s >= c.s0 && s <= c.s1 && t >= c.t0 && t <= c.t1) continue;
+        }
+        ASSERT_GE((sample.point - c.anchor).norm(), c.clearance - 1e-12 * diagonal)
+            << "point " << i << ": a sample outside N of patch " << c.patch
+            << " is closer than the clearance";
+      }
+    }
+  }
+  EXPECT_GT(checked, 100) << "too few certificates to check";
+  std::printf("[ report ] %d certificates checked\n", checked);
+}
+
+INSTANTIATE_TEST_SUITE_P(RadiusCaps, WarmAnchorClaims, ::testing::Values(0.0, 0.2));
+
+class WarmAnchorAnswers : public ::testing::TestWithParam<double> {};
+
+// Parameter: the radius cap as a fraction of the model's diagonal (0: the default).
+TEST_P(WarmAnchorAnswers, EqualBruteForce) {
+  for (const Model& model : test_models()) {
+    const PreparedModel pm{Model(model)};
+    std::vector<test::SurfaceReference> references;
+    for (const NurbsSurface& s : model.surfaces)
+      references.emplace_back(s);
+    const double diagonal = pm.bounds().diagonal();
+    Projector projector(pm);
+    ProjectionOptions options;
+    options.certify = true;
+    options.certificate_radius = GetParam() * diagonal;
+    const std::vector<Vec3> anchors = query_points(pm, 120, 9);
+    ProjectionResults first;
+    projector.project(PointView::of(anchors), options, first);
+    // Moved points: inside the radius (most), exactly on it, just beyond it, far beyond it; and
+    // hints carrying another point's certificate.
+    std::mt19937_64 rng(23);
+    std::vector<Vec3> moved(anchors.size());
+    std::vector<ProjectionHint> hints(anchors.size());
+    std::size_t inside = 0;
+    for (std::size_t i = 0; i < anchors.size(); ++i) {
+      const double r = first.certificate[i].radius > 0.0 ? first.certificate[i].radius : 0.01;
+      const int kind = static_cast<int>(i % 6);
+      const double reach = kind < 3 ? uniform(rng, 0, r) : (kind == 3 ? r : 1.5 * r);
+      moved[i] = anchors[i] + reach * random_direction(rng);
+      hints[i] = kind == 5 ? first.hint((i * 7 + 3) % anchors.size()) : first.hint(i);
+      if (kind == 4) moved[i] += 2.0 * random_direction(rng);
+      inside += kind < 4 && first.certificate[i].radius > 0.0;
+    }
+    ProjectionCounters counters;
+    ProjectionResults warm, cold;
+    projector.project(PointView::of(moved), options, warm, hints, &counters);
+    projector.project(PointView::of(moved), ProjectionOptions{}, cold);
+    for (std::size_t i = 0; i < moved.size(); ++i) {
+      double reference = std::numeric_limits<double>::infinity();
+      for (const auto& r : references)
+        reference = std::min(reference, std::sqrt(r.closest(moved[i]).distance_sq));
+      ASSERT_EQ(warm.status[i], ProjectionStatus::ok);
+      EXPECT_NEAR(warm.distance[i], cold.distance[i], 1e-10 * diagonal) << "point " << i;
+      EXPECT_LE(warm.distance[i], reference + 1e-10 * diagonal) << "point " << i;
+      EXPECT_NEAR((warm.foot[i] - moved[i]).norm(), warm.distance[i], 1e-12 * diagonal);
+    }
+    // Many queries inside their anchors' radius are answered by the certificate (the wider
+    // radius cap makes wider moves, which the clearance then rejects more often).
+    EXPECT_GT(counters.certified, inside / 4) << counters.certified << " of " << inside;
+    std::printf("[ report ] %zu surfaces: %llu of %zu queries certified (%zu inside a radius)\n",
+                model.surfaces.size(), static_cast<unsigned long long>(counters.certified),
+                moved.size(), inside);
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(RadiusCaps, WarmAnchorAnswers, ::testing::Values(0.0, 0.03));
+
+TEST(WarmAnchorCertificate, SameCertificatesForAnyThreadCount) {
+  const Model model = test_models().front();
+  const PreparedModel pm{Model(model)};
+  const std::vector<Vec3> points = query_points(pm, 400, 3);
+  ProjectionOptions options;
+  options.certify = true;
+  options.grain = 16;
+  ProjectionResults serial, parallel;
+  Projector a(pm), b(pm);
+  a.project_serial(PointView::of(points), options, serial);
+  {
+    tbb::global_control two(tbb::global_control::max_allowed_parallelism, 2);
+    b.project(PointView::of(points), options, parallel);
+  }
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    EXPECT_EQ(serial.distance[i], parallel.distance[i]);
+    EXPECT_EQ(serial.certificate[i].radius, parallel.certificate[i].radius);
+    EXPECT_EQ(serial.certificate[i].clearance, parallel.certificate[i].clearance);
+    EXPECT_EQ(serial.certificate[i].patch, parallel.certificate[i].patch);
+  }
+}
+
+TEST(WarmAnchorCertificate, RationalSurfacesGetNoneAndStayExact) {
+  const PreparedModel pm{model_of({make_sphere(Vec3(1, 2, 3), 5.0)})};
+  const std::vector<Vec3> points = query_points(pm, 60, 4);
+  Projector projector(pm);
+  ProjectionOptions options;
+  options.certify = true;
+  ProjectionResults results;
+  ProjectionCounters counters;
+  projector.project(PointView::of(points), options, results, {}, &counters);
+  EXPECT_EQ(counters.certificates_made, 0u);
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    EXPECT_EQ(results.certificate[i].radius, 0.0);
+    EXPECT_NEAR(results.distance[i], std::abs((points[i] - Vec3(1, 2, 3)).norm() - 5.0), 1e-9);
+  }
+}
+
+TEST(WarmAnchorCertificate, MaxDistanceStillApplies) {
+  const Model model = test_models().front();
+  const PreparedModel pm{Model(model)};
+  const std::vector<Vec3> points = query_points(pm, 60, 8);
+  Projector projector(pm);
+  ProjectionOptions options;
+  options.certify = true;
+  ProjectionResults first, second;
+  projector.project(PointView::of(points), options, first);
+  std::vector<ProjectionHint> hints;
+  for (std::size_t i = 0; i < points.size(); ++i)
+    hints.push_back(first.hint(i));
+  options.max_distance = 0.2;
+  projector.project(PointView::of(points), options, second, hints);
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    if (first.distance[i] < 0.2) {
+      EXPECT_EQ(second.status[i], ProjectionStatus::ok);
+      EXPECT_NEAR(second.distance[i], first.distance[i], 1e-12 * pm.bounds().diagonal());
+    } else {
+      EXPECT_EQ(second.status[i], ProjectionStatus::beyond_max_distance) << "point " << i;
+    }
+  }
+}
+
+}  // namespace
+}  // namespace nurbsreg::engine
