@@ -10,9 +10,19 @@
 // user + system time over all threads) are both reported: on a loaded machine wall time
 // includes time spent waiting for a core.
 //
+// With --seeds N > 1 the same is done on N scans (seeds S, S+1, ...: new noise and new sample
+// positions, the same pose) and a summary over the seeds follows: mean / max time, RMS / max
+// error next to the mean noise bound, and a verdict (more accurate? at the noise level?). One
+// scan cannot answer that: a single noise draw may favour either method.
+//
 //   align_peers_bench [--model FILE] [--points N] [--noise SIGMA] [--dense N] [--threads T]
-//                     [--seed S] [--pcl-max-iterations N] [--pcl 0|1|2]
+//                     [--seed S] [--seeds N] [--nurbsreg-variants all|default]
+//                     [--pcl-max-iterations N] [--pcl 0|1|2]
 // --pcl: 0 runs nurbsreg only, 1 adds PCL point-to-plane, 2 (default) both PCL methods.
+// --nurbsreg-variants: all (default when --seeds is 1) runs the three nurbsreg rows, default
+// (default when --seeds > 1) only the default schedule.
+// With --seeds > 1 the exit status is 1 when nurbsreg's RMS error exceeds 3 noise bounds (a
+// broken alignment; an N-seed RMS of a Gaussian error that far out is vanishingly unlikely).
 #include <pcl/kdtree/kdtree_flann.h>
 #include <pcl/point_cloud.h>
 #include <pcl/point_types.h>
@@ -21,15 +31,18 @@
 #include <sys/resource.h>
 #include <tbb/global_control.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <exception>
+#include <memory>
 #include <numbers>
 #include <string>
 #include <string_view>
 #include <type_traits>
+#include <utility>
 #include <vector>
 
 #include "nurbsreg/engine/bounds.hpp"
@@ -44,6 +57,9 @@ namespace {
 
 using nurbsreg::engine::Vec3;
 
+// Which nurbsreg rows run on each scan.
+enum class Variants { unset, all, default_schedule };
+
 struct Settings {
   std::string model = NURBSREG_EXAMPLES_DIR "/panel.json";
   std::size_t points = 1000000;
@@ -51,6 +67,8 @@ struct Settings {
   std::size_t dense = 1000000;
   int threads = 2;
   std::uint64_t seed = 1;
+  std::size_t seeds = 1;
+  Variants variants = Variants::unset;
   int pcl_max_iterations = 30;
   int pcl = 2;
 };
@@ -58,8 +76,8 @@ struct Settings {
 [[noreturn]] void usage(const char* message) {
   std::fprintf(stderr,
                "align_peers_bench: %s\nusage: align_peers_bench [--model FILE] [--points N] "
-               "[--noise SIGMA] [--dense N] [--threads T] [--seed S] [--pcl-max-iterations N] "
-               "[--pcl 0|1|2]\n",
+               "[--noise SIGMA] [--dense N] [--threads T] [--seed S] [--seeds N] "
+               "[--nurbsreg-variants all|default] [--pcl-max-iterations N] [--pcl 0|1|2]\n",
                message);
   std::exit(2);
 }
@@ -73,6 +91,17 @@ Settings parse(int argc, char** argv) {
     char* end = nullptr;
     if (arg == "--model") {
       s.model = value;
+      continue;
+    }
+    if (arg == "--nurbsreg-variants") {
+      const std::string_view v = value;
+      if (v == "all") {
+        s.variants = Variants::all;
+      } else if (v == "default") {
+        s.variants = Variants::default_schedule;
+      } else {
+        usage(("--nurbsreg-variants must be all or default, not " + std::string(v)).c_str());
+      }
       continue;
     }
     const double number = std::strtod(value, &end);
@@ -89,6 +118,8 @@ Settings parse(int argc, char** argv) {
       s.threads = static_cast<int>(number);
     } else if (arg == "--seed") {
       s.seed = static_cast<std::uint64_t>(number);
+    } else if (arg == "--seeds") {
+      s.seeds = static_cast<std::size_t>(number);
     } else if (arg == "--pcl-max-iterations") {
       s.pcl_max_iterations = static_cast<int>(number);
     } else if (arg == "--pcl") {
@@ -97,10 +128,14 @@ Settings parse(int argc, char** argv) {
       usage(("unknown option " + std::string(arg)).c_str());
     }
   }
-  if (s.points < 10 || s.dense < 10 || s.threads < 1 || s.pcl_max_iterations < 1 || s.pcl > 2) {
+  if (s.points < 10 || s.dense < 10 || s.threads < 1 || s.pcl_max_iterations < 1 || s.pcl > 2 ||
+      s.seeds < 1) {
     usage(
-        "--points and --dense must be >= 10, --threads and --pcl-max-iterations >= 1, --pcl "
-        "0, 1 or 2");
+        "--points and --dense must be >= 10, --threads, --seeds and --pcl-max-iterations >= 1, "
+        "--pcl 0, 1 or 2");
+  }
+  if (s.variants == Variants::unset) {
+    s.variants = s.seeds == 1 ? Variants::all : Variants::default_schedule;
   }
   return s;
 }
@@ -135,6 +170,16 @@ struct Outcome {
   std::string termination;
   double rotation_deg = 0.0;
   double translation_mm = 0.0;
+  // The same errors as vectors (rotation vector in degrees, displacement of the centre), so
+  // two methods' estimates on the same scan can be compared with each other.
+  Vec3 rotation_vector_deg = Vec3::Zero();
+  Vec3 displacement_mm = Vec3::Zero();
+};
+
+// 1-sigma (RMS) pose error the noise alone allows on one scan.
+struct NoiseBound {
+  double rotation_deg = 0.0;
+  double translation_mm = 0.0;
 };
 
 // Error of an estimate against the truth: the rotation angle of T_true * T_est^-1 and the
@@ -144,7 +189,10 @@ void measure(Outcome& o, const Eigen::Isometry3d& T_est, const Eigen::Isometry3d
              const Vec3& center) {
   const Eigen::Isometry3d E = T_true * T_est.inverse();
   o.rotation_deg = nurbsreg::icp::rotation_angle(E) * 180.0 / std::numbers::pi;
-  o.translation_mm = (E * center - center).norm();
+  o.displacement_mm = E * center - center;
+  o.translation_mm = o.displacement_mm.norm();
+  const Eigen::AngleAxisd aa(E.linear());
+  o.rotation_vector_deg = aa.axis() * (aa.angle() * 180.0 / std::numbers::pi);
 }
 
 Eigen::Isometry3d to_isometry(const Eigen::Matrix4f& m) {
@@ -200,9 +248,41 @@ void configure_pcl(Icp& icp, int max_iterations) {
   icp.setMaximumIterations(max_iterations);
 }
 
-// The result table (markdown). Errors next to the noise bound (the same scan for every method).
-void print_table(const std::vector<Outcome>& outcomes, double bound_rotation_deg,
-                 double bound_translation_mm) {
+// A point set as the two PCL clouds the methods take: with normals (point-to-plane) and
+// without (point-to-point).
+struct PclClouds {
+  pcl::PointCloud<pcl::PointNormal>::Ptr with_normals =
+      pcl::make_shared<pcl::PointCloud<pcl::PointNormal>>();
+  pcl::PointCloud<pcl::PointXYZ>::Ptr xyz = pcl::make_shared<pcl::PointCloud<pcl::PointXYZ>>();
+
+  explicit PclClouds(std::size_t n) {
+    with_normals->resize(n);
+    xyz->resize(n);
+  }
+  void set(std::size_t i, const Vec3& p, const Vec3& n) {
+    pcl::PointNormal& q = (*with_normals)[i];
+    q.x = static_cast<float>(p.x());
+    q.y = static_cast<float>(p.y());
+    q.z = static_cast<float>(p.z());
+    q.normal_x = static_cast<float>(n.x());
+    q.normal_y = static_cast<float>(n.y());
+    q.normal_z = static_cast<float>(n.z());
+    (*xyz)[i] = pcl::PointXYZ(q.x, q.y, q.z);
+  }
+};
+
+// The k-d tree over PCL's target, built once per method and reused for every scan (PCL does
+// not rebuild a search method given with force_no_recompute).
+template <class Point>
+struct PclTree {
+  typename pcl::search::KdTree<Point>::Ptr tree;
+  double wall = 0.0;
+  double cpu = 0.0;
+};
+
+// The result table of one scan (markdown). Errors next to the noise bound (the same scan for
+// every method).
+void print_table(const std::vector<Outcome>& outcomes, const NoiseBound& bound) {
   std::printf(
       "\n| method | prepare wall / CPU (s) | align wall / CPU (s) | iterations | stop | "
       "rotation error (deg) | translation error (mm) | wall ratio | CPU ratio |\n");
@@ -215,7 +295,7 @@ void print_table(const std::vector<Outcome>& outcomes, double bound_rotation_deg
                 o.cpu / ours.cpu);
   }
   std::printf("| noise bound (1-sigma RMS, from the final Hessian) | | | | | %.2e | %.2e | | |\n",
-              bound_rotation_deg, bound_translation_mm);
+              bound.rotation_deg, bound.translation_mm);
   std::printf(
       "\nratios: time of the method / time of nurbsreg (align only). Error ratios vs "
       "nurbsreg:");
@@ -225,6 +305,152 @@ void print_table(const std::vector<Outcome>& outcomes, double bound_rotation_deg
                 outcomes[i].translation_mm / ours.translation_mm);
   }
   std::printf("\n");
+}
+
+// One method over all seeds.
+struct MethodSummary {
+  std::string method;
+  double wall_mean = 0.0;
+  double wall_max = 0.0;
+  double cpu_mean = 0.0;
+  double cpu_max = 0.0;
+  double iterations_mean = 0.0;
+  double rotation_rms = 0.0;  // sqrt(mean over seeds of the squared error)
+  double rotation_max = 0.0;
+  double translation_rms = 0.0;
+  double translation_max = 0.0;
+  // RMS over seeds of the difference between this method's estimate and nurbsreg's (default
+  // schedule) on the same scan: the part of the error that is not the shared noise draw.
+  double rotation_vs_ours_rms = 0.0;
+  double translation_vs_ours_rms = 0.0;
+};
+
+// runs[seed][method]; method 0 is nurbsreg's default schedule.
+MethodSummary summarize(const std::vector<std::vector<Outcome>>& runs, std::size_t method) {
+  MethodSummary s;
+  s.method = runs.front()[method].method;
+  for (const std::vector<Outcome>& seed : runs) {
+    const Outcome& o = seed[method];
+    const Outcome& ours = seed.front();
+    s.wall_mean += o.wall;
+    s.wall_max = std::max(s.wall_max, o.wall);
+    s.cpu_mean += o.cpu;
+    s.cpu_max = std::max(s.cpu_max, o.cpu);
+    s.iterations_mean += o.iterations;
+    s.rotation_rms += o.rotation_deg * o.rotation_deg;
+    s.rotation_max = std::max(s.rotation_max, o.rotation_deg);
+    s.translation_rms += o.translation_mm * o.translation_mm;
+    s.translation_max = std::max(s.translation_max, o.translation_mm);
+    s.rotation_vs_ours_rms += (o.rotation_vector_deg - ours.rotation_vector_deg).squaredNorm();
+    s.translation_vs_ours_rms += (o.displacement_mm - ours.displacement_mm).squaredNorm();
+  }
+  const double n = static_cast<double>(runs.size());
+  s.wall_mean /= n;
+  s.cpu_mean /= n;
+  s.iterations_mean /= n;
+  s.rotation_rms = std::sqrt(s.rotation_rms / n);
+  s.translation_rms = std::sqrt(s.translation_rms / n);
+  s.rotation_vs_ours_rms = std::sqrt(s.rotation_vs_ours_rms / n);
+  s.translation_vs_ours_rms = std::sqrt(s.translation_vs_ours_rms / n);
+  return s;
+}
+
+// The summary table over the seeds and the verdict. Returns false when nurbsreg's own RMS error
+// is beyond 3 noise bounds (a broken alignment, not bad luck: see the header comment).
+bool print_summary(const std::vector<std::vector<Outcome>>& runs,
+                   const std::vector<NoiseBound>& bounds, std::uint64_t first_seed) {
+  const std::size_t n = runs.size();
+  NoiseBound bound;  // mean over the seeds
+  for (const NoiseBound& b : bounds) {
+    bound.rotation_deg += b.rotation_deg / static_cast<double>(n);
+    bound.translation_mm += b.translation_mm / static_cast<double>(n);
+  }
+  std::vector<MethodSummary> summaries;
+  for (std::size_t m = 0; m < runs.front().size(); ++m)
+    summaries.push_back(summarize(runs, m));
+  const MethodSummary& ours = summaries.front();
+
+  std::printf(
+      "\nsummary over %zu seeds (%llu..%llu; each seed its own scan, the same pose; RMS and max "
+      "over the seeds; ratios: method / nurbsreg default schedule):\n",
+      n, static_cast<unsigned long long>(first_seed),
+      static_cast<unsigned long long>(first_seed + n - 1));
+  std::printf(
+      "\n| method | align wall mean / max (s) | align CPU mean / max (s) | mean iterations | "
+      "rotation error RMS / max (deg) | translation error RMS / max (mm) | RMS / noise bound "
+      "(rotation, translation) | RMS error ratio (rotation, translation) | wall / CPU ratio "
+      "(means) |\n");
+  std::printf("| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |\n");
+  for (const MethodSummary& s : summaries) {
+    std::printf(
+        "| %s | %.3f / %.3f | %.3f / %.3f | %.1f | %.2e / %.2e | %.2e / %.2e | %.2f, %.2f | "
+        "%.2fx, %.2fx | %.2fx / %.2fx |\n",
+        s.method.c_str(), s.wall_mean, s.wall_max, s.cpu_mean, s.cpu_max, s.iterations_mean,
+        s.rotation_rms, s.rotation_max, s.translation_rms, s.translation_max,
+        s.rotation_rms / bound.rotation_deg, s.translation_rms / bound.translation_mm,
+        s.rotation_rms / ours.rotation_rms, s.translation_rms / ours.translation_rms,
+        s.wall_mean / ours.wall_mean, s.cpu_mean / ours.cpu_mean);
+  }
+  std::printf(
+      "| noise bound (1-sigma RMS from nurbsreg's final Hessian, mean over seeds) | | | | %.2e | "
+      "%.2e | 1, 1 | | |\n",
+      bound.rotation_deg, bound.translation_mm);
+
+  // For an isotropic 3-D Gaussian error, the squared RMS over n seeds is a chi-square with 3n
+  // degrees of freedom scaled by 1/(3n): its square root has a relative standard error of
+  // ~1/sqrt(6n). Differences between RMS values well inside twice that are not significant
+  // (a conservative yardstick: the methods see the same scans, so their errors are correlated).
+  const double spread = 1.0 / std::sqrt(6.0 * static_cast<double>(n));
+  std::printf(
+      "\nverdict (%zu seeds; an RMS over %zu seeds is uncertain by ~%.0f%% (1 sigma), so ratios "
+      "within 1 +- %.0f%% are not significant):\n",
+      n, n, 100.0 * spread, 200.0 * spread);
+  for (const MethodSummary& s : summaries) {
+    std::printf(
+        "  error at the noise level: %s RMS / noise bound = %.2f (rotation), %.2f "
+        "(translation)\n",
+        s.method.c_str(), s.rotation_rms / bound.rotation_deg,
+        s.translation_rms / bound.translation_mm);
+  }
+  for (std::size_t m = 1; m < summaries.size(); ++m) {
+    const MethodSummary& s = summaries[m];
+    if (s.method.rfind("PCL", 0) != 0) continue;
+    const double rotation_ratio = s.rotation_rms / ours.rotation_rms;
+    const double translation_ratio = s.translation_rms / ours.translation_rms;
+    const bool more_accurate = rotation_ratio > 1.0 && translation_ratio > 1.0;
+    const char* significance =
+        more_accurate
+            ? (rotation_ratio > 1.0 + 2.0 * spread && translation_ratio > 1.0 + 2.0 * spread
+                   ? "beyond the seed-to-seed spread"
+                   : "NOT significant: within the seed-to-seed spread")
+            : (rotation_ratio < 1.0 - 2.0 * spread && translation_ratio < 1.0 - 2.0 * spread
+                   ? "PCL more accurate beyond the seed-to-seed spread"
+                   : "within the seed-to-seed spread or mixed");
+    std::printf(
+        "  vs %s: nurbsreg more accurate: %s (rotation RMS %.2e vs %.2e deg, translation RMS "
+        "%.2e vs %.2e mm; %s)\n",
+        s.method.c_str(), more_accurate ? "yes" : "no", ours.rotation_rms, s.rotation_rms,
+        ours.translation_rms, s.translation_rms, significance);
+    std::printf(
+        "  vs %s: its pose minus nurbsreg's on the same scan, RMS %.2e deg / %.2e mm = %.2f / "
+        "%.2f noise bounds (the error beyond the shared noise draw)\n",
+        s.method.c_str(), s.rotation_vs_ours_rms, s.translation_vs_ours_rms,
+        s.rotation_vs_ours_rms / bound.rotation_deg,
+        s.translation_vs_ours_rms / bound.translation_mm);
+    std::printf(
+        "  vs %s: nurbsreg >= 3x faster: %s (mean CPU %.3f vs %.3f s = %.2fx; mean wall %.3f vs "
+        "%.3f s = %.2fx)\n",
+        s.method.c_str(), s.cpu_mean >= 3.0 * ours.cpu_mean ? "yes" : "no", ours.cpu_mean,
+        s.cpu_mean, s.cpu_mean / ours.cpu_mean, ours.wall_mean, s.wall_mean,
+        s.wall_mean / ours.wall_mean);
+  }
+  // The 1e-9 slack keeps a noise-free scan (bound 0, error at rounding level) from failing.
+  const bool sane = ours.rotation_rms <= 3.0 * bound.rotation_deg + 1e-9 &&
+                    ours.translation_rms <= 3.0 * bound.translation_mm + 1e-9;
+  if (!sane) {
+    std::printf("FAILED: nurbsreg's RMS error is beyond 3 noise bounds\n");
+  }
+  return sane;
 }
 
 }  // namespace
@@ -244,46 +470,32 @@ int main(int argc, char** argv) try {
   }
   const Vec3 center = 0.5 * (box.lo + box.hi);
 
-  // The scan: 5 degrees about a generic axis and 5 mm away from the model frame.
+  // The scans: 5 degrees about a generic axis and 5 mm away from the model frame.
   engine::SyntheticScanOptions so;
   so.points = settings.points;
   so.noise_sigma = settings.noise;
-  so.seed = settings.seed;
   Eigen::Isometry3d T_true = Eigen::Isometry3d::Identity();  // model = T_true * scan
   T_true.linear() =
       Eigen::AngleAxisd(5.0 * std::numbers::pi / 180.0, Vec3(1, 2, 3).normalized()).matrix();
   T_true.translation() = Vec3(3.0, -2.0, 4.0).normalized() * 5.0;
   so.T_scan_model = T_true.inverse();
-  const engine::SyntheticScan scan = engine::make_synthetic_scan(model, so);
-  std::printf("model %s: %zu surfaces, box diagonal %.1f mm, area %.0f mm^2\n",
-              settings.model.c_str(), model.surfaces.size(), box.diagonal(),
-              engine::surface_area(model));
-  std::printf(
-      "scan: %zu points, noise sigma %.4g mm along the normal, start 5 deg / 5 mm off; "
-      "%d TBB threads\n",
-      scan.points.size(), settings.noise, settings.threads);
-
-  std::vector<Outcome> outcomes;
 
   // --- nurbsreg ---------------------------------------------------------------------------
-  // The model is prepared once (Bezier decomposition, cached coefficients, hierarchy); then the
-  // same scan is aligned three times: with the default schedule (automatic coarse-to-fine:
-  // nested deterministic subsamples of 1% and 10% of the scan, each left when its step is below
-  // its own noise level or predicted to be, then all points until the step is below tolerance),
-  // the same with predict_final_convergence (the last stage also ends on a predicted step:
-  // one full-resolution pass), and on all points from the first iteration without statistical
-  // or predicted stops (the plain loop).
+  // The model is prepared once (Bezier decomposition, cached coefficients, hierarchy); then each
+  // scan is aligned with the default schedule (automatic coarse-to-fine: nested deterministic
+  // subsamples of 1% and 10% of the scan, each left when its step is below its own noise level
+  // or predicted to be, then all points until the step is below tolerance) and, with
+  // --nurbsreg-variants all, also with predict_final_convergence (the last stage also ends on a
+  // predicted step: one full-resolution pass) and on all points from the first iteration
+  // without statistical or predicted stops (the plain loop).
   Stopwatch prep;
   const engine::PreparedModel prepared{engine::Model(model)};
   const double prepare_wall = prep.wall();
   const double prepare_cpu = prep.cpu();
-  // 1-sigma of the pose error the noise alone allows (the Cramer-Rao-like bound
-  // sigma sqrt(diag H^-1) from the final Hessian, IcpResult::covariance), as RMS rotation angle
-  // and RMS displacement of the box centre (the point where the errors are measured).
-  double bound_rotation_deg = 0.0;
-  double bound_translation_mm = 0.0;
   enum class Mode { plain, schedule, schedule_predicted };
-  const auto run_nurbsreg = [&](const char* label, Mode mode) {
+  // Aligns `points`; fills `bound` from the run's covariance when it is given.
+  const auto run_nurbsreg = [&](const char* label, Mode mode, const std::vector<Vec3>& points,
+                                NoiseBound* bound) {
     Outcome o;
     o.method = label;
     o.prepare_wall = prepare_wall;
@@ -304,7 +516,7 @@ int main(int argc, char** argv) try {
     }
     icp::IcpSolver solver(options);
     Stopwatch run;
-    const icp::IcpResult r = solver.align(finder, scan.points, Eigen::Isometry3d::Identity());
+    const icp::IcpResult r = solver.align(finder, points, Eigen::Isometry3d::Identity());
     o.wall = run.wall();
     o.cpu = run.cpu();
     o.iterations = r.iterations;
@@ -322,87 +534,59 @@ int main(int argc, char** argv) try {
     const engine::ProjectionCounters& c = finder.last_counters();
     std::printf("  last projection: %.2f patches visited per point (49-patch panel)\n",
                 static_cast<double>(c.patches_visited) / static_cast<double>(c.points));
+    // 1-sigma of the pose error the noise alone allows (the Cramer-Rao-like bound
+    // sigma sqrt(diag H^-1) from the final Hessian, IcpResult::covariance), as RMS rotation
+    // angle and RMS displacement of the box centre (the point where the errors are measured).
     // Covariance of the left twist (omega, v) about the model origin: the displacement of the
     // centre is v + omega x center = [-[center]x, I] xi.
     Eigen::Matrix<double, 3, 6> A;
     A << -icp::skew(center), Eigen::Matrix3d::Identity();
-    bound_rotation_deg =
+    const double bound_rotation_deg =
         std::sqrt(r.covariance.topLeftCorner<3, 3>().trace()) * 180.0 / std::numbers::pi;
-    bound_translation_mm = std::sqrt((A * r.covariance * A.transpose()).trace());
+    const double bound_translation_mm = std::sqrt((A * r.covariance * A.transpose()).trace());
     std::printf("  noise bound (1-sigma RMS): rotation %.3g deg, translation %.3g mm (centre)\n",
                 bound_rotation_deg, bound_translation_mm);
-    outcomes.push_back(o);
+    if (bound != nullptr) *bound = {bound_rotation_deg, bound_translation_mm};
+    return o;
   };
-  run_nurbsreg("nurbsreg point-to-plane, exact NURBS, default schedule", Mode::schedule);
-  run_nurbsreg("nurbsreg, default schedule + predict_final_convergence", Mode::schedule_predicted);
-  run_nurbsreg("nurbsreg, all points every iteration", Mode::plain);
-  if (settings.pcl == 0) {
-    print_table(outcomes, bound_rotation_deg, bound_translation_mm);
-    return 0;
-  }
 
-  // --- PCL: dense sampling with exact normals ------------------------------------------------
-  Stopwatch sampling;
-  const std::vector<engine::SurfaceSample> dense =
-      engine::sample_surfaces(model, settings.dense, settings.seed + 1000);
-  auto target = pcl::make_shared<pcl::PointCloud<pcl::PointNormal>>();
-  auto target_xyz = pcl::make_shared<pcl::PointCloud<pcl::PointXYZ>>();
-  target->resize(dense.size());
-  target_xyz->resize(dense.size());
-  for (std::size_t i = 0; i < dense.size(); ++i) {
-    const Vec3 p = dense[i].point;
-    const Vec3 n = dense[i].normal;
-    pcl::PointNormal& q = (*target)[i];
-    q.x = static_cast<float>(p.x());
-    q.y = static_cast<float>(p.y());
-    q.z = static_cast<float>(p.z());
-    q.normal_x = static_cast<float>(n.x());
-    q.normal_y = static_cast<float>(n.y());
-    q.normal_z = static_cast<float>(n.z());
-    (*target_xyz)[i] = pcl::PointXYZ(q.x, q.y, q.z);
-  }
-  // Source normals: the exact ones of the scan's source samples, moved into the scan frame.
-  // PCL's (asymmetric) point-to-plane objective uses only the target normals.
-  auto source = pcl::make_shared<pcl::PointCloud<pcl::PointNormal>>();
-  auto source_xyz = pcl::make_shared<pcl::PointCloud<pcl::PointXYZ>>();
-  source->resize(scan.points.size());
-  source_xyz->resize(scan.points.size());
-  for (std::size_t i = 0; i < scan.points.size(); ++i) {
-    const Vec3 p = scan.points[i];
-    const Vec3 n = scan.surface[i] < 0
-                       ? Vec3::Zero()
-                       : Vec3(so.T_scan_model.linear() *
-                              engine::surface_normal(model.surfaces[scan.surface[i]],
-                                                     scan.uv[i].x(), scan.uv[i].y()));
-    pcl::PointNormal& q = (*source)[i];
-    q.x = static_cast<float>(p.x());
-    q.y = static_cast<float>(p.y());
-    q.z = static_cast<float>(p.z());
-    q.normal_x = static_cast<float>(n.x());
-    q.normal_y = static_cast<float>(n.y());
-    q.normal_z = static_cast<float>(n.z());
-    (*source_xyz)[i] = pcl::PointXYZ(q.x, q.y, q.z);
-  }
-  std::printf(
-      "PCL target: %zu samples with exact normals (spacing ~%.3f mm), made in %.2f s "
-      "(not counted)\n",
-      dense.size(), std::sqrt(engine::surface_area(model) / double(dense.size())), sampling.wall());
-
-  // One PCL method: kd-tree on the target (prepare), then align from the identity (run).
-  auto run_pcl = [&](const char* method, auto icp, const auto& source_cloud,
-                     const auto& target_cloud) {
+  // --- PCL: dense sampling with exact normals, built once (it does not depend on the scan) --
+  std::unique_ptr<PclClouds> target;
+  PclTree<pcl::PointXYZ> tree_xyz;
+  PclTree<pcl::PointNormal> tree_normals;
+  const auto make_target = [&] {
+    Stopwatch sampling;
+    const std::vector<engine::SurfaceSample> dense =
+        engine::sample_surfaces(model, settings.dense, settings.seed + 1000);
+    target = std::make_unique<PclClouds>(dense.size());
+    for (std::size_t i = 0; i < dense.size(); ++i)
+      target->set(i, dense[i].point, dense[i].normal);
+    std::printf(
+        "PCL target: %zu samples with exact normals (spacing ~%.3f mm), made in %.2f s "
+        "(not counted)\n",
+        dense.size(), std::sqrt(engine::surface_area(model) / double(dense.size())),
+        sampling.wall());
+  };
+  // One PCL method: k-d tree on the target (prepare, first use only), then align from the
+  // identity (run).
+  const auto run_pcl = [&](const char* method, auto icp, const auto& source_cloud,
+                           const auto& target_cloud, auto& tree) {
     using Point = typename std::decay_t<decltype(*target_cloud)>::PointType;
     Outcome o;
     o.method = method;
-    Stopwatch prep;
-    auto tree = pcl::make_shared<pcl::search::KdTree<Point>>();
-    tree->setInputCloud(target_cloud);
-    o.prepare_wall = prep.wall();
-    o.prepare_cpu = prep.cpu();
+    if (!tree.tree) {
+      Stopwatch build;
+      tree.tree = pcl::make_shared<pcl::search::KdTree<Point>>();
+      tree.tree->setInputCloud(target_cloud);
+      tree.wall = build.wall();
+      tree.cpu = build.cpu();
+    }
+    o.prepare_wall = tree.wall;
+    o.prepare_cpu = tree.cpu;
     configure_pcl(icp, settings.pcl_max_iterations);
     icp.setInputSource(source_cloud);
     icp.setInputTarget(target_cloud);
-    icp.setSearchMethodTarget(tree, true);
+    icp.setSearchMethodTarget(tree.tree, true);
     pcl::PointCloud<Point> aligned;
     Stopwatch run;
     icp.align(aligned);
@@ -411,18 +595,67 @@ int main(int argc, char** argv) try {
     o.iterations = icp.iterations();
     o.termination = pcl_state(icp.getConvergeCriteria()->getConvergenceState());
     measure(o, to_isometry(icp.getFinalTransformation()), T_true, center);
-    outcomes.push_back(o);
+    return o;
   };
-  if (settings.pcl >= 2) {
-    run_pcl("PCL IterativeClosestPoint (point-to-point)",
-            CountingIcp<pcl::IterativeClosestPoint<pcl::PointXYZ, pcl::PointXYZ>>{}, source_xyz,
-            target_xyz);
-  }
-  run_pcl("PCL IterativeClosestPointWithNormals (point-to-plane)",
-          CountingIcp<pcl::IterativeClosestPointWithNormals<pcl::PointNormal, pcl::PointNormal>>{},
-          source, target);
 
-  print_table(outcomes, bound_rotation_deg, bound_translation_mm);
+  std::vector<std::vector<Outcome>> runs;  // [seed][method]
+  std::vector<NoiseBound> bounds;          // [seed], from the default schedule
+  for (std::size_t k = 0; k < settings.seeds; ++k) {
+    so.seed = settings.seed + k;
+    const engine::SyntheticScan scan = engine::make_synthetic_scan(model, so);
+    if (settings.seeds > 1) {
+      std::printf("\n=== seed %llu (%zu of %zu) ===\n", static_cast<unsigned long long>(so.seed),
+                  k + 1, settings.seeds);
+    }
+    if (k == 0) {
+      std::printf("model %s: %zu surfaces, box diagonal %.1f mm, area %.0f mm^2\n",
+                  settings.model.c_str(), model.surfaces.size(), box.diagonal(),
+                  engine::surface_area(model));
+    }
+    std::printf(
+        "scan: %zu points, noise sigma %.4g mm along the normal, start 5 deg / 5 mm off; "
+        "%d TBB threads\n",
+        scan.points.size(), settings.noise, settings.threads);
+
+    std::vector<Outcome> outcomes;
+    NoiseBound bound;
+    outcomes.push_back(run_nurbsreg("nurbsreg point-to-plane, exact NURBS, default schedule",
+                                    Mode::schedule, scan.points, &bound));
+    if (settings.variants == Variants::all) {
+      outcomes.push_back(run_nurbsreg("nurbsreg, default schedule + predict_final_convergence",
+                                      Mode::schedule_predicted, scan.points, nullptr));
+      outcomes.push_back(
+          run_nurbsreg("nurbsreg, all points every iteration", Mode::plain, scan.points, nullptr));
+    }
+    if (settings.pcl > 0) {
+      if (!target) make_target();
+      // Source normals: the exact ones of the scan's source samples, moved into the scan frame.
+      // PCL's (asymmetric) point-to-plane objective uses only the target normals.
+      PclClouds source(scan.points.size());
+      for (std::size_t i = 0; i < scan.points.size(); ++i) {
+        const Vec3 n = scan.surface[i] < 0
+                           ? Vec3::Zero()
+                           : Vec3(so.T_scan_model.linear() *
+                                  engine::surface_normal(model.surfaces[scan.surface[i]],
+                                                         scan.uv[i].x(), scan.uv[i].y()));
+        source.set(i, scan.points[i], n);
+      }
+      if (settings.pcl >= 2) {
+        outcomes.push_back(
+            run_pcl("PCL IterativeClosestPoint (point-to-point)",
+                    CountingIcp<pcl::IterativeClosestPoint<pcl::PointXYZ, pcl::PointXYZ>>{},
+                    source.xyz, target->xyz, tree_xyz));
+      }
+      outcomes.push_back(run_pcl(
+          "PCL IterativeClosestPointWithNormals (point-to-plane)",
+          CountingIcp<pcl::IterativeClosestPointWithNormals<pcl::PointNormal, pcl::PointNormal>>{},
+          source.with_normals, target->with_normals, tree_normals));
+    }
+    print_table(outcomes, bound);
+    runs.push_back(std::move(outcomes));
+    bounds.push_back(bound);
+  }
+  if (settings.seeds > 1 && !print_summary(runs, bounds, settings.seed)) return 1;
   return 0;
 } catch (const std::exception& e) {
   std::fprintf(stderr, "align_peers_bench: %s\n", e.what());

@@ -1,6 +1,7 @@
 #include "nurbsreg/engine/prepared_model.hpp"
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <limits>
 #include <stdexcept>
@@ -43,7 +44,11 @@ void oriented_axes(const BezierPatch& bp, Vec3 axis[3]) {
 
 }  // namespace
 
-PreparedModel::PreparedModel(Model model) : model_(std::move(model)) {
+namespace {
+std::atomic<std::uint32_t> next_serial{1};
+}  // namespace
+
+PreparedModel::PreparedModel(Model model) : model_(std::move(model)), serial_(next_serial++) {
   if (auto error = model_.validate()) throw std::invalid_argument(*error);
   for (std::size_t s = 0; s < model_.surfaces.size(); ++s) {
     const NurbsSurface& surface = model_.surfaces[s];

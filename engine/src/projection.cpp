@@ -135,7 +135,7 @@ WarmCertificate Projector::make_certificate(const Vec3& p, const SurfaceHit& bes
                                             std::int64_t patch, std::int64_t edge,
                                             double radius_cap, ThreadState& state) const {
   WarmCertificate tried;
-  tried.anchor = p;
+  tried.anchor = p.cast<float>();
   tried.patch = WarmCertificate::kTried;
   // Only a foot on an untrimmed polynomial patch (a foot on a trim edge, or on a patch edge
   // shared with a neighbour, gets no clearance anyway).
@@ -161,12 +161,23 @@ WarmCertificate Projector::make_certificate(const Vec3& p, const SurfaceHit& bes
   search_surfaces(p, search, patch, -1, kNaN, kNaN, state);
   const double clearance = std::sqrt(other.distance_sq);
   if (!(clearance > d)) return tried;
-  ++state.counters.certificates_made;
+  // Stored in single precision (WarmCertificate): the rounded anchor is e away from p, so the
+  // ball of radius r - e about it lies in the proven one, and everything outside N is at least
+  // clearance - e from it; both then rounded down.
   WarmCertificate c;
-  c.anchor = p;
-  c.radius = local.radius;
-  c.clearance = clearance;
+  c.anchor = p.cast<float>();
+  const double e = c.distance_to_anchor(p);
+  const auto down = [](double x) {
+    float f = static_cast<float>(x);
+    if (static_cast<double>(f) > x) f = std::nextafter(f, 0.0f);
+    return f;
+  };
+  c.radius = down(local.radius - e);
+  c.clearance = down(clearance - e);
+  if (!(c.radius > 0.0f) || !(static_cast<double>(c.clearance) > d)) return tried;
+  ++state.counters.certificates_made;
   c.patch = static_cast<std::int32_t>(patch);
+  c.model = model_.serial();
   c.s0 = local.s0;
   c.s1 = local.s1;
   c.t0 = local.t0;
@@ -237,8 +248,8 @@ void Projector::project_range(PointView points, const ProjectionOptions& options
           // Cheapest: the hint's WarmCertificate covers p. One Newton on its box N proves the
           // answer (see WarmCertificate); otherwise the usual warm start below.
           const WarmCertificate& c = hint->certificate;
-          if (c.radius > 0.0 && c.patch == hint_patch) {
-            const double moved = (p - c.anchor).norm();
+          if (c.radius > 0.0 && c.patch == hint_patch && c.model == model_.serial()) {
+            const double moved = c.distance_to_anchor(p);
             if (moved <= c.radius) {
               s_loc = std::clamp(hint_s, double(c.s0), double(c.s1));
               t_loc = std::clamp(hint_t, double(c.t0), double(c.t1));
@@ -343,7 +354,7 @@ void Projector::project_range(PointView points, const ProjectionOptions& options
         // retried until the point has moved by the radius cap.
         const bool tried_here = hint != nullptr &&
                                 hint->certificate.patch == WarmCertificate::kTried &&
-                                (p - hint->certificate.anchor).norm() <= certificate_cap;
+                                hint->certificate.distance_to_anchor(p) <= certificate_cap;
         out.certificate[i] =
             tried_here ? hint->certificate
                        : make_certificate(p, best, best_patch, best_edge, certificate_cap, state);

@@ -50,7 +50,7 @@ void CertificateAtlas::grow() {
 
 void CertificateAtlas::insert(const engine::ProjectionHint& hint) {
   if (!(hint.certificate.radius > 0.0) || slots_.empty()) return;
-  const std::uint64_t k = key(hint.certificate.anchor);
+  const std::uint64_t k = key(hint.certificate.anchor.cast<double>());
   std::size_t mask = slots_.size() - 1;
   std::size_t i = mix(k) & mask;
   while (slots_[i].key != 0 && slots_[i].key != k)
@@ -77,7 +77,7 @@ const engine::ProjectionHint* CertificateAtlas::find_in_cell(const engine::Vec3&
   for (std::size_t i = mix(k) & mask; slots_[i].key != 0; i = (i + 1) & mask) {
     if (slots_[i].key != k) continue;
     const engine::ProjectionHint& h = hints_[slots_[i].hint];
-    return (p - h.certificate.anchor).norm() <= h.certificate.radius ? &h : nullptr;
+    return h.certificate.covers(p) ? &h : nullptr;
   }
   return nullptr;
 }

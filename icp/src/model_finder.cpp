@@ -3,6 +3,7 @@
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
+#include <algorithm>
 #include <cmath>
 
 namespace nurbsreg::icp {
@@ -57,19 +58,27 @@ void ModelCorrespondenceFinder::find(const CorrespondenceQuery& query,
   // usually ends after one more pass, they are used but not made.
   const bool subsample = !query.scan_indices.empty() && query.scan_indices.size() < hints_.size();
   const bool certify = subsample && query.expected_motion < 0.5 * certificate_radius_;
-  query_hints_.resize(n);
+  // Hints live by scan index; the projector wants them by query position. A full-resolution
+  // query in scan order uses them in place (no copy of ~64 bytes per point).
+  bool identity = true;
+  std::size_t needed = n;
+  for (std::size_t k = 0; k < n; ++k) {
+    const std::size_t s = scan_index(k);
+    identity = identity && s == k;
+    needed = std::max(needed, s + 1);
+  }
+  if (hints_.size() < needed) hints_.resize(needed);
   const auto gather = [&](std::size_t begin, std::size_t end) {
     for (std::size_t k = begin; k < end; ++k) {
-      const std::size_t s = scan_index(k);
-      query_hints_[k] = s < hints_.size() ? hints_[s] : engine::ProjectionHint{};
+      engine::ProjectionHint& h = hints_[scan_index(k)];
       // A point whose own certificate does not cover it borrows a neighbour's, if one does.
-      const engine::WarmCertificate& c = query_hints_[k].certificate;
-      const bool covered = c.radius > 0.0 && (query.points[k] - c.anchor).norm() <= c.radius;
-      if (!covered) {
-        if (const engine::ProjectionHint* h = atlas_.find(query.points[k])) query_hints_[k] = *h;
+      if (!h.certificate.covers(query.points[k])) {
+        if (const engine::ProjectionHint* b = atlas_.find(query.points[k])) h = *b;
       }
+      if (!identity) query_hints_[k] = h;
     }
   };
+  if (!identity) query_hints_.resize(n);
   if (query.parallel) {
     tbb::parallel_for(
         tbb::blocked_range<std::size_t>(0, n, 4096),
@@ -77,15 +86,18 @@ void ModelCorrespondenceFinder::find(const CorrespondenceQuery& query,
   } else {
     gather(0, n);
   }
+  const std::span<const engine::ProjectionHint> hints =
+      identity ? std::span<const engine::ProjectionHint>(hints_).first(n)
+               : std::span<const engine::ProjectionHint>(query_hints_);
   engine::ProjectionOptions options;
   options.max_distance = query.max_distance;
   options.certify = certify;
   options.certificate_radius = certificate_radius_;
   const auto points = engine::PointView::of(query.points);
   if (query.parallel) {
-    projector_.project(points, options, results_, query_hints_, &counters_);
+    projector_.project(points, options, results_, hints, &counters_);
   } else {
-    projector_.project_serial(points, options, results_, query_hints_, &counters_);
+    projector_.project_serial(points, options, results_, hints, &counters_);
   }
   for (std::size_t k = 0; k < n; ++k) {
     Correspondence& c = out[k];
@@ -96,10 +108,10 @@ void ModelCorrespondenceFinder::find(const CorrespondenceQuery& query,
     c.distance = results_.distance[k];
     c.on_boundary = beyond_edge(k, query.points[k]);
     const std::size_t s = scan_index(k);
-    if (s >= hints_.size()) hints_.resize(s + 1);
     hints_[s] = results_.hint(k);
     // New certificates (anchored at this query's point) join the atlas.
-    if (hints_[s].certificate.radius > 0.0 && hints_[s].certificate.anchor == query.points[k]) {
+    if (hints_[s].certificate.radius > 0.0f &&
+        hints_[s].certificate.anchor == query.points[k].cast<float>()) {
       atlas_.insert(hints_[s]);
     }
   }

@@ -151,14 +151,15 @@ TEST_P(WarmAnchorClaims, ConvexityAndClearanceHoldAgainstSampling) {
       const WarmCertificate& c = results.certificate[i];
       if (!(c.radius > 0.0)) continue;
       ++checked;
-      EXPECT_EQ(c.anchor, points[i]);
+      EXPECT_EQ(c.anchor, points[i].cast<float>());
+      const Vec3 anchor = c.anchor.cast<double>();
       EXPECT_GT(c.clearance, results.distance[i]);
       const PreparedPatch& pp = pm.patch(static_cast<std::size_t>(c.patch));
       EXPECT_EQ(pm.patch_surface(static_cast<std::size_t>(c.patch)), results.entity[i]);
       // Convexity over N for points in the ball, its sphere included.
       for (int k = 0; k < 6; ++k) {
         const double reach = k == 0 ? 0.0 : (k < 4 ? c.radius : uniform(rng, 0, c.radius));
-        const Vec3 q = c.anchor + reach * random_direction(rng);
+        const Vec3 q = anchor + reach * random_direction(rng);
         for (int a = 0; a <= 8; ++a) {
           for (int b = 0; b <= 8; ++b) {
             const double s = c.s0 + (c.s1 - c.s0) * a / 8.0, t = c.t0 + (c.t1 - c.t0) * b / 8.0;
@@ -176,7 +177,7 @@ TEST_P(WarmAnchorClaims, ConvexityAndClearanceHoldAgainstSampling) {
           const double t = pp.patch.param_v.to_local(sample.v);
           if (s >= c.s0 && s <= c.s1 && t >= c.t0 && t <= c.t1) continue;
         }
-        ASSERT_GE((sample.point - c.anchor).norm(), c.clearance - 1e-12 * diagonal)
+        ASSERT_GE((sample.point - anchor).norm(), c.clearance - 1e-12 * diagonal)
             << "point " << i << ": a sample outside N of patch " << c.patch
             << " is closer than the clearance";
       }
@@ -264,6 +265,32 @@ TEST(WarmAnchorCertificate, SameCertificatesForAnyThreadCount) {
     EXPECT_EQ(serial.certificate[i].clearance, parallel.certificate[i].clearance);
     EXPECT_EQ(serial.certificate[i].patch, parallel.certificate[i].patch);
   }
+}
+
+TEST(WarmAnchorCertificate, CertificatesOfAnotherModelAreNotTrusted) {
+  // The same patch layout, the geometry moved by 0.05: a certificate made for `a` proves
+  // nothing about `b`, and `b` must not use it.
+  NurbsSurface surface = test::random_surface(11, 3, 3, 9, 9, false);
+  const PreparedModel a{model_of({surface})};
+  for (Vec3& c : surface.control_points)
+    c.z() += 0.05;
+  const PreparedModel b{model_of({surface})};
+  ASSERT_NE(a.serial(), b.serial());
+  const std::vector<Vec3> points = query_points(a, 200, 6);
+  ProjectionOptions options;
+  options.certify = true;
+  ProjectionResults made, warm, cold;
+  Projector pa(a), pb(b);
+  pa.project(PointView::of(points), options, made);
+  std::vector<ProjectionHint> hints;
+  for (std::size_t i = 0; i < points.size(); ++i)
+    hints.push_back(made.hint(i));
+  ProjectionCounters counters;
+  pb.project(PointView::of(points), ProjectionOptions{}, warm, hints, &counters);
+  pb.project(PointView::of(points), ProjectionOptions{}, cold);
+  EXPECT_EQ(counters.certified, 0u);
+  for (std::size_t i = 0; i < points.size(); ++i)
+    EXPECT_NEAR(warm.distance[i], cold.distance[i], 1e-12 * b.bounds().diagonal()) << i;
 }
 
 TEST(WarmAnchorCertificate, RationalSurfacesGetNoneAndStayExact) {

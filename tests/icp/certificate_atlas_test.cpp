@@ -20,8 +20,8 @@ using engine::Vec3;
 
 engine::ProjectionHint hint_at(const Vec3& anchor, double radius, int patch) {
   engine::WarmCertificate c;
-  c.anchor = anchor;
-  c.radius = radius;
+  c.anchor = anchor.cast<float>();
+  c.radius = static_cast<float>(radius);
   c.clearance = 1.0;
   c.patch = patch;
   return engine::ProjectionHint(0, 0.5, 0.5, c);
@@ -66,7 +66,7 @@ TEST(CertificateAtlas, GrowsAndFindsEveryAnchor) {
   for (std::size_t k = 0; k < anchors.size(); ++k) {
     const engine::ProjectionHint* h = atlas.find(anchors[k]);
     ASSERT_NE(h, nullptr) << k;
-    EXPECT_EQ(h->certificate.anchor, anchors[k]);
+    EXPECT_EQ(h->certificate.anchor, anchors[k].cast<float>());
   }
 }
 

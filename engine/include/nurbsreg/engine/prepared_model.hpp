@@ -96,6 +96,9 @@ class PreparedModel {
 
   // Box around every control point of the model (contains the whole model).
   const Aabb& bounds() const { return bounds_; }
+  // A number no other PreparedModel of this process has (copies share it, as they share the
+  // geometry): warm certificates carry it, so one made for another model is never trusted.
+  std::uint32_t serial() const { return serial_; }
 
  private:
   Model model_;
@@ -148,6 +151,7 @@ class PreparedModel {
   std::vector<BoundingSphere> piece_spheres_;
   Bvh piece_bvh_;
   Aabb bounds_;
+  std::uint32_t serial_ = 0;
 };
 
 }  // namespace nurbsreg::engine

@@ -45,6 +45,7 @@ enum class ProjectionStatus : std::uint8_t {
 //   - everything of the model outside N is at least `clearance` away from a: Bézier bounds over
 //     the rest of P, and an exact best-first search over the rest of the model against
 //     alpha = (d_a + 2 radius)^2.
+// The projector trusts a certificate only for the PreparedModel that made it (`model`).
 // For a query q with |q - a| <= radius whose Newton minimum on N has distance d, everything else
 // is at least clearance - |q - a| away by the triangle inequality: d + |q - a| <= clearance
 // proves d is the model's distance without looking at anything else. Only untrimmed,
@@ -52,11 +53,19 @@ enum class ProjectionStatus : std::uint8_t {
 // `anchor` and could not be made; the projector does not retry within the radius cap of it).
 struct WarmCertificate {
   static constexpr std::int32_t kTried = -2;
-  Vec3 anchor = Vec3::Zero();
-  double radius = 0.0;
-  double clearance = 0.0;
+  // Single precision keeps hints small (frames of millions of points): the anchor is the query
+  // point rounded to float, with radius and clearance reduced by that rounding and rounded down,
+  // so the proof holds as stated for the stored anchor.
+  Eigen::Vector3f anchor = Eigen::Vector3f::Zero();
+  float radius = 0.0f;
+  float clearance = 0.0f;
   std::int32_t patch = -1;                           // PreparedModel patch index
   float s0 = 0.0f, s1 = 1.0f, t0 = 0.0f, t1 = 1.0f;  // N, in the patch's local [0, 1]^2
+  std::uint32_t model = 0;  // PreparedModel::serial() of the model that made it
+
+  double distance_to_anchor(const Vec3& p) const { return (p - anchor.cast<double>()).norm(); }
+  // p lies in the ball the certificate speaks for.
+  bool covers(const Vec3& p) const { return radius > 0.0f && distance_to_anchor(p) <= radius; }
 };
 
 // Where a point's closest point was last time (e.g. the previous ICP iteration): entity index
