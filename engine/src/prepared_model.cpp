@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 
 #include "nurbsreg/engine/decompose.hpp"
@@ -13,6 +14,32 @@ namespace {
 double sphere_lower_bound(const BoundingSphere& s, const Vec3& p) {
   const double d = std::max(0.0, (p - s.center).norm() - s.radius);
   return d * d;
+}
+
+// The frame of a patch's control net: a = the direction between its first and last rows, n the
+// normal of the net's two diagonals' plane made orthogonal to a, b = n x a. Any orthonormal
+// frame gives a valid bound (the control points are projected on each axis); this one makes the
+// box thin along the normal for a nearly flat patch.
+void oriented_axes(const BezierPatch& bp, Vec3 axis[3]) {
+  const int p = bp.degree_u, q = bp.degree_v;
+  auto point = [&](int i, int j) -> Vec3 {
+    const Vec4& c = bp.at(i, j);
+    return c.head<3>() / c[3];
+  };
+  Vec3 a = point(p, 0) + point(p, q) - point(0, 0) - point(0, q);
+  Vec3 b = point(0, q) + point(p, q) - point(0, 0) - point(p, 0);
+  Vec3 n = a.cross(b);
+  if (!(a.norm() > 0.0) || !(n.norm() > 1e-12 * a.norm() * b.norm())) {
+    axis[0] = Vec3::UnitX();
+    axis[1] = Vec3::UnitY();
+    axis[2] = Vec3::UnitZ();
+    return;
+  }
+  a.normalize();
+  n.normalize();
+  axis[0] = a;
+  axis[1] = n.cross(a).normalized();
+  axis[2] = n;
 }
 
 }  // namespace
@@ -78,6 +105,30 @@ PreparedModel::PreparedModel(Model model) : model_(std::move(model)), serial_(ne
     // The prepared patch already holds its bounds.
     item_boxes_.push_back(patches_[i].box);
     item_spheres_.push_back(patches_[i].sphere);
+    const BezierPatch& bp = patches_[i].patch;
+    OrientedBox ob;
+    oriented_axes(bp, ob.axis);
+    for (int k = 0; k < 3; ++k) {
+      ob.lo[k] = std::numeric_limits<double>::infinity();
+      ob.hi[k] = -ob.lo[k];
+    }
+    for (const Vec4& c : bp.cw) {
+      const Vec3 x = c.head<3>() / c[3];
+      for (int k = 0; k < 3; ++k) {
+        const double y = ob.axis[k].dot(x);
+        ob.lo[k] = std::min(ob.lo[k], y);
+        ob.hi[k] = std::max(ob.hi[k], y);
+      }
+    }
+    // Rounding in the projections (relative 1e-15 of |x|): widen so the box still holds every
+    // control point's true projection.
+    for (int k = 0; k < 3; ++k) {
+      const double slack = 1e-14 * (std::abs(ob.lo[k]) + std::abs(ob.hi[k]) +
+                                    (patches_[i].box.hi - patches_[i].box.lo).norm());
+      ob.lo[k] -= slack;
+      ob.hi[k] += slack;
+    }
+    item_oriented_.push_back(ob);
   }
   for (std::size_t s = 0; s < model_.surfaces.size(); ++s) {
     const NurbsSurface& surface = model_.surfaces[s];
@@ -102,6 +153,46 @@ PreparedModel::PreparedModel(Model model) : model_(std::move(model)), serial_(ne
     }
   }
   patch_bvh_ = Bvh(item_boxes_, 2);
+  // The seed grid: about 32 cells along the model's longest side; each cell's point is the
+  // sample nearest to its centre of the patch a greedy descent from the centre reaches
+  // (seed_from_grid). Outside the model's box the nearest cell is used.
+  if (!patch_bvh_.empty() && !item_patch_.empty() && !bounds_.empty()) {
+    constexpr int kCellsAlongLongest = 32;
+    const Vec3 extent = bounds_.hi - bounds_.lo;
+    const double cell = std::max(extent.maxCoeff() / kCellsAlongLongest, 1e-300);
+    seed_lo_ = bounds_.lo;
+    seed_inv_cell_ = 1.0 / cell;
+    for (int a = 0; a < 3; ++a)
+      seed_dims_[a] =
+          std::clamp(static_cast<int>(std::ceil(extent[a] / cell)), 1, kCellsAlongLongest);
+    seed_cells_.resize(static_cast<std::size_t>(seed_dims_[0]) * seed_dims_[1] * seed_dims_[2]);
+    for (int z = 0; z < seed_dims_[2]; ++z) {
+      for (int y = 0; y < seed_dims_[1]; ++y) {
+        for (int x = 0; x < seed_dims_[0]; ++x) {
+          const Vec3 centre = seed_lo_ + cell * Vec3(x + 0.5, y + 0.5, z + 0.5);
+          const std::int64_t item = patch_bvh_.greedy_primitive(centre);
+          if (item < 0 || static_cast<std::size_t>(item) >= item_patch_.size()) continue;
+          const std::uint32_t k = item_patch_[static_cast<std::size_t>(item)];
+          if (patch_class_[k] != RegionClass::inside) continue;
+          SeedCell& c =
+              seed_cells_[(static_cast<std::size_t>(z) * seed_dims_[1] + y) * seed_dims_[0] + x];
+          double nearest = std::numeric_limits<double>::infinity();
+          for (int a = 0; a < kSeedSamples; ++a) {
+            for (int b = 0; b < kSeedSamples; ++b) {
+              const double s_loc = double(a) / (kSeedSamples - 1);
+              const double t_loc = double(b) / (kSeedSamples - 1);
+              const Vec3 point = patches_[k].patch.evaluate(s_loc, t_loc);
+              const double d = (point - centre).squaredNorm();
+              if (d < nearest) {
+                nearest = d;
+                c = {static_cast<std::int64_t>(k), s_loc, t_loc, point};
+              }
+            }
+          }
+        }
+      }
+    }
+  }
   piece_bvh_ = Bvh(piece_boxes_, 2);
 }
 
@@ -119,7 +210,45 @@ std::int64_t PreparedModel::locate_patch(int surface, double u, double v) const 
 }
 
 double PreparedModel::item_lower_bound(std::uint32_t k, const Vec3& p) const {
-  return std::max(item_boxes_[k].squared_distance(p), sphere_lower_bound(item_spheres_[k], p));
+  // The item's axis-aligned box is not repeated here: the hierarchy walk already takes the larger
+  // of this bound and the box distance (Bvh::nearest).
+  if (k >= item_oriented_.size()) return sphere_lower_bound(item_spheres_[k], p);  // edge piece
+  const OrientedBox& ob = item_oriented_[k];
+  double oriented = 0.0;
+  for (int a = 0; a < 3; ++a) {
+    const double y = ob.axis[a].dot(p);
+    const double out = std::max(std::max(ob.lo[a] - y, 0.0), y - ob.hi[a]);
+    oriented += out * out;
+  }
+  return oriented;
+}
+
+bool PreparedModel::seed_from_grid(const Vec3& p, double limit_sq, SurfaceHit& best, int& surface,
+                                   std::int64_t& patch) const {
+  if (seed_cells_.empty()) return false;
+  int cell[3];
+  for (int a = 0; a < 3; ++a) {
+    const double x = (p[a] - seed_lo_[a]) * seed_inv_cell_;
+    // NaN-safe: the caller passes finite points only, but a clamp of NaN must not index.
+    cell[a] = x > 0.0 ? static_cast<int>(std::min(x, double(seed_dims_[a] - 1))) : 0;
+  }
+  const SeedCell& c =
+      seed_cells_[(static_cast<std::size_t>(cell[2]) * seed_dims_[1] + cell[1]) * seed_dims_[0] +
+                  cell[0]];
+  if (c.patch < 0) return false;
+  const double d = (c.point - p).squaredNorm();
+  if (!(d < limit_sq)) return false;
+  const BezierPatch& bp = patches_[static_cast<std::size_t>(c.patch)].patch;
+  best.s = c.s;
+  best.t = c.t;
+  best.u = bp.param_u.to_parent(c.s);
+  best.v = bp.param_v.to_parent(c.t);
+  best.distance_sq = d;
+  best.foot = c.point;
+  best.normal = Vec3::Zero();
+  surface = patch_surface_[static_cast<std::size_t>(c.patch)];
+  patch = c.patch;
+  return true;
 }
 
 Vec2 PreparedModel::edge_uv(std::size_t i, double t) const {

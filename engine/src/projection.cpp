@@ -316,9 +316,30 @@ void Projector::project_range(PointView points, const ProjectionOptions& options
       std::int64_t best_edge = -1;  // the best point is on this trim-edge piece
       double best_edge_t = 0.0;
       if (!proven) {
+        // Cold start: seed alpha with a surface point near p (PreparedModel::seed_from_grid), so
+        // the walk prunes from its first step. Only an upper bound: the answer stays exact.
+        double seed_sq = -1.0;  // the seed's squared distance when seeded
+        if (best_surface < 0 &&
+            model_.seed_from_grid(p, limit_sq, best, best_surface, best_patch)) {
+          seed_sq = best.distance_sq;
+        }
         SurfaceSearch search{best, best_surface, best_patch, best_edge, best_edge_t};
         search_surfaces(p, search, hint_certified ? hint_patch : -1, hint_patch, hint_s, hint_t,
                         state);
+        if (best_edge < 0 && best.distance_sq == seed_sq) {
+          // The seed point is the answer (every improvement is strict: nothing was found closer
+          // by more than the clipping's accepted 1e-11 R). Polished on its patch as the clipping
+          // polishes a corner value, by a descent-only Newton over the whole patch from it (at a
+          // stationary point it stays put and only evaluates foot and normal there).
+          const BezierPatch& bp = model_.patch(static_cast<std::size_t>(best_patch)).patch;
+          double s_loc = best.s, t_loc = best.t;
+          best.distance_sq = newton_on_patch(bp, p, 0.0, 1.0, 0.0, 1.0, s_loc, t_loc, best.foot,
+                                             nullptr, &best.normal);
+          best.s = s_loc;
+          best.t = t_loc;
+          best.u = bp.param_u.to_parent(s_loc);
+          best.v = bp.param_v.to_parent(t_loc);
+        }
       }
       if (best_surface < 0) {
         write_missing(out, i, ProjectionStatus::beyond_max_distance);

@@ -161,8 +161,20 @@ bool convex_second_differences(const SecondDifferences& d, int rows, int cols) {
   return convex(f);
 }
 
+// convex_polynomial for a fixed grid (R, C): the same differences (element-wise, in the same
+// order of operations) and the same minima and maxima (they do not depend on the order they are
+// taken in), with the columns of a row in vector lanes (vector_lanes below) and one horizontal
+// pass per derivative.
+template <int R, int C>
+bool convex_polynomial_fixed(const double* a);
+
 bool convex_polynomial(const double* a, int rows, int cols) {
   if (rows < 3 || cols < 3) return false;  // F_ss or F_tt identically zero
+  // The grids of bicubic and biquadratic patches (and their mixes) get unrolled code.
+  if (rows == 7 && cols == 7) return convex_polynomial_fixed<7, 7>(a);
+  if (rows == 5 && cols == 5) return convex_polynomial_fixed<5, 5>(a);
+  if (rows == 5 && cols == 7) return convex_polynomial_fixed<5, 7>(a);
+  if (rows == 7 && cols == 5) return convex_polynomial_fixed<7, 5>(a);
   double ss_lo = std::numeric_limits<double>::infinity(), ss_hi = -ss_lo;
   for (int i = 0; i + 2 < rows; ++i) {
     const double* r0 = a + i * cols;
@@ -198,18 +210,21 @@ bool convex_polynomial(const double* a, int rows, int cols) {
   return convex_second_differences({{ss_lo, ss_hi}, {tt_lo, tt_hi}, {st_lo, st_hi}}, rows, cols);
 }
 
-// Binomial coefficients C(n, i), n <= kMaxDegree, exact in double.
+// Binomial coefficients C(n, i), n <= N, exact in double.
+template <int N>
 struct BinomialTable {
-  double c[kMaxDegree + 1][kMaxDegree + 1] = {};
+  double c[N + 1][N + 1] = {};
   constexpr BinomialTable() {
-    for (int n = 0; n <= kMaxDegree; ++n) {
+    for (int n = 0; n <= N; ++n) {
       c[n][0] = c[n][n] = 1.0;
       for (int i = 1; i < n; ++i)
         c[n][i] = c[n - 1][i - 1] + c[n - 1][i];
     }
   }
 };
-constexpr BinomialTable kBinomial;
+constexpr BinomialTable<kMaxDegree> kBinomial;
+// Up to the degree of the squared distance along a boundary curve (bernstein_minimiser).
+constexpr BinomialTable<2 * kMaxDegree> kWideBinomial;
 
 // Bernstein values and first and second derivatives of degree n at t in [0, 1]:
 // B_i^m = C(m, i) t^i (1 - t)^(m - i) for m = n, n - 1, n - 2 from one table of powers (all terms
@@ -349,6 +364,117 @@ inline void store_lanes(double* x, Lanes v) {
   std::memcpy(x, &v, sizeof v);
 }
 
+// Running minimum and maximum of L values per slot, the first L - L % kLanes slots in vector
+// lanes. add(j, x) folds x into slots [j, j + kLanes) (j a multiple of kLanes below the vector
+// part's end); add_scalar(j, x) into slot j of the rest. min/max as std::min(acc, x) and
+// std::max(acc, x) per slot (a NaN x is ignored, as there).
+template <int L>
+struct SlotRange {
+  static constexpr int kVec = L / kLanes;
+  static constexpr int kRest = L % kLanes;
+  Lanes lo[kVec > 0 ? kVec : 1], hi[kVec > 0 ? kVec : 1];
+  double rest_lo[kRest > 0 ? kRest : 1], rest_hi[kRest > 0 ? kRest : 1];
+  SlotRange() {
+    const double inf = std::numeric_limits<double>::infinity();
+    Lanes plus, minus;
+    for (int k = 0; k < kLanes; ++k) {
+      plus[k] = inf;
+      minus[k] = -inf;
+    }
+    for (int v = 0; v < kVec; ++v) {
+      lo[v] = plus;
+      hi[v] = minus;
+    }
+    for (int k = 0; k < kRest; ++k) {
+      rest_lo[k] = inf;
+      rest_hi[k] = -inf;
+    }
+  }
+  void add(int v, Lanes x) {
+    lo[v] = x < lo[v] ? x : lo[v];
+    hi[v] = hi[v] < x ? x : hi[v];
+  }
+  void add_scalar(int k, double x) {
+    rest_lo[k] = std::min(rest_lo[k], x);
+    rest_hi[k] = std::max(rest_hi[k], x);
+  }
+  Iv reduce() const {
+    double l = std::numeric_limits<double>::infinity(), h = -l;
+    for (int v = 0; v < kVec; ++v) {
+      for (int k = 0; k < kLanes; ++k) {
+        l = std::min(l, lo[v][k]);
+        h = std::max(h, hi[v][k]);
+      }
+    }
+    for (int k = 0; k < kRest; ++k) {
+      l = std::min(l, rest_lo[k]);
+      h = std::max(h, rest_hi[k]);
+    }
+    return {l, h};
+  }
+};
+
+template <int R, int C>
+bool convex_polynomial_fixed(const double* a) {
+  static_assert(R >= 3 && C >= 3);
+  constexpr int m = R - 1, n = C - 1;
+  // F_ss: second differences down the columns, all C columns.
+  SlotRange<C> ss;
+  for (int i = 0; i + 2 < R; ++i) {
+    const double* r0 = a + i * C;
+    const double* r1 = r0 + C;
+    const double* r2 = r1 + C;
+    for (int v = 0; v < SlotRange<C>::kVec; ++v) {
+      const int j = v * kLanes;
+      ss.add(v, load_lanes(r2 + j) - 2.0 * load_lanes(r1 + j) + load_lanes(r0 + j));
+    }
+    for (int k = 0; k < SlotRange<C>::kRest; ++k) {
+      const int j = SlotRange<C>::kVec * kLanes + k;
+      ss.add_scalar(k, r2[j] - 2.0 * r1[j] + r0[j]);
+    }
+  }
+  const Iv ss_range = ss.reduce();
+  if (!(ss_range.lo > 0.0)) return false;
+  // F_tt: second differences along the rows, C - 2 per row.
+  SlotRange<C - 2> tt;
+  for (int i = 0; i < R; ++i) {
+    const double* r = a + i * C;
+    for (int v = 0; v < SlotRange<C - 2>::kVec; ++v) {
+      const int j = v * kLanes;
+      tt.add(v, load_lanes(r + j + 2) - 2.0 * load_lanes(r + j + 1) + load_lanes(r + j));
+    }
+    for (int k = 0; k < SlotRange<C - 2>::kRest; ++k) {
+      const int j = SlotRange<C - 2>::kVec * kLanes + k;
+      tt.add_scalar(k, r[j + 2] - 2.0 * r[j + 1] + r[j]);
+    }
+  }
+  const Iv tt_range = tt.reduce();
+  if (!(tt_range.lo > 0.0)) return false;
+  // F_st: mixed differences, (R - 1) x (C - 1).
+  SlotRange<C - 1> st;
+  for (int i = 0; i + 1 < R; ++i) {
+    const double* r0 = a + i * C;
+    const double* r1 = r0 + C;
+    for (int v = 0; v < SlotRange<C - 1>::kVec; ++v) {
+      const int j = v * kLanes;
+      st.add(v, load_lanes(r1 + j + 1) - load_lanes(r1 + j) - load_lanes(r0 + j + 1) +
+                    load_lanes(r0 + j));
+    }
+    for (int k = 0; k < SlotRange<C - 1>::kRest; ++k) {
+      const int j = SlotRange<C - 1>::kVec * kLanes + k;
+      st.add_scalar(k, r1[j + 1] - r1[j] - r0[j + 1] + r0[j]);
+    }
+  }
+  const Iv st_range = st.reduce();
+  // The same scaling and margin as derivative_ranges + convex.
+  const double ks = double(m) * (m - 1), kt = double(n) * (n - 1), kst = double(m) * n;
+  FDerivatives f{};
+  f.ss = {ks * ss_range.lo, ks * ss_range.hi};
+  f.tt = {kt * tt_range.lo, kt * tt_range.hi};
+  f.st = {kst * st_range.lo, kst * st_range.hi};
+  return convex(f);
+}
+
 // patch_derivatives for fixed degrees (P, Q): the same sums, fully unrolled by the compiler.
 template <int P, int Q>
 void patch_derivatives_fixed(const BezierPatch& patch, double s, double t, Vec3* out) {
@@ -473,6 +599,25 @@ struct CoefficientRange {
 CoefficientRange coefficient_range(const double* n, const double* d, int count, bool rational) {
   CoefficientRange r{std::numeric_limits<double>::infinity(),
                      -std::numeric_limits<double>::infinity(), 0};
+  if (!rational) {
+    // The minimum and maximum only, in vector lanes (order-independent; a NaN is ignored as
+    // below). The index of the minimum is wanted only where a box ends in Newton: arg = -1, and
+    // first_index_of finds it then (the first index holding the minimum, as the strict test
+    // below keeps).
+    SlotRange<kLanes> lanes;
+    int k = 0;
+    for (; k + kLanes <= count; k += kLanes)
+      lanes.add(0, load_lanes(n + k));
+    Iv range = lanes.reduce();
+    for (; k < count; ++k) {
+      range.lo = std::min(range.lo, n[k]);
+      range.hi = std::max(range.hi, n[k]);
+    }
+    r.lo = range.lo;
+    r.hi = range.hi;
+    r.arg = -1;
+    return r;
+  }
   for (int k = 0; k < count; ++k) {
     const double f = rational ? n[k] / d[k] : n[k];
     if (f < r.lo) {
@@ -482,6 +627,14 @@ CoefficientRange coefficient_range(const double* n, const double* d, int count, 
     r.hi = std::max(r.hi, f);
   }
   return r;
+}
+
+// The first index k with a[k] == value (0 if none): the arg of coefficient_range's minimum.
+int first_index_of(const double* a, int count, double value) {
+  for (int k = 0; k < count; ++k) {
+    if (a[k] == value) return k;
+  }
+  return 0;
 }
 
 // Theorem 2 of seed 001 for a polynomial F: if the coefficients of one boundary row (column) are
@@ -513,6 +666,157 @@ int boundary_edge(const double* f, int rows, int cols) {
   if (col_below(0)) return 2;
   if (col_below(cols - 1)) return 3;
   return -1;
+}
+
+// Minimiser of a polynomial f given by its Bernstein coefficients c[0..count) on [0, 1]: a
+// projected Newton on f' (its Bernstein derivative coefficients) from u, a few flops per step.
+// Only a starting point for the Newton on the surface geometry (which does the real work, from
+// any start): being solved on f' = 0, it is accurate to about the coefficients' rounding
+// relative to f'' (linear, not square-root, in it), so the geometric Newton then needs one
+// step instead of four or five. Stops where f'' <= 0 (returns the point reached), at a bound
+// whose derivative points outward, and after a few iterations.
+// kCount > 0: a fixed number of coefficients (unrolled loops); 0: count at run time.
+template <int kCount>
+double bernstein_minimiser_impl(const double* c, int count, double u) {
+  if constexpr (kCount > 0) count = kCount;
+  const int n = count - 1;
+  if (n < 2) return u;
+  double d1[2 * kMaxDegree], d2[2 * kMaxDegree];
+  for (int j = 0; j < n; ++j)
+    d1[j] = n * (c[j + 1] - c[j]);
+  for (int j = 0; j + 1 < n; ++j)
+    d2[j] = double(n) * (n - 1) * (c[j + 2] - 2.0 * c[j + 1] + c[j]);
+  for (int it = 0; it < 8; ++it) {
+    // Bernstein sums of degree n - 1 (d1) and n - 2 (d2) at u, from the powers of u and 1 - u.
+    double xp[2 * kMaxDegree + 1], yp[2 * kMaxDegree + 1];
+    xp[0] = yp[0] = 1.0;
+    for (int k = 1; k < n; ++k) {
+      xp[k] = xp[k - 1] * u;
+      yp[k] = yp[k - 1] * (1.0 - u);
+    }
+    double g = 0.0, h = 0.0;
+    for (int j = 0; j < n; ++j)
+      g += kWideBinomial.c[n - 1][j] * xp[j] * yp[n - 1 - j] * d1[j];
+    for (int j = 0; j + 1 < n; ++j)
+      h += kWideBinomial.c[n - 2][j] * xp[j] * yp[n - 2 - j] * d2[j];
+    if (!(h > 0.0)) break;
+    if ((u <= 0.0 && g >= 0.0) || (u >= 1.0 && g <= 0.0)) break;
+    const double next = std::clamp(u - g / h, 0.0, 1.0);
+    if (!std::isfinite(next)) break;
+    const double moved = std::abs(next - u);
+    u = next;
+    if (moved <= 1e-15) break;
+  }
+  return u;
+}
+
+double bernstein_minimiser(const double* c, int count, double u) {
+  if (count == 7) return bernstein_minimiser_impl<7>(c, count, u);  // bicubic
+  if (count == 5) return bernstein_minimiser_impl<5>(c, count, u);  // biquadratic
+  return bernstein_minimiser_impl<0>(c, count, u);
+}
+
+// The 2-D counterpart of bernstein_minimiser for a polynomial F on a box where it is proven
+// convex (convex_polynomial): a projected Newton on F's own Bernstein grid a (R x C, row-major)
+// from (u, v) in [0, 1]^2. F's gradient and Hessian come from the grid in a few hundred flops,
+// about half a geometric Newton step (patch_derivatives plus the quotient rule), and the
+// minimiser it reaches is accurate to the coefficients' rounding relative to the Hessian, so the
+// Newton on the geometry that follows needs one or two steps instead of four or five. Only a
+// start: stops where the Hessian is not positive definite, when no variable is free, after a
+// few iterations.
+template <int R, int C>
+void bernstein_minimiser_2d(const double* a, double& u, double& v) {
+  constexpr int m = R - 1, n = C - 1;
+  for (int it = 0; it < 8; ++it) {
+    double bu[3][R], bv[3][C];
+    bernstein_012_fixed<m>(u, bu[0], bu[1], bu[2]);
+    bernstein_012_fixed<n>(v, bv[0], bv[1], bv[2]);
+    // Column sums first, the columns of a row in vector lanes (and the last C % kLanes as
+    // scalars), then one dot product per derivative.
+    constexpr int kVec = C / kLanes, kRest = C % kLanes, kSplit = kVec * kLanes;
+    Lanes c0[kVec > 0 ? kVec : 1], c1[kVec > 0 ? kVec : 1], c2[kVec > 0 ? kVec : 1];
+    double r0[kRest > 0 ? kRest : 1], r1[kRest > 0 ? kRest : 1], r2[kRest > 0 ? kRest : 1];
+    for (int i = 0; i < R; ++i) {
+      const double* row = a + i * C;
+      const double w0 = bu[0][i], w1 = bu[1][i], w2 = bu[2][i];
+      for (int k = 0; k < kVec; ++k) {
+        const Lanes x = load_lanes(row + k * kLanes);
+        c0[k] = i == 0 ? w0 * x : c0[k] + w0 * x;
+        c1[k] = i == 0 ? w1 * x : c1[k] + w1 * x;
+        c2[k] = i == 0 ? w2 * x : c2[k] + w2 * x;
+      }
+      for (int k = 0; k < kRest; ++k) {
+        const double x = row[kSplit + k];
+        r0[k] = i == 0 ? w0 * x : r0[k] + w0 * x;
+        r1[k] = i == 0 ? w1 * x : r1[k] + w1 * x;
+        r2[k] = i == 0 ? w2 * x : r2[k] + w2 * x;
+      }
+    }
+    Lanes vu = {}, vuu = {}, vv = {}, vuv = {}, vvv = {};
+    for (int k = 0; k < kVec; ++k) {
+      const Lanes b0 = load_lanes(bv[0] + k * kLanes), b1 = load_lanes(bv[1] + k * kLanes);
+      const Lanes b2 = load_lanes(bv[2] + k * kLanes);
+      vu += b0 * c1[k];
+      vuu += b0 * c2[k];
+      vv += b1 * c0[k];
+      vuv += b1 * c1[k];
+      vvv += b2 * c0[k];
+    }
+    double fu = 0.0, fuu = 0.0, fv = 0.0, fuv = 0.0, fvv = 0.0;
+    for (int l = 0; l < kLanes; ++l) {
+      fu += vu[l];
+      fuu += vuu[l];
+      fv += vv[l];
+      fuv += vuv[l];
+      fvv += vvv[l];
+    }
+    for (int k = 0; k < kRest; ++k) {
+      fu += bv[0][kSplit + k] * r1[k];
+      fuu += bv[0][kSplit + k] * r2[k];
+      fv += bv[1][kSplit + k] * r0[k];
+      fuv += bv[1][kSplit + k] * r1[k];
+      fvv += bv[2][kSplit + k] * r0[k];
+    }
+    const bool free_u = !((u <= 0.0 && fu >= 0.0) || (u >= 1.0 && fu <= 0.0));
+    const bool free_v = !((v <= 0.0 && fv >= 0.0) || (v >= 1.0 && fv <= 0.0));
+    double du = 0.0, dv = 0.0;
+    if (free_u && free_v) {
+      const double det = fuu * fvv - fuv * fuv;
+      if (!(fuu > 0.0 && det > 0.0)) break;
+      du = -(fvv * fu - fuv * fv) / det;
+      dv = -(fuu * fv - fuv * fu) / det;
+    } else if (free_u) {
+      if (!(fuu > 0.0)) break;
+      du = -fu / fuu;
+    } else if (free_v) {
+      if (!(fvv > 0.0)) break;
+      dv = -fv / fvv;
+    } else {
+      break;
+    }
+    const double nu = std::clamp(u + du, 0.0, 1.0), nv = std::clamp(v + dv, 0.0, 1.0);
+    if (!std::isfinite(nu) || !std::isfinite(nv)) break;
+    const double moved = std::max(std::abs(nu - u), std::abs(nv - v));
+    u = nu;
+    v = nv;
+    // Quadratic convergence: after a step this short the error left is far below what the
+    // geometric Newton resolves in its first step; another step here would not pay.
+    if (moved <= 1e-8) break;
+  }
+}
+
+// bernstein_minimiser_2d for the grids it is instantiated for (bicubic and biquadratic patches);
+// false for any other grid (the start is left as it is).
+bool polynomial_start(const double* a, int rows, int cols, double& u, double& v) {
+  if (rows == 7 && cols == 7) {
+    bernstein_minimiser_2d<7, 7>(a, u, v);
+    return true;
+  }
+  if (rows == 5 && cols == 5) {
+    bernstein_minimiser_2d<5, 5>(a, u, v);
+    return true;
+  }
+  return false;
 }
 
 // The state of one clipping run on one patch.
@@ -621,6 +925,11 @@ struct Clipper {
   // smallest coefficient of F on the box).
   // convex: F is proven convex on the box (polynomial patch): Newton may stop as soon as its
   // tangent plane shows the box cannot hold a point that survives `eliminated`.
+  // Does newton() start from a point of its own on this box (see there)?
+  bool has_start(double s0, double s1, double t0, double t1) const {
+    return (best_exact && best_s >= s0 && best_s <= s1 && best_t >= t0 && best_t <= t1) ||
+           (guess_s >= s0 && guess_s <= s1 && guess_t >= t0 && guess_t <= t1);
+  }
   void newton(double s0, double s1, double t0, double t1, double s, double t, bool convex = false) {
     if (best_exact && best_s >= s0 && best_s <= s1 && best_t >= t0 && best_t <= t1) {
       s = best_s;
@@ -687,7 +996,11 @@ void Clipper<kTrim>::clip_boundary(const double* n_row, const double* d_row, int
         arg = j;
       }
     }
-    const double x = count > 1 ? lo + (hi - lo) * arg / (count - 1) : 0.5 * (lo + hi);
+    double x = count > 1 ? lo + (hi - lo) * arg / (count - 1) : 0.5 * (lo + hi);
+    if (!rational && count > 2) {
+      // A start at the polynomial row's own minimiser (see bernstein_minimiser).
+      x = lo + (hi - lo) * bernstein_minimiser(c, count, double(arg) / (count - 1));
+    }
     if (along_t) {
       newton(fixed, fixed, lo, hi, fixed, x);
     } else {
@@ -804,9 +1117,20 @@ void Clipper<kTrim>::run() {
     // Newton on this box, started at the Greville abscissa (i / (rows - 1), j / (cols - 1)) of
     // F's smallest coefficient: near the minimiser when the box is nearly convex.
     auto newton_box = [&](bool convex = false) {
-      const int i = b.arg / cols, j = b.arg % cols;
-      const double s = rows > 1 ? b.s0 + (b.s1 - b.s0) * i / (rows - 1) : 0.5 * (b.s0 + b.s1);
-      const double t = cols > 1 ? b.t0 + (b.t1 - b.t0) * j / (cols - 1) : 0.5 * (b.t0 + b.t1);
+      const int arg = b.arg >= 0 ? b.arg : first_index_of(n, count, b.lower);
+      const int i = arg / cols, j = arg % cols;
+      double s = rows > 1 ? b.s0 + (b.s1 - b.s0) * i / (rows - 1) : 0.5 * (b.s0 + b.s1);
+      double t = cols > 1 ? b.t0 + (b.t1 - b.t0) * j / (cols - 1) : 0.5 * (b.t0 + b.t1);
+      // A polynomial F proven convex on the box: start at its own minimiser (polynomial_start)
+      // unless newton() has a better start of its own.
+      if (convex && !pp.rational && !has_start(b.s0, b.s1, b.t0, b.t1)) {
+        double u = rows > 1 ? double(i) / (rows - 1) : 0.5;
+        double v = cols > 1 ? double(j) / (cols - 1) : 0.5;
+        if (polynomial_start(n, rows, cols, u, v)) {
+          s = b.s0 + (b.s1 - b.s0) * u;
+          t = b.t0 + (b.t1 - b.t0) * v;
+        }
+      }
       newton(b.s0, b.s1, b.t0, b.t1, s, t, convex);
     };
     if (eliminated(b.lower)) {
@@ -879,7 +1203,17 @@ void Clipper<kTrim>::run() {
     ++st.subdivisions;
     // Split across the direction in which F varies most: that is where the box is "long".
     double var_s = 0.0, var_t = 0.0;
-    for (int i = 0; i < rows; ++i) {
+    if (!pp.rational) {
+      // The same maxima without the per-element branches (max is order-independent).
+      for (int k = 0; k + cols < count; ++k)
+        var_s = std::max(var_s, std::abs(n[k + cols] - n[k]));
+      for (int i = 0; i < rows; ++i) {
+        const double* row = n + i * cols;
+        for (int j = 0; j + 1 < cols; ++j)
+          var_t = std::max(var_t, std::abs(row[j + 1] - row[j]));
+      }
+    }
+    for (int i = 0; pp.rational && i < rows; ++i) {
       for (int j = 0; j < cols; ++j) {
         const int k = i * cols + j;
         const double f = pp.rational ? n[k] / d[k] : n[k];

@@ -71,6 +71,11 @@ class Bvh {
   void nearest(const Vec3& p, double& alpha_sq, Scratch& scratch, LowerBound&& lower_bound,
                Visit&& visit) const;
 
+  // The primitive reached by descending from the root into the child with the nearest box at
+  // every level (no backtracking): a cheap guess of a primitive near p, e.g. to seed alpha with
+  // an upper bound before nearest(). -1 for an empty tree.
+  std::int64_t greedy_primitive(const Vec3& p) const;
+
  private:
   void build(std::span<const Aabb> boxes, std::span<const Vec3> centers, std::uint32_t node,
              std::uint32_t first, std::uint32_t count, int leaf_size);
@@ -109,6 +114,23 @@ namespace bvh_detail {
 }
 
 }  // namespace bvh_detail
+
+inline std::int64_t Bvh::greedy_primitive(const Vec3& p) const {
+  if (wide_.empty()) return -1;
+  std::int32_t ref = 0;
+  double distance[WideNode::kWidth];
+  for (;;) {
+    const WideNode& node = wide_[static_cast<std::size_t>(ref)];
+    bvh_detail::box_distances(node, p, distance);
+    int pick = 0;
+    for (int k = 1; k < WideNode::kWidth; ++k) {
+      if (distance[k] < distance[pick]) pick = k;
+    }
+    const std::int32_t child = node.child[pick];
+    if (child < 0) return static_cast<std::int64_t>(~child);
+    ref = child;
+  }
+}
 
 template <typename LowerBound, typename Visit>
 void Bvh::nearest(const Vec3& p, double& alpha_sq, Scratch& scratch, LowerBound&& lower_bound,

@@ -58,7 +58,20 @@ class PreparedModel {
   const Bvh& patch_hierarchy() const { return patch_bvh_; }
   std::size_t hierarchy_patch_items() const { return item_patch_.size(); }
   std::uint32_t item_patch(std::uint32_t k) const { return item_patch_[k]; }
-  // Squared-distance lower bound from p to item k (box and sphere).
+  // Cold start: an upper bound on p's squared distance to the surfaces before any clipping, so
+  // that the hierarchy walk prunes from its first step. A surface point stored for p's cell of a
+  // coarse grid over the model (computed at construction: of the patch that
+  // patch_hierarchy().greedy_primitive reaches from the cell's centre, if it is a patch that is
+  // not trimmed (class inside), the sample of a small (s, t) grid nearest to the centre), when
+  // its squared distance is below limit_sq. Then writes the corner to best
+  // (distance_sq, foot, u, v, local s and t; normal zero: the caller evaluates it if the corner
+  // stays the answer), its surface and patch, and returns true; otherwise changes nothing.
+  bool seed_from_grid(const Vec3& p, double limit_sq, SurfaceHit& best, int& surface,
+                      std::int64_t& patch) const;
+
+  // Squared-distance lower bound from p to item k, to be combined with the item's box distance
+  // (the hierarchy walk does, Bvh::nearest): a patch's oriented box (OrientedBox), an edge
+  // piece's bounding sphere.
   double item_lower_bound(std::uint32_t k, const Vec3& p) const;
 
   // Trim-edge pieces: Bézier pieces of the faces' 3-D boundary edges (trim_edges).
@@ -106,6 +119,29 @@ class PreparedModel {
   std::vector<std::uint32_t> item_patch_;
   std::vector<Aabb> item_boxes_;  // per hierarchy item (patches, then edge pieces)
   std::vector<BoundingSphere> item_spheres_;
+  // A box in the patch's own frame (two tangent directions and the normal of its control net),
+  // per patch item: much tighter than the axis-aligned box for a tilted or curved patch, so a
+  // patch the axis-aligned bound lets through is often rejected before its clipping starts.
+  // `axis` holds orthonormal axes; the patch lies in lo[k] <= axis[k] . x <= hi[k] (convex hull
+  // property of the control points).
+  struct OrientedBox {
+    Vec3 axis[3] = {Vec3::UnitX(), Vec3::UnitY(), Vec3::UnitZ()};
+    double lo[3] = {0, 0, 0}, hi[3] = {0, 0, 0};
+  };
+  std::vector<OrientedBox> item_oriented_;  // per patch item (k < hierarchy_patch_items())
+  // The seed grid: cells of side 1 / seed_inv_cell_ from seed_lo_, x fastest. Each holds a
+  // surface point near its centre: a sample of a patch (local (s, t) on a kSeedSamples^2 grid,
+  // corners included) with its coordinates, or patch -1 (none: trimmed surfaces).
+  static constexpr int kSeedSamples = 5;
+  struct SeedCell {
+    std::int64_t patch = -1;
+    double s = 0, t = 0;
+    Vec3 point = Vec3::Zero();
+  };
+  Vec3 seed_lo_ = Vec3::Zero();
+  double seed_inv_cell_ = 0.0;
+  int seed_dims_[3] = {0, 0, 0};
+  std::vector<SeedCell> seed_cells_;
   std::vector<PreparedCurvePiece> edge_pieces_;
   std::vector<EdgePiece> edge_piece_info_;
   Bvh patch_bvh_;

@@ -90,7 +90,7 @@ struct SurfaceScratch {
     double s0, s1, t0, t1;  // local box in the prepared patch's [0, 1]^2
     double lower;           // lower bound of F on the box (min of the ratio coefficients)
     double upper;           // max of the ratio coefficients
-    int arg;                // index of the smallest ratio coefficient
+    int arg;                // index of the smallest ratio coefficient; -1: not computed yet
     int depth;
     // Trimmed patches only: the box may meet a trim loop (every box of an untrimmed patch, and
     // every box proven inside the region, has false).
