@@ -1694,12 +1694,4 @@ double grid_convexity_radius(const double* n, int rows, int cols, double e_ss, d
   return lo;
 }
 
-double convexity_radius(const PreparedPatch& pp, const Vec3& a, double r_max,
-                        SurfaceScratch& scratch) {
-  if (pp.rational || !a.allFinite() || !(r_max > 0.0)) return 0.0;
-  double* n = scratch.grids.data();
-  pp.numerator(a, n);
-  return grid_convexity_radius(n, pp.rows, pp.cols, pp.e_ss, pp.e_tt, pp.e_st, r_max);
-}
-
 }  // namespace nurbsreg::engine

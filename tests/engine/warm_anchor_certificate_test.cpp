@@ -21,12 +21,14 @@
 #include "nurbsreg/engine/projection.hpp"
 #include "nurbsreg/engine/sampling.hpp"
 #include "nurbsreg/engine/shapes.hpp"
+#include "support/hessian_check.hpp"
 #include "support/random_entities.hpp"
 #include "support/surface_reference.hpp"
 
 namespace nurbsreg::engine {
 namespace {
 
+using test::hessian_positive_definite;
 using test::uniform;
 
 // A bicubic hairpin: the sheet runs out along x, turns around and comes back `gap` above itself.
@@ -90,18 +92,6 @@ std::vector<Vec3> query_points(const PreparedModel& pm, std::size_t count, std::
     }
   }
   return points;
-}
-
-bool hessian_positive_definite(const BezierPatch& patch, const Vec3& q, double s, double t) {
-  Vec3 d[6];
-  patch.derivatives(s, t, d);
-  const Vec3 r = d[0] - q;
-  const double hss = d[1].dot(d[1]) + r.dot(d[3]);
-  const double hst = d[1].dot(d[2]) + r.dot(d[4]);
-  const double htt = d[2].dot(d[2]) + r.dot(d[5]);
-  const double scale = std::abs(hss) + std::abs(htt) + std::abs(hst);
-  const double tolerance = 1e-10 * scale;
-  return hss > -tolerance && htt > -tolerance && hss * htt - hst * hst > -tolerance * scale;
 }
 
 Vec3 random_direction(std::mt19937_64& rng) {

@@ -12,26 +12,14 @@
 
 #include "nurbsreg/engine/decompose.hpp"
 #include "nurbsreg/engine/surface_projection.hpp"
+#include "support/hessian_check.hpp"
 #include "support/random_entities.hpp"
 
 namespace nurbsreg::engine {
 namespace {
 
+using test::hessian_positive_definite;
 using test::uniform;
-
-// The smallest eigenvalue sign test of the 2x2 Hessian of F/2 = (Su.Su + r.Suu, ...) at (s, t),
-// with a rounding allowance relative to its size.
-bool hessian_positive_definite(const BezierPatch& patch, const Vec3& p, double s, double t) {
-  Vec3 d[6];
-  patch.derivatives(s, t, d);
-  const Vec3 r = d[0] - p;
-  const double hss = d[1].dot(d[1]) + r.dot(d[3]);
-  const double hst = d[1].dot(d[2]) + r.dot(d[4]);
-  const double htt = d[2].dot(d[2]) + r.dot(d[5]);
-  const double scale = std::abs(hss) + std::abs(htt) + std::abs(hst);
-  const double tolerance = 1e-10 * scale;
-  return hss > -tolerance && htt > -tolerance && hss * htt - hst * hst > -tolerance * scale;
-}
 
 struct Counts {
   int certified = 0;

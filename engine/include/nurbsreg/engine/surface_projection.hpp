@@ -64,9 +64,9 @@ struct PreparedPatch {
   std::vector<double> e_soa;  // E_ij again as x block, y block, z block (vectorised numerator)
   // Largest Euclidean norms of E's second differences in s, in t and mixed (polynomial patches):
   // moving the point by e changes N's second differences by -2 e . (those of E), at most
-  // 2 |e| times these (convexity_radius).
+  // 2 |e| times these (warm certificates, warm_certificate.cpp).
   double e_ss = 0.0, e_tt = 0.0, e_st = 0.0;
-  // The same for E's first differences in s and in t (a warm certificate's monotone edge test).
+  // The same for E's first differences in s and in t (the certificates' monotone edge test).
   double e_s = 0.0, e_t = 0.0;
 
   const BezierPatch& bezier() const { return patch; }
@@ -176,13 +176,6 @@ double newton_on_patch(const BezierPatch& patch, const Vec3& p, double s0, doubl
 // converged newton_on_patch over [0, 1]^2) is the patch's global minimum, and the clipping of the
 // patch can be skipped. Uses the scratch's first grid; no heap allocation.
 bool squared_distance_convex(const PreparedPatch& patch, const Vec3& p, SurfaceScratch& scratch);
-
-// The radius of a WarmCertificate (projection.hpp) anchored at a: the largest r <= r_max (by
-// bisection, rounded down) such that squared_distance_convex's test holds for every point q with
-// |q - a| <= r, with the coefficient ranges widened by 2 r (e_ss, e_tt, e_st). 0 when the test
-// fails at a itself, and for rational patches. Uses the scratch's first grid; no heap allocation.
-double convexity_radius(const PreparedPatch& patch, const Vec3& a, double r_max,
-                        SurfaceScratch& scratch);
 
 // converged: the closest point was found; skipped_nan: the point has a NaN or infinite
 // coordinate; no_candidate: the strategy produced no point at all (only ma_hewitt can: its
