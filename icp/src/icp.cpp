@@ -5,6 +5,8 @@
 // per-stage index list and the iteration log; nothing per point.
 #include "nurbsreg/icp/icp.hpp"
 
+#include "nurbsreg/engine/large_buffer.hpp"
+
 #include <spdlog/spdlog.h>
 #include <tbb/parallel_for.h>
 
@@ -112,13 +114,14 @@ double residual_variance(const LinearSystem& sys, double ssr) {
 
 namespace detail {
 struct IcpBuffers {
-  std::vector<std::size_t> ids;  // active scan indices, ascending
-  std::vector<Vec3> moved;       // q_i
-  std::vector<Correspondence> matches;
-  std::vector<std::uint8_t> inlier;
-  std::vector<double> residual;
-  std::vector<double> weight;
-  std::vector<double> scratch;  // selections (trimming, median)
+  // Per-point arrays: huge pages for large scans (engine/large_buffer.hpp).
+  engine::FrameVector<std::size_t> ids;  // active scan indices, ascending
+  engine::FrameVector<Vec3> moved;       // q_i
+  engine::FrameVector<Correspondence> matches;
+  engine::FrameVector<std::uint8_t> inlier;
+  engine::FrameVector<double> residual;
+  engine::FrameVector<double> weight;
+  engine::FrameVector<double> scratch;  // selections (trimming, median)
   std::vector<Moments> moment_blocks;
   std::vector<Centroid> centroid_blocks;
 
@@ -143,7 +146,7 @@ using Buffers = detail::IcpBuffers;
 // so that the finder reads the scan in memory order. The swaps do not depend on m, so for one
 // seed the subsample of size m is contained in every larger one (nested levels).
 void select_points(std::size_t n, std::size_t m, std::uint64_t seed,
-                   std::vector<std::size_t>& ids) {
+                   engine::FrameVector<std::size_t>& ids) {
   ids.resize(n);
   std::iota(ids.begin(), ids.end(), std::size_t{0});
   if (m >= n) return;

@@ -22,6 +22,7 @@
 #include <span>
 #include <vector>
 
+#include "nurbsreg/engine/large_buffer.hpp"
 #include "nurbsreg/engine/prepared_model.hpp"
 
 namespace nurbsreg::engine {
@@ -85,24 +86,25 @@ struct ProjectionHint {
   WarmCertificate certificate;
 };
 
-// Structure of arrays, one entry per input point, written by index.
+// Structure of arrays, one entry per input point, written by index (FrameVector: huge pages for
+// large frames, large_buffer.hpp).
 struct ProjectionResults {
-  std::vector<Vec3> foot;
-  std::vector<double> distance;         // >= 0, Euclidean
-  std::vector<double> signed_distance;  // positive on the side the normal points to (0 side: +)
-  std::vector<std::int32_t> entity;     // surface (or curve) index in the model, -1 if none
-  std::vector<double> u;
-  std::vector<double> v;  // 0 for curves
+  FrameVector<Vec3> foot;
+  FrameVector<double> distance;         // >= 0, Euclidean
+  FrameVector<double> signed_distance;  // positive on the side the normal points to (0 side: +)
+  FrameVector<std::int32_t> entity;     // surface (or curve) index in the model, -1 if none
+  FrameVector<double> u;
+  FrameVector<double> v;  // 0 for curves
   // Unit surface normal at the foot: Su x Sv, or -(Su x Sv) for a reversed face
   // (NurbsSurface::reversed); 0 for curves.
-  std::vector<Vec3> normal;
-  std::vector<ProjectionStatus> status;
+  FrameVector<Vec3> normal;
+  FrameVector<ProjectionStatus> status;
   // 1 when the foot lies on a trim edge of its face (a trimmed face's boundary, where the
   // closest point need not be an orthogonal projection); 0 otherwise.
-  std::vector<std::uint8_t> on_trim_edge;
+  FrameVector<std::uint8_t> on_trim_edge;
   // The certificate that proves this point's answer: the hint's, when it still held (so its
   // anchor may be an earlier point), or a new one (ProjectionOptions::certify); radius 0 if none.
-  std::vector<WarmCertificate> certificate;
+  FrameVector<WarmCertificate> certificate;
 
   std::size_t size() const { return status.size(); }
   void resize(std::size_t n);

@@ -40,8 +40,8 @@ class ModelCorrespondenceFinder final : public CorrespondenceFinder {
   double cell_side() const;
 
   engine::Projector projector_;
-  std::vector<engine::ProjectionHint> hints_;        // by scan index
-  std::vector<engine::ProjectionHint> query_hints_;  // by query position (reused)
+  engine::FrameVector<engine::ProjectionHint> hints_;        // by scan index
+  engine::FrameVector<engine::ProjectionHint> query_hints_;  // by query position (reused)
   engine::ProjectionResults results_;
   engine::ProjectionCounters counters_;
   double certificate_radius_ = 0.0;

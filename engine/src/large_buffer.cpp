@@ -1,0 +1,38 @@
+#include "nurbsreg/engine/large_buffer.hpp"
+
+#include <sys/mman.h>
+
+#include <cstdint>
+
+namespace nurbsreg::engine::detail {
+
+namespace {
+constexpr std::size_t kHugePage = std::size_t{2} << 20;
+
+std::size_t mapped_size(std::size_t bytes) {
+  return (bytes + kHugePage - 1) / kHugePage * kHugePage;
+}
+}  // namespace
+
+void* allocate_large(std::size_t bytes) {
+  const std::size_t size = mapped_size(bytes);
+  // Map one huge page more than needed and unmap the unaligned head and tail, so that the
+  // region starts on a 2 MiB boundary (where the kernel can back it with huge pages).
+  const std::size_t span = size + kHugePage;
+  void* raw = mmap(nullptr, span, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
+  if (raw == MAP_FAILED) throw std::bad_alloc();
+  const auto base = reinterpret_cast<std::uintptr_t>(raw);
+  const std::uintptr_t aligned = (base + kHugePage - 1) / kHugePage * kHugePage;
+  if (aligned > base) munmap(raw, aligned - base);
+  const std::uintptr_t end = base + span;
+  if (end > aligned + size) munmap(reinterpret_cast<void*>(aligned + size), end - aligned - size);
+  void* p = reinterpret_cast<void*>(aligned);
+  madvise(p, size, MADV_HUGEPAGE);  // advice only: without THP the mapping works as usual
+  return p;
+}
+
+void deallocate_large(void* p, std::size_t bytes) noexcept {
+  if (p != nullptr) munmap(p, mapped_size(bytes));
+}
+
+}  // namespace nurbsreg::engine::detail
