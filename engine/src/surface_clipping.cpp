@@ -554,6 +554,44 @@ void patch_derivatives(const BezierPatch& patch, double s, double t, Vec3* out) 
   tensor_derivatives(patch.cw.data(), p, q, u_rows, v_rows, out);
 }
 
+// S, S_s and S_t only (out[0..2]): the last evaluation of a Newton that is known to stop there
+// needs no second derivatives. The same sums in the same order as tensor_derivatives and
+// rational_from_homogeneous, so the three values are bit-identical to patch_derivatives'.
+template <int P, int Q>
+void patch_first_derivatives_fixed(const BezierPatch& patch, double s, double t, Vec3* out) {
+  double bu[3][P + 1], bv[3][Q + 1];
+  bernstein_012_fixed<P>(s, bu[0], bu[1], bu[2]);
+  bernstein_012_fixed<Q>(t, bv[0], bv[1], bv[2]);
+  Vec4 a00 = Vec4::Zero(), a01 = Vec4::Zero(), a10 = Vec4::Zero();
+  const Vec4* cw = patch.cw.data();
+  for (int i = 0; i <= P; ++i) {
+    Vec4 r0 = Vec4::Zero(), r1 = Vec4::Zero();
+    const Vec4* row = cw + i * (Q + 1);
+    for (int j = 0; j <= Q; ++j) {
+      r0 += bv[0][j] * row[j];
+      r1 += bv[1][j] * row[j];
+    }
+    a00 += bu[0][i] * r0;
+    a01 += bu[0][i] * r1;
+    a10 += bu[1][i] * r0;
+  }
+  const double inv_w = 1.0 / a00[3];
+  const Vec3 x = a00.head<3>() * inv_w;
+  out[0] = x;
+  out[1] = (a10.head<3>() - a10[3] * x) * inv_w;
+  out[2] = (a01.head<3>() - a01[3] * x) * inv_w;
+}
+
+// false when the degrees have no first-derivative kernel (the caller evaluates in full).
+bool patch_first_derivatives(const BezierPatch& patch, double s, double t, Vec3* out) {
+  const int p = patch.degree_u, q = patch.degree_v;
+  if (p == 3 && q == 3) return patch_first_derivatives_fixed<3, 3>(patch, s, t, out), true;
+  if (p == 2 && q == 2) return patch_first_derivatives_fixed<2, 2>(patch, s, t, out), true;
+  if (p == 2 && q == 3) return patch_first_derivatives_fixed<2, 3>(patch, s, t, out), true;
+  if (p == 3 && q == 2) return patch_first_derivatives_fixed<3, 2>(patch, s, t, out), true;
+  return false;
+}
+
 // de Casteljau at 1/2 along s (rows): `low` (in place) gets [s0, mid], `high` [mid, s1].
 void split_rows(double* low, double* high, int rows, int cols) {
   double work[kMaxGridSide];
@@ -1530,6 +1568,35 @@ double newton_core(const BezierPatch& patch, const Vec3& p, double s0, double s1
     // Rounding in |S - p|^2: S carries ~eps |S| absolute error, so F carries ~2 |r| eps |S|.
     // Only needed when the sufficient-decrease test fails (rarely): computed then (three roots).
     auto f_noise = [&] { return 1e-14 * r.norm() * (d[0].norm() + p.norm()) + 1e-300; };
+    // On a box where the caller proved F strictly convex (settled_step above rounding), in the
+    // quadratic regime (a full Newton step, both variables free, below 1e-6 of the box) the step
+    // after this one is ~1e-12 of the box: the trial point gets S, S_s and S_t only, and when the
+    // next Newton step, estimated with this iteration's Hessian (off by ~1e-6 relative), is
+    // below settled_step, Newton ends there without second derivatives.
+    if (settled_step > 1e-15 && newton_step && free_s && free_t &&
+        std::max(std::abs(ds), std::abs(dt)) <= 1e-6 * std::max(s1 - s0, t1 - t0)) {
+      const double ns = s + ds, nt = t + dt;
+      Vec3 first[3];
+      if (ns > s0 && ns < s1 && nt > t0 && nt < t1 &&
+          patch_first_derivatives(patch, ns, nt, first)) {
+        const Vec3 nr = first[0] - p;
+        const double nf = nr.squaredNorm();
+        const double ngs = nr.dot(first[1]), ngt = nr.dot(first[2]);
+        const double det = hss * htt - hst * hst;
+        const double es = (htt * ngs - hst * ngt) / det, et = (hss * ngt - hst * ngs) / det;
+        if (nf <= f + f_noise() && std::max(std::abs(es), std::abs(et)) <= settled_step) {
+          ++iterations;
+          s = ns;
+          t = nt;
+          d[0] = first[0];
+          d[1] = first[1];
+          d[2] = first[2];
+          f = nf;
+          stationary = true;
+          break;
+        }
+      }
+    }
     double step = 1.0;
     bool accepted = false;
     double ns = s, nt = t;
