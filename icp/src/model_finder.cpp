@@ -70,12 +70,14 @@ void ModelCorrespondenceFinder::find(const CorrespondenceQuery& query,
   if (hints_.size() < needed) hints_.resize(needed);
   const auto gather = [&](std::size_t begin, std::size_t end) {
     for (std::size_t k = begin; k < end; ++k) {
-      engine::ProjectionHint& h = hints_[scan_index(k)];
+      // In place only in scan order (k == s, one writer per entry); otherwise a copy, so that
+      // a query that names a scan point twice cannot race on its hint.
+      engine::ProjectionHint& h = identity ? hints_[k] : query_hints_[k];
+      if (!identity) h = hints_[scan_index(k)];
       // A point whose own certificate does not cover it borrows a neighbour's, if one does.
       if (!h.certificate.covers(query.points[k])) {
         if (const engine::ProjectionHint* b = atlas_.find(query.points[k])) h = *b;
       }
-      if (!identity) query_hints_[k] = h;
     }
   };
   if (!identity) query_hints_.resize(n);
