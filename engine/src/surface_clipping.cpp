@@ -139,28 +139,6 @@ int monotone_edge(const FDerivatives& f) {
   return -1;
 }
 
-// Polynomial F (D == 1) only: the termination test of `convex` on F's own second derivatives,
-// computed in one pass per derivative with an exit as soon as a bound shows the test fails
-// (min F_ss <= 0 or min F_tt <= 0 fails whatever the margin is). Same result as
-// convex(f_derivatives(...)) for a polynomial patch; the first-derivative ranges are not needed
-// there (monotone_edge is used for rational patches only).
-// The raw (unscaled) ranges of the second differences of a coefficient grid.
-struct SecondDifferences {
-  Iv ss, tt, st;
-};
-
-// Scales second-difference ranges to F's second-derivative ranges and applies `convex`.
-bool convex_second_differences(const SecondDifferences& d, int rows, int cols) {
-  const int m = rows - 1, n = cols - 1;
-  // The same scaling and margin as derivative_ranges + convex.
-  const double ks = double(m) * (m - 1), kt = double(n) * (n - 1), kst = double(m) * n;
-  FDerivatives f{};
-  f.ss = {ks * d.ss.lo, ks * d.ss.hi};
-  f.tt = {kt * d.tt.lo, kt * d.tt.hi};
-  f.st = {kst * d.st.lo, kst * d.st.hi};
-  return convex(f);
-}
-
 // convex_polynomial for a fixed grid (R, C): the same differences (element-wise, in the same
 // order of operations) and the same minima and maxima (they do not depend on the order they are
 // taken in), with the columns of a row in vector lanes (vector_lanes below) and one horizontal
@@ -168,6 +146,11 @@ bool convex_second_differences(const SecondDifferences& d, int rows, int cols) {
 template <int R, int C>
 bool convex_polynomial_fixed(const double* a);
 
+// Polynomial F (D == 1) only: the termination test of `convex` on F's own second derivatives,
+// computed in one pass per derivative with an exit as soon as a bound shows the test fails
+// (min F_ss <= 0 or min F_tt <= 0 fails whatever the margin is). Same result as
+// convex(f_derivatives(...)) for a polynomial patch; the first-derivative ranges are not needed
+// there (monotone_edge is used for rational patches only).
 bool convex_polynomial(const double* a, int rows, int cols) {
   if (rows < 3 || cols < 3) return false;  // F_ss or F_tt identically zero
   // The grids of bicubic and biquadratic patches (and their mixes) get unrolled code.
@@ -207,7 +190,14 @@ bool convex_polynomial(const double* a, int rows, int cols) {
       st_hi = std::max(st_hi, x);
     }
   }
-  return convex_second_differences({{ss_lo, ss_hi}, {tt_lo, tt_hi}, {st_lo, st_hi}}, rows, cols);
+  // The same scaling and margin as derivative_ranges + convex.
+  const int m = rows - 1, n = cols - 1;
+  const double ks = double(m) * (m - 1), kt = double(n) * (n - 1), kst = double(m) * n;
+  FDerivatives f{};
+  f.ss = {ks * ss_lo, ks * ss_hi};
+  f.tt = {kt * tt_lo, kt * tt_hi};
+  f.st = {kst * st_lo, kst * st_hi};
+  return convex(f);
 }
 
 // Binomial coefficients C(n, i), n <= N, exact in double.
@@ -1728,30 +1718,22 @@ bool squared_distance_convex(const PreparedPatch& pp, const Vec3& p, SurfaceScra
 
 double grid_convexity_radius(const double* n, int rows, int cols, double e_ss, double e_tt,
                              double e_st, double r_max) {
-  if (!convex_polynomial(n, rows, cols)) return 0.0;
-  const double inf = std::numeric_limits<double>::infinity();
-  SecondDifferences d{{inf, -inf}, {inf, -inf}, {inf, -inf}};
-  auto grow = [](Iv& iv, double x) {
-    iv.lo = std::min(iv.lo, x);
-    iv.hi = std::max(iv.hi, x);
-  };
-  for (int i = 0; i < rows; ++i) {
-    const double* r = n + i * cols;
-    for (int j = 0; j < cols; ++j) {
-      if (i + 2 < rows) grow(d.ss, r[2 * cols + j] - 2.0 * r[cols + j] + r[j]);
-      if (j + 2 < cols) grow(d.tt, r[j + 2] - 2.0 * r[j + 1] + r[j]);
-      if (i + 1 < rows && j + 1 < cols) grow(d.st, r[cols + j + 1] - r[cols + j] - r[j + 1] + r[j]);
-    }
-  }
-  // N_ij(q) = G_ij - 2 (q - o).E_ij + |q - o|^2: for |q - a| <= r each second difference moves
-  // by at most 2 r |second difference of E| (the constant term has none).
+  // F's second-derivative ranges on the box (the clipping's own bounds), then `convex` on them
+  // widened: N_ij(q) = G_ij - 2 (q - o).E_ij + |q - o|^2, so for |q - a| <= r each second
+  // difference moves by at most 2 r |second difference of E| (the constant term has none),
+  // scaled like the differences themselves.
+  const DerivativeRanges d = derivative_ranges(n, rows, cols);
+  const int m = rows - 1, k = cols - 1;
+  const double ks = 2.0 * double(m) * (m - 1) * e_ss, kt = 2.0 * double(k) * (k - 1) * e_tt,
+               kst = 2.0 * double(m) * k * e_st;
   const auto holds = [&](double r) {
-    const double ws = 2.0 * r * e_ss, wt = 2.0 * r * e_tt, wst = 2.0 * r * e_st;
-    return convex_second_differences({{d.ss.lo - ws, d.ss.hi + ws},
-                                      {d.tt.lo - wt, d.tt.hi + wt},
-                                      {d.st.lo - wst, d.st.hi + wst}},
-                                     rows, cols);
+    FDerivatives f{};
+    f.ss = {d.ss.lo - r * ks, d.ss.hi + r * ks};
+    f.tt = {d.tt.lo - r * kt, d.tt.hi + r * kt};
+    f.st = {d.st.lo - r * kst, d.st.hi + r * kst};
+    return convex(f);
   };
+  if (!holds(0.0)) return 0.0;
   if (holds(r_max)) return r_max;
   double lo = 0.0, hi = r_max;  // holds(lo), !holds(hi)
   for (int k = 0; k < 30 && hi - lo > 1e-3 * hi; ++k) {
