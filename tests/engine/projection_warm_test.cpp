@@ -7,42 +7,17 @@
 //  - PreparedModel::locate_patch finds the patch whose parameter box holds (u, v).
 #include <gtest/gtest.h>
 
-#include <fstream>
-#include <nlohmann/json.hpp>
 #include <random>
 
 #include "nurbsreg/engine/projection.hpp"
 #include "nurbsreg/engine/sampling.hpp"
+#include "support/example_surface.hpp"
 #include "support/random_entities.hpp"
 
 namespace nurbsreg::engine {
 namespace {
 
 using test::uniform;
-
-// examples/folded.json read directly (a polynomial surface: degree, knots, control point grid),
-// so that this engine test does not depend on the io module.
-NurbsSurface read_folded() {
-  std::ifstream in(std::string(NURBSREG_EXAMPLES_DIR) + "/folded.json");
-  EXPECT_TRUE(in.good()) << "examples/folded.json";
-  const nlohmann::json doc = nlohmann::json::parse(in);
-  const nlohmann::json& js = doc.at("surfaces").at(0);
-  NurbsSurface s;
-  s.name = js.at("name").get<std::string>();
-  s.degree_u = js.at("degree").at(0).get<int>();
-  s.degree_v = js.at("degree").at(1).get<int>();
-  s.knots_u = js.at("knots_u").get<std::vector<double>>();
-  s.knots_v = js.at("knots_v").get<std::vector<double>>();
-  const nlohmann::json& grid = js.at("control_points");
-  s.count_u = static_cast<int>(grid.size());
-  s.count_v = static_cast<int>(grid.at(0).size());
-  for (const nlohmann::json& row : grid) {
-    for (const nlohmann::json& p : row)
-      s.control_points.emplace_back(p.at(0).get<double>(), p.at(1).get<double>(),
-                                    p.at(2).get<double>());
-  }
-  return s;
-}
 
 // An independent reference: the closest of a dense parameter grid (an upper bound on the true
 // minimum), refined by a 20 x 20 sub-grid around each of the 4 best grid samples.
@@ -71,7 +46,7 @@ class FoldedProjection : public ::testing::Test {
  protected:
   FoldedProjection() {
     Model m;
-    m.surfaces.push_back(read_folded());
+    m.surfaces.push_back(test::read_example_surface("folded.json"));
     prepared_ = std::make_unique<PreparedModel>(m);
     const NurbsSurface& s = prepared_->model().surfaces[0];
     // Points near both layers (within +-0.8 mm of one: the other is ~1 mm away), between them,

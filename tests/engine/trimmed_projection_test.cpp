@@ -12,8 +12,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <fstream>
-#include <nlohmann/json.hpp>
 #include <random>
 #include <vector>
 
@@ -21,6 +19,7 @@
 #include "nurbsreg/engine/sampling.hpp"
 #include "nurbsreg/engine/shapes.hpp"
 #include "nurbsreg/engine/trim_region.hpp"
+#include "support/example_surface.hpp"
 #include "support/random_entities.hpp"
 
 namespace nurbsreg::engine {
@@ -662,30 +661,8 @@ TEST(TrimmedProjection, FreeformPanelWithStarHoleMatchesBruteForce) {
   check_against_brute_force(s, pts, 300);
 }
 
-// The examples' freeform panel (examples/panel.json, bicubic, 7 x 7 spans), read here with
-// nlohmann::json (the engine tests do not link io).
-NurbsSurface examples_panel() {
-  std::ifstream in(std::string(NURBSREG_EXAMPLES_DIR) + "/panel.json");
-  const nlohmann::json j = nlohmann::json::parse(in).at("surfaces").at(0);
-  NurbsSurface s;
-  s.name = j.at("name").get<std::string>();
-  s.degree_u = j.at("degree").at(0).get<int>();
-  s.degree_v = j.at("degree").at(1).get<int>();
-  s.knots_u = j.at("knots_u").get<std::vector<double>>();
-  s.knots_v = j.at("knots_v").get<std::vector<double>>();
-  const auto& net = j.at("control_points");
-  s.count_u = static_cast<int>(net.size());
-  s.count_v = static_cast<int>(net.at(0).size());
-  for (const auto& row : net) {
-    for (const auto& c : row)
-      s.control_points.emplace_back(c.at(0).get<double>(), c.at(1).get<double>(),
-                                    c.at(2).get<double>());
-  }
-  return s;
-}
-
 TEST(TrimmedProjection, ExamplesPanelWithStarHoleMatchesBruteForce) {
-  NurbsSurface s = examples_panel();
+  NurbsSurface s = test::read_example_surface("panel.json");
   ASSERT_FALSE(s.validate().has_value());
   const ParamInterval du = s.domain_u(), dv = s.domain_v();
   auto at = [&](double a, double b) { return Vec2(du.to_parent(a), dv.to_parent(b)); };

@@ -10,6 +10,7 @@
 #include "nurbsreg/engine/shapes.hpp"
 #include "nurbsreg/io/errors.hpp"
 #include "nurbsreg/io/model_json.hpp"
+#include "support/model_parse_error.hpp"
 #include "support/random_entities.hpp"
 
 namespace nurbsreg::io {
@@ -27,16 +28,7 @@ std::filesystem::path temp_dir() {
   return dir;
 }
 
-// The message of the InputError that parsing `text` throws ("" if it does not throw).
-std::string parse_error(const std::string& text) {
-  try {
-    parse_model(text, "m.json");
-  } catch (const InputError& e) {
-    EXPECT_EQ(e.file(), "m.json");
-    return e.what();
-  }
-  return "";
-}
+using test::parse_error;
 
 // The public test cases, converted to the contract's model format by this test (not by the
 // reader under test): degree_u/degree_v -> degree [p, q], ctrlpts -> control_points.

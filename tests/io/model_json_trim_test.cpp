@@ -9,21 +9,14 @@
 #include "nurbsreg/engine/shapes.hpp"
 #include "nurbsreg/io/errors.hpp"
 #include "nurbsreg/io/model_json.hpp"
+#include "support/model_parse_error.hpp"
 
 namespace nurbsreg::io {
 namespace {
 
 using nlohmann::json;
 
-std::string parse_error(const std::string& text) {
-  try {
-    parse_model(text, "m.json");
-  } catch (const InputError& e) {
-    EXPECT_EQ(e.file(), "m.json");
-    return e.what();
-  }
-  return "";
-}
+using test::parse_error;
 
 // A bilinear patch on [0, 1]^2 with a hole: outer loop of degree-1 uv lines (no edges needed),
 // inner loop one rational quadratic circle in uv with its 3-D edge.
