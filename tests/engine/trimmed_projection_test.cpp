@@ -20,6 +20,7 @@
 #include "nurbsreg/engine/shapes.hpp"
 #include "nurbsreg/engine/trim_region.hpp"
 #include "support/example_surface.hpp"
+#include "support/golden_section.hpp"
 #include "support/random_entities.hpp"
 
 namespace nurbsreg::engine {
@@ -463,16 +464,7 @@ class BruteForce {
         double a = es.t[std::max(k - 1, 0)],
                b = es.t[std::min<std::size_t>(k + 1, es.t.size() - 1)];
         auto f = [&](double t) { return (edges_[e].edge.evaluate(t) - p).squaredNorm(); };
-        const double g = 0.5 * (std::sqrt(5.0) - 1.0);
-        double x1 = b - g * (b - a), x2 = a + g * (b - a), f1 = f(x1), f2 = f(x2);
-        for (int it = 0; it < 90; ++it) {
-          if (f1 < f2) {
-            b = x2, x2 = x1, f2 = f1, x1 = b - g * (b - a), f1 = f(x1);
-          } else {
-            a = x1, x1 = x2, f1 = f2, x2 = a + g * (b - a), f2 = f(x2);
-          }
-        }
-        best = std::min({best, f1, f2, f(es.t[k])});
+        best = std::min({best, test::golden_section_minimum(f, a, b, 90), f(es.t[k])});
       }
     }
     return best;

@@ -13,6 +13,7 @@
 
 #include "nurbsreg/engine/model.hpp"
 #include "nurbsreg/engine/trim_region.hpp"
+#include "support/golden_section.hpp"
 
 namespace nurbsreg::test {
 
@@ -82,17 +83,8 @@ class TrimmedFaceCheck {
       const engine::ParamInterval dom = curve.domain();
       double a = dom.to_parent(static_cast<double>(std::max(best - 1, 0)) / n);
       double b = dom.to_parent(static_cast<double>(std::min(best + 1, n)) / n);
-      const double r = 0.5 * (std::sqrt(5.0) - 1.0);
       auto f = [&](double t) { return (curve.evaluate(t) - q).norm(); };
-      double x1 = b - r * (b - a), x2 = a + r * (b - a), f1 = f(x1), f2 = f(x2);
-      for (int it = 0; it < 80; ++it) {
-        if (f1 < f2) {
-          b = x2, x2 = x1, f2 = f1, x1 = b - r * (b - a), f1 = f(x1);
-        } else {
-          a = x1, x1 = x2, f1 = f2, x2 = a + r * (b - a), f2 = f(x2);
-        }
-      }
-      return std::min({bd, f1, f2});
+      return std::min(bd, golden_section_minimum(f, a, b, 80));
     }
   };
   struct Prepared {
