@@ -8,6 +8,7 @@
 #include <limits>
 
 #include "nurbsreg/engine/sampling.hpp"
+#include "spatial_order.hpp"
 #include "warm_certificate.hpp"
 
 namespace nurbsreg::engine {
@@ -51,6 +52,9 @@ struct Projector::ThreadState {
 
 struct Projector::Impl {
   tbb::enumerable_thread_specific<ThreadState> states;
+  // The frame's processing order (ProjectionOptions::locality_order), reused across frames.
+  FrameVector<std::uint32_t> order;
+  SpatialOrderScratch order_scratch;
 };
 
 namespace {
@@ -187,13 +191,15 @@ WarmCertificate Projector::make_certificate(const Vec3& p, const SurfaceHit& bes
 
 void Projector::project_range(PointView points, const ProjectionOptions& options,
                               ProjectionResults& out, std::span<const ProjectionHint> hints,
-                              std::size_t begin, std::size_t end, ThreadState& state) const {
+                              std::span<const std::uint32_t> order, std::size_t begin,
+                              std::size_t end, ThreadState& state) const {
   const Model& model = model_.model();
   const bool surfaces = options.target == ProjectionTarget::surfaces;
   const std::size_t entities = surfaces ? model.surfaces.size() : model.curves.size();
   const double certificate_cap = certificate_radius_cap(options, model_);
 
-  for (std::size_t i = begin; i < end; ++i) {
+  for (std::size_t j = begin; j < end; ++j) {
+    const std::size_t i = order.empty() ? j : order[j];
     const Vec3 p = points[i];
     ++state.counters.points;
     if (!p.allFinite()) {
@@ -449,10 +455,19 @@ void Projector::project(PointView points, const ProjectionOptions& options, Proj
     s.surface_stats = {};
     s.curve_stats = {};
   }
+  // Below this many points the ordering's own pass is not worth it (and a frame that small
+  // stays in cache anyway).
+  constexpr std::size_t kLocalityOrderMin = 8192;
+  std::span<const std::uint32_t> order;
+  if (options.locality_order && hints.empty() && points.size() >= kLocalityOrderMin &&
+      points.size() <= std::numeric_limits<std::uint32_t>::max()) {
+    spatial_order(points, impl_->order, impl_->order_scratch);
+    order = impl_->order;
+  }
   tbb::parallel_for(
       tbb::blocked_range<std::size_t>(0, points.size(), std::max<std::size_t>(1, options.grain)),
       [&](const tbb::blocked_range<std::size_t>& range) {
-        project_range(points, options, out, hints, range.begin(), range.end(),
+        project_range(points, options, out, hints, order, range.begin(), range.end(),
                       impl_->states.local());
       });
   if (counters) {
@@ -479,7 +494,7 @@ void Projector::project_serial(PointView points, const ProjectionOptions& option
   state.counters = {};
   state.surface_stats = {};
   state.curve_stats = {};
-  project_range(points, options, out, hints, 0, points.size(), state);
+  project_range(points, options, out, hints, {}, 0, points.size(), state);
   if (counters) {
     *counters = state.counters;
     counters->subdivisions = static_cast<std::uint64_t>(state.surface_stats.subdivisions) +

@@ -4,6 +4,8 @@
 #include <gtest/gtest.h>
 #include <tbb/global_control.h>
 
+#include <limits>
+
 #include "nurbsreg/engine/projection.hpp"
 #include "nurbsreg/engine/shapes.hpp"
 #include "support/random_entities.hpp"
@@ -102,6 +104,53 @@ TEST_F(ProjectionTest, SameResultsForAnyThreadCountAndSerial) {
     ASSERT_EQ(serial.v[i], two.v[i]);
     ASSERT_EQ(serial.entity[i], two.entity[i]);
   }
+}
+
+// A frame large enough to be processed in locality order (ProjectionOptions::locality_order,
+// 8192 points and more): every point is projected once, with the same answer as in index order.
+TEST_F(ProjectionTest, LocalityOrderChangesNoResult) {
+  std::vector<Vec3> frame = query_points(prepared_.bounds(), 12000, 31);
+  // Non-finite points mixed in (the ordering puts them first; they must stay skipped).
+  for (std::size_t i = 0; i < frame.size(); i += 997)
+    frame[i] = Vec3(std::numeric_limits<double>::quiet_NaN(), 0.0, 0.0);
+  ProjectionOptions options;
+  options.certify = true;  // the certificates must follow their points too
+  ProjectionResults in_order;
+  ProjectionResults ordered;
+  Projector projector(prepared_);
+  {
+    ProjectionOptions plain = options;
+    plain.locality_order = false;
+    projector.project(PointView::of(frame), plain, in_order);
+  }
+  {
+    // Stale answers for other points first: a point the ordered pass skipped would keep one.
+    const std::vector<Vec3> other = query_points(prepared_.bounds(), frame.size(), 32);
+    projector.project(PointView::of(other), options, ordered);
+    tbb::global_control limit(tbb::global_control::max_allowed_parallelism, 2);
+    ProjectionOptions small_tasks = options;
+    small_tasks.grain = 7;
+    projector.project(PointView::of(frame), small_tasks, ordered);
+  }
+  std::size_t skipped = 0;
+  for (std::size_t i = 0; i < frame.size(); ++i) {
+    ASSERT_EQ(in_order.status[i], ordered.status[i]) << i;
+    if (in_order.status[i] != ProjectionStatus::ok) {
+      ++skipped;
+      continue;
+    }
+    ASSERT_EQ(in_order.distance[i], ordered.distance[i]) << i;
+    ASSERT_EQ(in_order.signed_distance[i], ordered.signed_distance[i]) << i;
+    ASSERT_EQ(in_order.entity[i], ordered.entity[i]) << i;
+    ASSERT_EQ(in_order.u[i], ordered.u[i]) << i;
+    ASSERT_EQ(in_order.v[i], ordered.v[i]) << i;
+    ASSERT_EQ(in_order.foot[i], ordered.foot[i]) << i;
+    ASSERT_EQ(in_order.normal[i], ordered.normal[i]) << i;
+    ASSERT_EQ(in_order.certificate[i].patch, ordered.certificate[i].patch) << i;
+    ASSERT_EQ(in_order.certificate[i].radius, ordered.certificate[i].radius) << i;
+    ASSERT_EQ(in_order.certificate[i].clearance, ordered.certificate[i].clearance) << i;
+  }
+  EXPECT_EQ(skipped, (frame.size() + 996) / 997);
 }
 
 TEST_F(ProjectionTest, WarmStartsStayExactEvenWithWrongHints) {

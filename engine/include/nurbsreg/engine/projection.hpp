@@ -120,6 +120,11 @@ struct ProjectionOptions {
   ProjectionTarget target = ProjectionTarget::surfaces;
   // Points per parallel task.
   std::size_t grain = 256;
+  // Process a large frame (project(), 8192 points and more) in the Morton order of a grid over
+  // its points instead of index order: points that come in no spatial order then reuse the
+  // hierarchy nodes and patches the previous point touched (about a quarter faster). Results
+  // are unchanged and still by index; false processes in index order.
+  bool locality_order = true;
   // Points with nothing of the model within this distance get status beyond_max_distance
   // without an exact foot: the search starts with alpha = max_distance^2, so far points (ICP
   // outliers) cost almost nothing. Infinity: every point gets its exact closest point.
@@ -197,9 +202,10 @@ class Projector {
                        ThreadState& state) const;
   WarmCertificate make_certificate(const Vec3& p, const SurfaceHit& best, std::int64_t patch,
                                    std::int64_t edge, double radius_cap, ThreadState& state) const;
+  // Projects points order[begin, end) (or begin .. end - 1 when order is empty).
   void project_range(PointView points, const ProjectionOptions& options, ProjectionResults& out,
-                     std::span<const ProjectionHint> hints, std::size_t begin, std::size_t end,
-                     ThreadState& state) const;
+                     std::span<const ProjectionHint> hints, std::span<const std::uint32_t> order,
+                     std::size_t begin, std::size_t end, ThreadState& state) const;
   const PreparedModel& model_;
   std::unique_ptr<Impl> impl_;
 };

@@ -1,0 +1,32 @@
+#pragma once
+// A cache-friendly processing order for a frame of points: the points' indices sorted by the
+// Morton (Z-order) index of a 64^3 grid over the points' own bounding box.
+//
+// Why: a point's projection walks the patch hierarchy from the root and clips a few patches;
+// consecutive points in the same grid cell take the same path and touch the same patches, so
+// the walk's nodes, the patches' cached coefficients and the branch predictors stay warm.
+// Projecting a frame whose points come in no spatial order (a random subsample, a merged
+// multi-view scan, the peers benchmark's points) is about a quarter faster in this order. Each
+// point's answer depends on that point alone, so the order changes no result.
+
+#include <cstdint>
+#include <vector>
+
+#include "nurbsreg/engine/large_buffer.hpp"
+#include "nurbsreg/engine/projection.hpp"
+
+namespace nurbsreg::engine {
+
+// Working memory of spatial_order, reused across frames (no allocation once grown).
+struct SpatialOrderScratch {
+  FrameVector<std::uint32_t> key;    // per point: its cell's Morton index
+  std::vector<std::uint32_t> start;  // per cell: first position in the order (counting sort)
+};
+
+// Fills `order` with 0 .. points.size() - 1 sorted by cell (a stable counting sort, so points of
+// one cell keep their input order). Non-finite points go first (their cell is 0). Requires
+// points.size() <= 2^32 - 1.
+void spatial_order(PointView points, FrameVector<std::uint32_t>& order,
+                   SpatialOrderScratch& scratch);
+
+}  // namespace nurbsreg::engine
