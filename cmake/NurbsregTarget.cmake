@@ -4,19 +4,25 @@
 # Code for the build machine's own instruction set (AVX2 etc.): faster projection, binaries that
 # may not run elsewhere. Every nurbsreg target gets the same flags. Eigen's static alignment stays
 # at 16 bytes so that the layout of Eigen members (Vec4 in BezierPatch, ...) is the same as in the
-# prebuilt libraries we link (PCL), which are compiled for SSE2. Floating-point contraction is
-# turned off (GCC contracts a * b + c into an FMA by default in C++ when the target has one), so
-# results are bit-identical to the portable build's.
+# prebuilt libraries we link (PCL), which are compiled for SSE2.
 option(NURBSREG_NATIVE "Compile nurbsreg's targets with -march=native (not portable)" OFF)
+# The portable build's hot kernels are compiled for SSE2 and for x86-64-v3 (AVX2), chosen at load
+# time (engine/src/cpu_dispatch.hpp). OFF: SSE2 only. Without effect when NURBSREG_NATIVE is on.
+option(NURBSREG_CPU_DISPATCH "Runtime dispatch of the hot kernels to AVX2 clones (GCC, x86-64)" ON)
 
 function(nurbsreg_apply_standard target)
   target_compile_features(${target} PUBLIC cxx_std_20)
   set_target_properties(${target} PROPERTIES CXX_EXTENSIONS OFF)
   if(CMAKE_CXX_COMPILER_ID MATCHES "GNU|Clang")
-    target_compile_options(${target} PRIVATE -Wall -Wextra -Werror)
+    # No floating-point contraction: GCC contracts a * b + c into an FMA by default in C++, even
+    # with -std=c++20 (only ISO C modes turn it off), wherever the target has one (-march=native,
+    # the x86-64-v3 clones). Off, every build and every clone gives bit-identical results.
+    target_compile_options(${target} PRIVATE -Wall -Wextra -Werror -ffp-contract=off)
     if(NURBSREG_NATIVE)
-      target_compile_options(${target} PRIVATE -march=native -ffp-contract=off)
+      target_compile_options(${target} PRIVATE -march=native)
       target_compile_definitions(${target} PRIVATE EIGEN_MAX_STATIC_ALIGN_BYTES=16)
+    elseif(NURBSREG_CPU_DISPATCH)
+      target_compile_definitions(${target} PRIVATE NURBSREG_CPU_DISPATCH)
     endif()
   endif()
   if(CMAKE_CXX_COMPILER_ID STREQUAL "GNU")

@@ -209,20 +209,6 @@ std::int64_t PreparedModel::locate_patch(int surface, double u, double v) const 
          b;
 }
 
-double PreparedModel::item_lower_bound(std::uint32_t k, const Vec3& p) const {
-  // The item's axis-aligned box is not repeated here: the hierarchy walk already takes the larger
-  // of this bound and the box distance (Bvh::nearest).
-  if (k >= item_oriented_.size()) return sphere_lower_bound(item_spheres_[k], p);  // edge piece
-  const OrientedBox& ob = item_oriented_[k];
-  double oriented = 0.0;
-  for (int a = 0; a < 3; ++a) {
-    const double y = ob.axis[a].dot(p);
-    const double out = std::max(std::max(ob.lo[a] - y, 0.0), y - ob.hi[a]);
-    oriented += out * out;
-  }
-  return oriented;
-}
-
 bool PreparedModel::seed_from_grid(const Vec3& p, double limit_sq, SurfaceHit& best, int& surface,
                                    std::int64_t& patch) const {
   if (seed_cells_.empty()) return false;

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <limits>
 
+#include "cpu_dispatch.hpp"
 #include "nurbsreg/engine/sampling.hpp"
 #include "spatial_order.hpp"
 #include "warm_certificate.hpp"
@@ -92,6 +93,7 @@ Projector::Projector(const PreparedModel& model) : model_(model), impl_(std::mak
 
 Projector::~Projector() = default;
 
+NURBSREG_HOT_CLONES
 void Projector::search_surfaces(const Vec3& p, SurfaceSearch& search, std::int64_t skip_patch,
                                 std::int64_t guess_patch, double guess_s, double guess_t,
                                 ThreadState& state) const {

@@ -8,6 +8,7 @@
 #include <cstring>
 
 #include "nurbsreg/engine/surface_projection.hpp"
+#include "cpu_dispatch.hpp"
 #include "nurbsreg/engine/trim_region.hpp"
 #include "warm_certificate.hpp"
 
@@ -16,6 +17,7 @@ namespace {
 
 constexpr int kMaxGridSide = 2 * kMaxDegree + 1;
 
+NURBSREG_HOT_CLONES
 double newton_core(const BezierPatch& patch, const Vec3& p, double s0, double s1, double t0,
                    double t1, double& s, double& t, Vec3& foot, SurfaceProjectionStats* stats,
                    Vec3* normal, double abort_at, bool* converged = nullptr,
@@ -144,13 +146,14 @@ int monotone_edge(const FDerivatives& f) {
 // taken in), with the columns of a row in vector lanes (vector_lanes below) and one horizontal
 // pass per derivative.
 template <int R, int C>
-bool convex_polynomial_fixed(const double* a);
+[[gnu::always_inline]] inline bool convex_polynomial_fixed(const double* a);
 
 // Polynomial F (D == 1) only: the termination test of `convex` on F's own second derivatives,
 // computed in one pass per derivative with an exit as soon as a bound shows the test fails
 // (min F_ss <= 0 or min F_tt <= 0 fails whatever the margin is). Same result as
 // convex(f_derivatives(...)) for a polynomial patch; the first-derivative ranges are not needed
 // there (monotone_edge is used for rational patches only).
+NURBSREG_HOT_CLONES
 bool convex_polynomial(const double* a, int rows, int cols) {
   if (rows < 3 || cols < 3) return false;  // F_ss or F_tt identically zero
   // The grids of bicubic and biquadratic patches (and their mixes) get unrolled code.
@@ -405,7 +408,7 @@ struct SlotRange {
 };
 
 template <int R, int C>
-bool convex_polynomial_fixed(const double* a) {
+[[gnu::always_inline]] inline bool convex_polynomial_fixed(const double* a) {
   static_assert(R >= 3 && C >= 3);
   constexpr int m = R - 1, n = C - 1;
   // F_ss: second differences down the columns, all C columns.
@@ -467,7 +470,8 @@ bool convex_polynomial_fixed(const double* a) {
 
 // patch_derivatives for fixed degrees (P, Q): the same sums, fully unrolled by the compiler.
 template <int P, int Q>
-void patch_derivatives_fixed(const BezierPatch& patch, double s, double t, Vec3* out) {
+[[gnu::always_inline]] inline void patch_derivatives_fixed(const BezierPatch& patch, double s,
+                                                           double t, Vec3* out) {
   double bu[3][P + 1], bv[3][Q + 1];
   bernstein_012_fixed<P>(s, bu[0], bu[1], bu[2]);
   bernstein_012_fixed<Q>(t, bv[0], bv[1], bv[2]);
@@ -529,6 +533,7 @@ void patch_derivatives_fixed(const BezierPatch& patch, double s, double t, Vec3*
   }
 }
 
+NURBSREG_HOT_CLONES
 void patch_derivatives(const BezierPatch& patch, double s, double t, Vec3* out) {
   const int p = patch.degree_u, q = patch.degree_v;
   // The common degrees of CAD surfaces get unrolled code; any other takes the generic loops.
@@ -548,7 +553,8 @@ void patch_derivatives(const BezierPatch& patch, double s, double t, Vec3* out) 
 // needs no second derivatives. The same sums in the same order as tensor_derivatives and
 // rational_from_homogeneous, so the three values are bit-identical to patch_derivatives'.
 template <int P, int Q>
-void patch_first_derivatives_fixed(const BezierPatch& patch, double s, double t, Vec3* out) {
+[[gnu::always_inline]] inline void patch_first_derivatives_fixed(const BezierPatch& patch, double s,
+                                                                 double t, Vec3* out) {
   double bu[3][P + 1], bv[3][Q + 1];
   bernstein_012_fixed<P>(s, bu[0], bu[1], bu[2]);
   bernstein_012_fixed<Q>(t, bv[0], bv[1], bv[2]);
@@ -573,6 +579,7 @@ void patch_first_derivatives_fixed(const BezierPatch& patch, double s, double t,
 }
 
 // false when the degrees have no first-derivative kernel (the caller evaluates in full).
+NURBSREG_HOT_CLONES
 bool patch_first_derivatives(const BezierPatch& patch, double s, double t, Vec3* out) {
   const int p = patch.degree_u, q = patch.degree_v;
   if (p == 3 && q == 3) return patch_first_derivatives_fixed<3, 3>(patch, s, t, out), true;
@@ -583,6 +590,7 @@ bool patch_first_derivatives(const BezierPatch& patch, double s, double t, Vec3*
 }
 
 // de Casteljau at 1/2 along s (rows): `low` (in place) gets [s0, mid], `high` [mid, s1].
+NURBSREG_HOT_CLONES
 void split_rows(double* low, double* high, int rows, int cols) {
   double work[kMaxGridSide];
   const int m = rows - 1;
@@ -600,6 +608,7 @@ void split_rows(double* low, double* high, int rows, int cols) {
 }
 
 // de Casteljau at 1/2 along t of one contiguous row of `count` values.
+NURBSREG_HOT_CLONES
 void split_line(double* low, double* high, int count) {
   double work[kMaxGridSide];
   const int n = count - 1;
@@ -624,6 +633,7 @@ struct CoefficientRange {
   int arg;
 };
 
+NURBSREG_HOT_CLONES
 CoefficientRange coefficient_range(const double* n, const double* d, int count, bool rational) {
   CoefficientRange r{std::numeric_limits<double>::infinity(),
                      -std::numeric_limits<double>::infinity(), 0};
@@ -753,7 +763,7 @@ double bernstein_minimiser(const double* c, int count, double u) {
 // start: stops where the Hessian is not positive definite, when no variable is free, after a
 // few iterations.
 template <int R, int C>
-void bernstein_minimiser_2d(const double* a, double& u, double& v) {
+[[gnu::always_inline]] inline void bernstein_minimiser_2d(const double* a, double& u, double& v) {
   constexpr int m = R - 1, n = C - 1;
   for (int it = 0; it < 8; ++it) {
     double bu[3][R], bv[3][C];
@@ -835,6 +845,7 @@ void bernstein_minimiser_2d(const double* a, double& u, double& v) {
 
 // bernstein_minimiser_2d for the grids it is instantiated for (bicubic and biquadratic patches);
 // false for any other grid (the start is left as it is).
+NURBSREG_HOT_CLONES
 bool polynomial_start(const double* a, int rows, int cols, double& u, double& v) {
   if (rows == 7 && cols == 7) {
     bernstein_minimiser_2d<7, 7>(a, u, v);
@@ -1120,7 +1131,7 @@ void Clipper<kTrim>::clip_boundary(const double* n_row, const double* d_row, int
 }
 
 template <bool kTrim>
-void Clipper<kTrim>::run() {
+[[gnu::always_inline]] inline void Clipper<kTrim>::run() {
   const int rows = pp.rows, cols = pp.cols, count = rows * cols;
   constexpr int kSlot = 2 * SurfaceScratch::kGridCapacity;
   double* base = sc.grids.data();
@@ -1338,6 +1349,7 @@ SurfaceScratch::SurfaceScratch()
   order.reserve(kDefaultPatchCapacity);
 }
 
+NURBSREG_HOT_CLONES
 void PreparedPatch::numerator(const Vec3& point, double* out) const {
   const Vec3 q = point - origin;
   const double qq = q.squaredNorm();
@@ -1444,6 +1456,7 @@ namespace {
 // so F >= F(x) + grad F(x) . (y - x) >= F(x) + Σ min over the box's ends, for every y in the box.
 // When that bound reaches abort_at the box cannot beat the caller's best: Newton stops and
 // returns +infinity (nothing to offer; s, t and foot are then meaningless).
+NURBSREG_HOT_CLONES
 double newton_core(const BezierPatch& patch, const Vec3& p, double s0, double s1, double t0,
                    double t1, double& s, double& t, Vec3& foot, SurfaceProjectionStats* stats,
                    Vec3* normal, double abort_at, bool* converged, double settled_step);
@@ -1469,6 +1482,7 @@ double newton_in_certified_box(const BezierPatch& patch, const Vec3& p, double s
 
 namespace {
 
+NURBSREG_HOT_CLONES
 double newton_core(const BezierPatch& patch, const Vec3& p, double s0, double s1, double t0,
                    double t1, double& s, double& t, Vec3& foot, SurfaceProjectionStats* stats,
                    Vec3* normal, double abort_at, bool* converged, double settled_step) {
@@ -1698,6 +1712,7 @@ template <bool kTrim>
 
 }  // namespace
 
+NURBSREG_HOT_CLONES
 bool project_onto_patch(const PreparedPatch& pp, const Vec3& p, SurfaceHit& best,
                         SurfaceScratch& scratch, SurfaceProjectionStats* stats, double guess_s,
                         double guess_t, const TrimRegion* region) {

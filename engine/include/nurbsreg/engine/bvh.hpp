@@ -66,7 +66,8 @@ class Bvh {
   // Best-first search. `lower_bound(primitive, p)` returns a squared-distance lower bound for a
   // primitive (the larger of it and the primitive's box distance is used); `visit(primitive,
   // alpha_sq)` may lower alpha_sq. Primitives are visited in order of increasing bound, and one
-  // whose bound is >= alpha_sq at that moment is never visited.
+  // whose bound is >= alpha_sq at that moment is never visited. Always inlined: the walk then
+  // runs in its caller's code, which may be an AVX2 clone (engine/src/cpu_dispatch.hpp).
   template <typename LowerBound, typename Visit>
   void nearest(const Vec3& p, double& alpha_sq, Scratch& scratch, LowerBound&& lower_bound,
                Visit&& visit) const;
@@ -133,7 +134,7 @@ inline std::int64_t Bvh::greedy_primitive(const Vec3& p) const {
 }
 
 template <typename LowerBound, typename Visit>
-void Bvh::nearest(const Vec3& p, double& alpha_sq, Scratch& scratch, LowerBound&& lower_bound,
+[[gnu::always_inline]] inline void Bvh::nearest(const Vec3& p, double& alpha_sq, Scratch& scratch, LowerBound&& lower_bound,
                   Visit&& visit) const {
   if (wide_.empty()) return;
   // Every entry ever inserted is one slot of one wide node (plus the root): this bounds the

@@ -14,6 +14,8 @@
 // Built once (allocates); afterwards const and thread-safe: any number of threads may project
 // against one PreparedModel at the same time.
 
+#include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <vector>
 
@@ -71,7 +73,8 @@ class PreparedModel {
 
   // Squared-distance lower bound from p to item k, to be combined with the item's box distance
   // (the hierarchy walk does, Bvh::nearest): a patch's oriented box (OrientedBox), an edge
-  // piece's bounding sphere.
+  // piece's bounding sphere. Inline (below): the walk calls it for every leaf it reaches, and
+  // inlined it runs in the walk's own (possibly AVX2, cpu_dispatch.hpp) code.
   double item_lower_bound(std::uint32_t k, const Vec3& p) const;
 
   // Trim-edge pieces: Bézier pieces of the faces' 3-D boundary edges (trim_edges).
@@ -153,5 +156,23 @@ class PreparedModel {
   Aabb bounds_;
   std::uint32_t serial_ = 0;
 };
+
+inline double PreparedModel::item_lower_bound(std::uint32_t k, const Vec3& p) const {
+  // The item's axis-aligned box is not repeated here: the hierarchy walk already takes the larger
+  // of this bound and the box distance (Bvh::nearest).
+  if (k >= item_oriented_.size()) {  // edge piece: its bounding sphere
+    const BoundingSphere& s = item_spheres_[k];
+    const double d = std::max(0.0, (p - s.center).norm() - s.radius);
+    return d * d;
+  }
+  const OrientedBox& ob = item_oriented_[k];
+  double oriented = 0.0;
+  for (int a = 0; a < 3; ++a) {
+    const double y = ob.axis[a].dot(p);
+    const double out = std::max(std::max(ob.lo[a] - y, 0.0), y - ob.hi[a]);
+    oriented += out * out;
+  }
+  return oriented;
+}
 
 }  // namespace nurbsreg::engine

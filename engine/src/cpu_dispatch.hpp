@@ -1,0 +1,29 @@
+#pragma once
+
+// Runtime CPU dispatch for the projection's hot kernels.
+//
+// NURBSREG_HOT_CLONES on a function makes GCC compile it twice, for the x86-64 baseline (SSE2)
+// and for x86-64-v3 (AVX2, BMI2, FMA), and pick one at load time through an ifunc resolver
+// (function multiversioning, target_clones). One portable binary then runs the wider code on
+// the CPUs that have it. A clone's callees are not cloned unless inlined into it: the attribute
+// goes on the outermost function that inlines a hot loop, never on a tiny function called
+// millions of times (each call goes through the ifunc and cannot be inlined).
+//
+// The clones give bit-identical results: both evaluate the same IEEE operations in the same
+// order. Floating-point contraction (a * b + c -> FMA, which x86-64-v3 has) is turned off for
+// every nurbsreg target (-ffp-contract=off, cmake/NurbsregTarget.cmake; GCC contracts by default
+// even with -std=c++20), there is no -ffast-math, and the engine_no_fma test checks the built
+// library for FMA instructions.
+//
+// Empty (one plain function) when:
+//  - the compiler is not GCC or the target not x86-64 (Clang accepts target_clones only from
+//    version 14 and orders its resolver differently; untested here),
+//  - the build already targets AVX2 (NURBSREG_NATIVE: -march=native defines __AVX2__),
+//  - NURBSREG_CPU_DISPATCH is OFF in CMake (NURBSREG_CPU_DISPATCH undefined here), e.g. for
+//    tools (valgrind, older binutils) that handle ifuncs badly.
+#if defined(NURBSREG_CPU_DISPATCH) && defined(__GNUC__) && !defined(__clang__) && \
+    defined(__x86_64__) && !defined(__AVX2__)
+#define NURBSREG_HOT_CLONES [[gnu::target_clones("arch=x86-64-v3", "default")]]
+#else
+#define NURBSREG_HOT_CLONES
+#endif
