@@ -24,6 +24,14 @@
 #if defined(NURBSREG_CPU_DISPATCH) && defined(__GNUC__) && !defined(__clang__) && \
     defined(__x86_64__) && !defined(__AVX2__)
 #define NURBSREG_HOT_CLONES [[gnu::target_clones("arch=x86-64-v3", "default")]]
+// Where the two versions need different source (e.g. a wider vector type, which a clone cannot
+// select: __AVX2__ is not defined inside it), `#if NURBSREG_HOT_VERSIONS` and two definitions of
+// the function, one NURBSREG_TARGET_V3 and one NURBSREG_TARGET_DEFAULT (GCC C++ function
+// multiversioning: the same ifunc dispatch). Both must compute the same values.
+#define NURBSREG_HOT_VERSIONS 1
+#define NURBSREG_TARGET_V3 [[gnu::target("arch=x86-64-v3")]]
+#define NURBSREG_TARGET_DEFAULT [[gnu::target("default")]]
 #else
 #define NURBSREG_HOT_CLONES
+#define NURBSREG_HOT_VERSIONS 0
 #endif

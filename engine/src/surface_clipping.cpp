@@ -357,6 +357,20 @@ inline void store_lanes(double* x, Lanes v) {
   std::memcpy(x, &v, sizeof v);
 }
 
+// W doubles in one vector (patch_derivatives_fixed is instantiated for kLanes and, in the AVX2
+// version of patch_derivatives, for 4). Loaded and stored through references and memcpy only:
+// a 32-byte vector passed by value outside AVX code would change the ABI (-Wpsabi).
+template <int W>
+struct LanesOf;
+template <>
+struct LanesOf<2> {
+  typedef double type __attribute__((vector_size(2 * sizeof(double))));
+};
+template <>
+struct LanesOf<4> {
+  typedef double type __attribute__((vector_size(4 * sizeof(double))));
+};
+
 // Running minimum and maximum of L values per slot, the first L - L % kLanes slots in vector
 // lanes. add(j, x) folds x into slots [j, j + kLanes) (j a multiple of kLanes below the vector
 // part's end); add_scalar(j, x) into slot j of the rest. min/max as std::min(acc, x) and
@@ -468,28 +482,34 @@ template <int R, int C>
   return convex(f);
 }
 
-// patch_derivatives for fixed degrees (P, Q): the same sums, fully unrolled by the compiler.
-template <int P, int Q>
+// patch_derivatives for fixed degrees (P, Q): the same sums, fully unrolled by the compiler, W
+// homogeneous coordinates at a time (any W gives the same values, see kLanes).
+template <int P, int Q, int W>
 [[gnu::always_inline]] inline void patch_derivatives_fixed(const BezierPatch& patch, double s,
                                                            double t, Vec3* out) {
+  using Lanes = typename LanesOf<W>::type;
+  const auto load_lanes = [](const double* x, Lanes& v) { std::memcpy(&v, x, sizeof v); };
+  const auto store_lanes = [](double* x, const Lanes& v) { std::memcpy(x, &v, sizeof v); };
   double bu[3][P + 1], bv[3][Q + 1];
   bernstein_012_fixed<P>(s, bu[0], bu[1], bu[2]);
   bernstein_012_fixed<Q>(t, bv[0], bv[1], bv[2]);
   // Homogeneous sums a_kl = d^(k+l) A / ds^k dt^l, coordinate c at a_kl[c].
   alignas(32) double a00[4], a10[4], a01[4], a20[4], a11[4], a02[4];
   const double* cw = patch.cw.data()->data();  // (x, y, z, w) per control point, contiguous
-  for (int h = 0; h < 4; h += kLanes) {
+  for (int h = 0; h < 4; h += W) {
     Lanes s00, s10, s01, s20, s11, s02;
     for (int i = 0; i <= P; ++i) {
       Lanes r0, r1, r2;
       {
-        const Lanes c = load_lanes(cw + 4 * (i * (Q + 1)) + h);
+        Lanes c;
+        load_lanes(cw + 4 * (i * (Q + 1)) + h, c);
         r0 = bv[0][0] * c;
         r1 = bv[1][0] * c;
         r2 = bv[2][0] * c;
       }
       for (int j = 1; j <= Q; ++j) {
-        const Lanes c = load_lanes(cw + 4 * (i * (Q + 1) + j) + h);
+        Lanes c;
+        load_lanes(cw + 4 * (i * (Q + 1) + j) + h, c);
         r0 += bv[0][j] * c;
         r1 += bv[1][j] * c;
         r2 += bv[2][j] * c;
@@ -533,20 +553,34 @@ template <int P, int Q>
   }
 }
 
-NURBSREG_HOT_CLONES
-void patch_derivatives(const BezierPatch& patch, double s, double t, Vec3* out) {
+template <int W>
+[[gnu::always_inline]] inline void patch_derivatives_lanes(const BezierPatch& patch, double s,
+                                                           double t, Vec3* out) {
   const int p = patch.degree_u, q = patch.degree_v;
   // The common degrees of CAD surfaces get unrolled code; any other takes the generic loops.
-  if (p == 3 && q == 3) return patch_derivatives_fixed<3, 3>(patch, s, t, out);
-  if (p == 2 && q == 2) return patch_derivatives_fixed<2, 2>(patch, s, t, out);
-  if (p == 2 && q == 3) return patch_derivatives_fixed<2, 3>(patch, s, t, out);
-  if (p == 3 && q == 2) return patch_derivatives_fixed<3, 2>(patch, s, t, out);
+  if (p == 3 && q == 3) return patch_derivatives_fixed<3, 3, W>(patch, s, t, out);
+  if (p == 2 && q == 2) return patch_derivatives_fixed<2, 2, W>(patch, s, t, out);
+  if (p == 2 && q == 3) return patch_derivatives_fixed<2, 3, W>(patch, s, t, out);
+  if (p == 3 && q == 2) return patch_derivatives_fixed<3, 2, W>(patch, s, t, out);
   double bu[3][kMaxDegree + 1], bv[3][kMaxDegree + 1];
   bernstein_012(p, s, bu[0], bu[1], bu[2]);
   bernstein_012(q, t, bv[0], bv[1], bv[2]);
   const double* const u_rows[3] = {bu[0], bu[1], bu[2]};
   const double* const v_rows[3] = {bv[0], bv[1], bv[2]};
   tensor_derivatives(patch.cw.data(), p, q, u_rows, v_rows, out);
+}
+
+#if NURBSREG_HOT_VERSIONS
+// Two versions instead of NURBSREG_HOT_CLONES: the AVX2 one does the four homogeneous
+// coordinates in one 4-wide pass (kLanes is 2 in a portable build, also inside a clone).
+NURBSREG_TARGET_V3
+void patch_derivatives(const BezierPatch& patch, double s, double t, Vec3* out) {
+  patch_derivatives_lanes<4>(patch, s, t, out);
+}
+NURBSREG_TARGET_DEFAULT
+#endif
+void patch_derivatives(const BezierPatch& patch, double s, double t, Vec3* out) {
+  patch_derivatives_lanes<kLanes>(patch, s, t, out);
 }
 
 // S, S_s and S_t only (out[0..2]): the last evaluation of a Newton that is known to stop there
