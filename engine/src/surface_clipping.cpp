@@ -714,6 +714,7 @@ int first_index_of(const double* a, int count, double value) {
 // Returns 0: s = s0, 1: s = s1, 2: t = t0, 3: t = t1, or -1. Not used for rational patches: the
 // proof compares F with F(u0, v) through the same Bernstein weights, which a rational F (weights
 // B D_ij / Σ B D) does not share, so it does not carry over.
+NURBSREG_HOT_CLONES
 int boundary_edge(const double* f, int rows, int cols) {
   auto row_below = [&](int r) {
     const double* edge = f + r * cols;
@@ -749,7 +750,7 @@ int boundary_edge(const double* f, int rows, int cols) {
 // whose derivative points outward, and after a few iterations.
 // kCount > 0: a fixed number of coefficients (unrolled loops); 0: count at run time.
 template <int kCount>
-double bernstein_minimiser_impl(const double* c, int count, double u) {
+[[gnu::always_inline]] inline double bernstein_minimiser_impl(const double* c, int count, double u) {
   if constexpr (kCount > 0) count = kCount;
   const int n = count - 1;
   if (n < 2) return u;
@@ -782,6 +783,7 @@ double bernstein_minimiser_impl(const double* c, int count, double u) {
   return u;
 }
 
+NURBSREG_HOT_CLONES
 double bernstein_minimiser(const double* c, int count, double u) {
   if (count == 7) return bernstein_minimiser_impl<7>(c, count, u);  // bicubic
   if (count == 5) return bernstein_minimiser_impl<5>(c, count, u);  // biquadratic
@@ -1474,7 +1476,8 @@ PreparedPatch prepare_patch(const BezierPatch& patch) {
 }
 
 namespace {
-Vec3 unit_normal(const Vec3& su, const Vec3& sv) {
+// Inlined: it then runs in newton_core's own (possibly AVX2) code.
+[[gnu::always_inline]] inline Vec3 unit_normal(const Vec3& su, const Vec3& sv) {
   const Vec3 n = su.cross(sv);
   const double scale = su.norm() * sv.norm();
   const double length = n.norm();
