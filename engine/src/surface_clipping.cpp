@@ -7,8 +7,8 @@
 #include <cmath>
 #include <cstring>
 
-#include "nurbsreg/engine/surface_projection.hpp"
 #include "cpu_dispatch.hpp"
+#include "nurbsreg/engine/surface_projection.hpp"
 #include "nurbsreg/engine/trim_region.hpp"
 #include "warm_certificate.hpp"
 
@@ -750,7 +750,8 @@ int boundary_edge(const double* f, int rows, int cols) {
 // whose derivative points outward, and after a few iterations.
 // kCount > 0: a fixed number of coefficients (unrolled loops); 0: count at run time.
 template <int kCount>
-[[gnu::always_inline]] inline double bernstein_minimiser_impl(const double* c, int count, double u) {
+[[gnu::always_inline]] inline double bernstein_minimiser_impl(const double* c, int count,
+                                                              double u) {
   if constexpr (kCount > 0) count = kCount;
   const int n = count - 1;
   if (n < 2) return u;

@@ -4,10 +4,11 @@
 // baseline_cpu_model.cpp (every dispatch picks the x86-64 baseline clone). The two digests must
 // be equal: the clones compute bit-identical results.
 //
-// The cases cover the cloned paths: cold projection (hierarchy walk, clipping of polynomial and
-// rational patches, trimmed faces and their edges, Newton), and the certified warm path of ICP
-// (hints with certificates: newton_in_certified_box), on bicubic and rational biquadratic
-// patches. Hard cases: points near and far, on both sides, near the trim loops.
+// The cases cover the cloned paths: cold projection (hierarchy walk, clipping of bicubic and
+// rational biquadratic patches, trimmed faces and their edges, Newton) and the certified warm
+// path of ICP (hints with certificates, on the untrimmed polynomial models:
+// newton_in_certified_box). Hard cases: points on the surface and off it on both sides, near the
+// trim loops, far away.
 
 #include <cstdint>
 #include <cstdio>
@@ -129,7 +130,8 @@ int main() {
   run("sphere", single(make_sphere(Vec3(1.0, -2.0, 0.5), 5.0)), 3000, 3);
   run("torus", single(make_torus(Vec3(0.0, 0.0, 0.0), 4.0, 1.5)), 3000, 4);
   NurbsSurface trimmed = make_sphere(Vec3(1.0, -2.0, 0.5), 5.0);
-  trimmed.trim_loops.push_back(polygon_loop({{0.15, 0.08}, {0.6, 0.08}, {0.6, 0.47}, {0.15, 0.47}}));
+  trimmed.trim_loops.push_back(
+      polygon_loop({{0.15, 0.08}, {0.6, 0.08}, {0.6, 0.47}, {0.15, 0.47}}));
   trimmed.trim_loops.push_back(polygon_loop({{0.3, 0.2}, {0.45, 0.25}, {0.35, 0.35}}));
   run("trimmed sphere", single(trimmed), 3000, 5);
   return 0;

@@ -134,8 +134,8 @@ inline std::int64_t Bvh::greedy_primitive(const Vec3& p) const {
 }
 
 template <typename LowerBound, typename Visit>
-[[gnu::always_inline]] inline void Bvh::nearest(const Vec3& p, double& alpha_sq, Scratch& scratch, LowerBound&& lower_bound,
-                  Visit&& visit) const {
+[[gnu::always_inline]] inline void Bvh::nearest(const Vec3& p, double& alpha_sq, Scratch& scratch,
+                                                LowerBound&& lower_bound, Visit&& visit) const {
   if (wide_.empty()) return;
   // Every entry ever inserted is one slot of one wide node (plus the root): this bounds the
   // frontier, so after the first query on a tree it never reallocates.
