@@ -186,13 +186,19 @@ void reject_outliers(const IcpOptions& o, Buffers& b) {
   const double max_distance = o.max_correspondence_distance;
   const double keep_fraction = o.keep_fraction;
   const std::size_t n = b.ids.size();
-  b.scratch.clear();
-  for (std::size_t k = 0; k < n; ++k) {
-    const Correspondence& c = b.matches[k];
-    const bool ok = c.valid && std::isfinite(c.distance) && c.distance <= max_distance &&
-                    !(o.reject_boundary && c.on_boundary);
-    b.inlier[k] = ok ? 1 : 0;
-    if (ok) b.scratch.push_back(c.distance);
+  for_each_block(n, o.parallel, [&](std::size_t begin, std::size_t end, std::size_t) {
+    for (std::size_t k = begin; k < end; ++k) {
+      const Correspondence& c = b.matches[k];
+      const bool ok = c.valid && std::isfinite(c.distance) && c.distance <= max_distance &&
+                      !(o.reject_boundary && c.on_boundary);
+      b.inlier[k] = ok ? 1 : 0;
+    }
+  });
+  if (keep_fraction < 1.0) {
+    b.scratch.clear();
+    for (std::size_t k = 0; k < n; ++k) {
+      if (b.inlier[k]) b.scratch.push_back(b.matches[k].distance);
+    }
   }
   if (keep_fraction < 1.0 && !b.scratch.empty()) {
     const std::size_t keep = std::max<std::size_t>(
@@ -251,17 +257,16 @@ double kernel_weight(RobustKernel kernel, double r, double s) {
 // (beyond Tukey's cut-off) stop counting as inliers. Returns s (0: no kernel).
 double compute_weights(const IcpOptions& o, double length_scale, Buffers& b) {
   const std::size_t n = b.ids.size();
-  for (std::size_t k = 0; k < n; ++k) {
-    const Correspondence& c = b.matches[k];
-    b.residual[k] = !b.inlier[k]                            ? 0.0
-                    : o.method == IcpMethod::point_to_plane ? c.normal.dot(b.moved[k] - c.foot)
-                                                            : c.distance;
-  }
-  if (o.kernel == RobustKernel::none) {
-    for (std::size_t k = 0; k < n; ++k)
-      b.weight[k] = b.inlier[k] ? 1.0 : 0.0;
-    return 0.0;
-  }
+  for_each_block(n, o.parallel, [&](std::size_t begin, std::size_t end, std::size_t) {
+    for (std::size_t k = begin; k < end; ++k) {
+      const Correspondence& c = b.matches[k];
+      b.residual[k] = !b.inlier[k]                            ? 0.0
+                      : o.method == IcpMethod::point_to_plane ? c.normal.dot(b.moved[k] - c.foot)
+                                                              : c.distance;
+      if (o.kernel == RobustKernel::none) b.weight[k] = b.inlier[k] ? 1.0 : 0.0;
+    }
+  });
+  if (o.kernel == RobustKernel::none) return 0.0;
   double scale = o.kernel_scale;
   if (scale == 0.0) {
     b.scratch.clear();

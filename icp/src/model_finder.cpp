@@ -101,20 +101,37 @@ void ModelCorrespondenceFinder::find(const CorrespondenceQuery& query,
   } else {
     projector_.project_serial(points, options, results_, hints, &counters_);
   }
-  for (std::size_t k = 0; k < n; ++k) {
-    Correspondence& c = out[k];
-    c.valid = results_.status[k] == engine::ProjectionStatus::ok;
-    if (!c.valid) continue;
-    c.foot = results_.foot[k];
-    c.normal = results_.normal[k];
-    c.distance = results_.distance[k];
-    c.on_boundary = beyond_edge(k, query.points[k]);
-    const std::size_t s = scan_index(k);
-    hints_[s] = results_.hint(k);
-    // New certificates (anchored at this query's point) join the atlas.
-    if (hints_[s].certificate.radius > 0.0f &&
-        hints_[s].certificate.anchor == query.points[k].cast<float>()) {
-      atlas_.insert(hints_[s]);
+  // Answers and next hints per point: in parallel for a query in scan order (one writer per
+  // hint); otherwise serially, so that a query naming a scan point twice cannot race on it.
+  const auto answer = [&](std::size_t begin, std::size_t end) {
+    for (std::size_t k = begin; k < end; ++k) {
+      Correspondence& c = out[k];
+      c.valid = results_.status[k] == engine::ProjectionStatus::ok;
+      if (!c.valid) continue;
+      c.foot = results_.foot[k];
+      c.normal = results_.normal[k];
+      c.distance = results_.distance[k];
+      c.on_boundary = beyond_edge(k, query.points[k]);
+      hints_[scan_index(k)] = results_.hint(k);
+    }
+  };
+  if (query.parallel && identity) {
+    tbb::parallel_for(
+        tbb::blocked_range<std::size_t>(0, n, 4096),
+        [&](const tbb::blocked_range<std::size_t>& r) { answer(r.begin(), r.end()); });
+  } else {
+    answer(0, n);
+  }
+  // New certificates (made only when certifying; anchored at this query's point) join the
+  // atlas, in query order (the atlas is not thread-safe, and its order decides which of two
+  // covering certificates a later point borrows).
+  if (certify) {
+    for (std::size_t k = 0; k < n; ++k) {
+      if (results_.status[k] != engine::ProjectionStatus::ok) continue;
+      const engine::WarmCertificate& c = results_.certificate[k];
+      if (c.radius > 0.0f && c.anchor == query.points[k].cast<float>()) {
+        atlas_.insert(hints_[scan_index(k)]);
+      }
     }
   }
 }

@@ -9,8 +9,9 @@
 //    certificates of other points) give the brute-force distance (SurfaceReference), the same
 //    as cold queries, and the certificate path is really taken (not vacuous).
 // Models: a bicubic sheet with C0 creases (random knots of full multiplicity), a hairpin (two
-// layers 0.3 apart: two near-equal minima everywhere between them), two stacked sheets (the
-// clearance must see the other surface), and the rational sphere (no certificates).
+// layers 0.3 apart: two near-equal minima everywhere between them), the same fold inside one
+// degree-5 patch (the other layer is the anchor's own patch), two stacked sheets (the clearance
+// must see the other surface), and the rational sphere (no certificates).
 #include <gtest/gtest.h>
 #include <tbb/global_control.h>
 
@@ -56,6 +57,27 @@ NurbsSurface hairpin(double gap) {
   return s;
 }
 
+// The same fold inside one Bézier patch (degree 5 in u, one span): the other layer belongs to
+// the anchor's own patch, outside its certificate's box N (so far the certificates refuse points
+// between such layers: the rest of the patch is too close).
+NurbsSurface folded_patch(double gap) {
+  NurbsSurface s;
+  s.name = "folded patch";
+  s.degree_u = 5;
+  s.degree_v = 3;
+  const double xs[] = {10, 2, -1.5, -1.5, 2, 10};
+  const double zs[] = {0, 0, 0, 1, 1, 1};
+  s.count_u = 6;
+  s.count_v = 4;
+  s.knots_u = {0, 0, 0, 0, 0, 0, 1, 1, 1, 1, 1, 1};
+  s.knots_v = {0, 0, 0, 0, 1, 1, 1, 1};
+  for (int i = 0; i < s.count_u; ++i) {
+    for (int j = 0; j < s.count_v; ++j)
+      s.control_points.emplace_back(xs[i], 1.5 * j, gap * zs[i] + 0.1 * std::cos(1.3 * j + i));
+  }
+  return s;
+}
+
 Model model_of(std::vector<NurbsSurface> surfaces) {
   Model m;
   m.surfaces = std::move(surfaces);
@@ -66,6 +88,7 @@ std::vector<Model> test_models() {
   std::vector<Model> models;
   models.push_back(model_of({test::random_surface(11, 3, 3, 9, 9, false)}));
   models.push_back(model_of({hairpin(0.3)}));
+  models.push_back(model_of({folded_patch(0.8)}));
   NurbsSurface lower = test::random_surface(12, 3, 2, 7, 6, false);
   NurbsSurface upper = test::random_surface(12, 3, 2, 7, 6, false);
   for (Vec3& c : upper.control_points)
@@ -98,6 +121,11 @@ Vec3 random_direction(std::mt19937_64& rng) {
   std::normal_distribution<double> gauss;
   Vec3 d(gauss(rng), gauss(rng), gauss(rng));
   return d.normalized();
+}
+
+// x0 + (x1 - x0) w in double, exact at w = 0 and w = 1.
+double lerp(float x0, float x1, double w) {
+  return w >= 1.0 ? double(x1) : double(x0) + (double(x1) - double(x0)) * w;
 }
 
 class WarmAnchorClaims : public ::testing::TestWithParam<double> {};
@@ -166,11 +194,12 @@ TEST_P(WarmAnchorClaims, ConvexityAndClearanceHoldAgainstSampling) {
         ASSERT_TRUE(stationary);
         for (int a = 0; a <= 24; ++a) {
           for (int b = 0; b <= 24; ++b) {
-            const double s = c.s0 + (c.s1 - c.s0) * a / 24.0, t = c.t0 + (c.t1 - c.t0) * b / 24.0;
+            // In double: the box's float ends times a / 24 in float could land just outside N.
+            const double s = lerp(c.s0, c.s1, a / 24.0), t = lerp(c.t0, c.t1, b / 24.0);
             const double f = (pp.patch.evaluate(s, t) - q).squaredNorm();
             ASSERT_GE(f, minimum - 1e-12 * diagonal * diagonal)
-                << "point " << i << ": F below the Newton minimum on N at (" << s << ", " << t
-                << ") of patch " << c.patch << ", |q - a| = " << reach;
+                << "point " << i << ": F below the Newton minimum on N by " << minimum - f
+                << " at (" << s << ", " << t << ") of patch " << c.patch << ", |q - a| = " << reach;
             if (a % 3 != 0 || b % 3 != 0) continue;
             const bool convex = hessian_positive_definite(pp.patch, q, s, t);
             if (s_edge == 0 && t_edge == 0) {
