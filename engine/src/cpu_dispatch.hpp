@@ -12,8 +12,9 @@
 // The clones give bit-identical results: both evaluate the same IEEE operations in the same
 // order. Floating-point contraction (a * b + c -> FMA, which x86-64-v3 has) is turned off for
 // every nurbsreg target (-ffp-contract=off, cmake/NurbsregTarget.cmake; GCC contracts by default
-// even with -std=c++20), there is no -ffast-math, and the engine_no_fma test checks the built
-// library for FMA instructions.
+// even with -std=c++20) and there is no -ffast-math. Tests (tests/dispatch): the libraries hold
+// no FMA instruction and no AVX instruction outside the clones, and a fixed set of projections
+// gives bit-identical results with every dispatch forced to the baseline.
 //
 // Empty (one plain function) when:
 //  - the compiler is not GCC or the target not x86-64 (Clang accepts target_clones only from

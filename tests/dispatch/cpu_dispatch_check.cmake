@@ -1,14 +1,16 @@
 # ctest checks of the runtime CPU dispatch (engine/src/cpu_dispatch.hpp), run with cmake -P.
 #
-# MODE=no_fma: no fused multiply-add instruction in the libraries LIBS (;-separated). An FMA
-#   rounds once where a * b + c rounds twice: one in a clone (or a -march=native build) would
-#   make its results differ from the baseline's. EXPECT_CLONES=ON also requires x86-64-v3
-#   clones in the first library, so that the check is not passed by an empty dispatch.
+# MODE=instructions, on the libraries LIBS (;-separated):
+#  - no fused multiply-add instruction. An FMA rounds once where a * b + c rounds twice: one in a
+#    clone (or in a -march=native build) would make its results differ from the baseline's.
+#  - EXPECT_CLONES=ON (a portable build with dispatch): x86-64-v3 clones exist (the check is not
+#    passed by an empty dispatch), and no VEX-encoded (AVX) instruction appears outside them, so
+#    the libraries run on a CPU without AVX.
 # MODE=identical: PROBE (normal dispatch) and BASELINE (the same probe forced to the baseline
-#   clones) must print the same digests. Skipped (SKIP_REGULAR_EXPRESSION "nothing compared") on
-#   a CPU without AVX2, where both run the baseline code.
+#   clones) must print the same digests. On a CPU without AVX2 both run the baseline code: then
+#   "nothing compared" is printed (SKIP_REGULAR_EXPRESSION).
 
-if(MODE STREQUAL "no_fma")
+if(MODE STREQUAL "instructions")
   foreach(lib IN LISTS LIBS)
     execute_process(COMMAND "${OBJDUMP}" -d --no-show-raw-insn "${lib}"
                     OUTPUT_VARIABLE asm RESULT_VARIABLE rc)
@@ -23,6 +25,27 @@ if(MODE STREQUAL "no_fma")
                           "(-ffp-contract=off, cmake/NurbsregTarget.cmake)")
     endif()
     message(STATUS "${lib}: no FMA instruction")
+    if(EXPECT_CLONES)
+      # One block per function, "<name>:" first; a VEX instruction's mnemonic starts with v.
+      string(REPLACE ";" "," asm "${asm}")
+      string(REPLACE "\n\n" ";" blocks "${asm}")
+      set(avx "")
+      foreach(block IN LISTS blocks)
+        if(NOT block MATCHES "^[0-9a-f]+ <([^>]*)>:\n")
+          continue()
+        endif()
+        set(function "${CMAKE_MATCH_1}")
+        if(function MATCHES "arch_x86_64_v3")  # a clone, or a part split off one
+          continue()
+        endif()
+        if(block MATCHES "\n +[0-9a-f]+:\t(v[a-z0-9]+)[ \n]")
+          list(APPEND avx "${function} (${CMAKE_MATCH_1})")
+        endif()
+      endforeach()
+      if(avx)
+        message(FATAL_ERROR "${lib}: AVX instructions outside the x86-64-v3 clones: ${avx}")
+      endif()
+    endif()
   endforeach()
   if(EXPECT_CLONES)
     list(GET LIBS 0 first)
@@ -32,7 +55,7 @@ if(MODE STREQUAL "no_fma")
     if(count EQUAL 0)
       message(FATAL_ERROR "${first}: no x86-64-v3 clone, but the dispatch is on")
     endif()
-    message(STATUS "${first}: ${count} x86-64-v3 clones")
+    message(STATUS "${first}: ${count} x86-64-v3 clones; no AVX instruction outside them")
   endif()
 elseif(MODE STREQUAL "identical")
   foreach(exe PROBE BASELINE)
@@ -56,5 +79,5 @@ elseif(MODE STREQUAL "identical")
   endif()
   message(STATUS "AVX2 and baseline clones: identical results")
 else()
-  message(FATAL_ERROR "MODE must be no_fma or identical")
+  message(FATAL_ERROR "MODE must be instructions or identical")
 endif()
