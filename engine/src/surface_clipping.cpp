@@ -827,30 +827,66 @@ template <int R, int C>
         r2[k] = i == 0 ? w2 * x : r2[k] + w2 * x;
       }
     }
-    Lanes vu = {}, vuu = {}, vv = {}, vuv = {}, vvv = {};
-    for (int k = 0; k < kVec; ++k) {
-      const Lanes b0 = load_lanes(bv[0] + k * kLanes), b1 = load_lanes(bv[1] + k * kLanes);
-      const Lanes b2 = load_lanes(bv[2] + k * kLanes);
-      vu += b0 * c1[k];
-      vuu += b0 * c2[k];
-      vv += b1 * c0[k];
-      vuv += b1 * c1[k];
-      vvv += b2 * c0[k];
-    }
+    // The dot products in the order of the 2-lane code whatever kLanes is (lane l sums the
+    // columns j = l mod 2 below 2 (C / 2), then lane 0 + lane 1 and the last column): a build
+    // with kLanes = 4 (-march=native) gives the same start, hence the same results.
     double fu = 0.0, fuu = 0.0, fv = 0.0, fuv = 0.0, fvv = 0.0;
-    for (int l = 0; l < kLanes; ++l) {
-      fu += vu[l];
-      fuu += vuu[l];
-      fv += vv[l];
-      fuv += vuv[l];
-      fvv += vvv[l];
-    }
-    for (int k = 0; k < kRest; ++k) {
-      fu += bv[0][kSplit + k] * r1[k];
-      fuu += bv[0][kSplit + k] * r2[k];
-      fv += bv[1][kSplit + k] * r0[k];
-      fuv += bv[1][kSplit + k] * r1[k];
-      fvv += bv[2][kSplit + k] * r0[k];
+    if constexpr (kLanes == 2) {
+      Lanes vu = {}, vuu = {}, vv = {}, vuv = {}, vvv = {};
+      for (int k = 0; k < kVec; ++k) {
+        const Lanes b0 = load_lanes(bv[0] + k * kLanes), b1 = load_lanes(bv[1] + k * kLanes);
+        const Lanes b2 = load_lanes(bv[2] + k * kLanes);
+        vu += b0 * c1[k];
+        vuu += b0 * c2[k];
+        vv += b1 * c0[k];
+        vuv += b1 * c1[k];
+        vvv += b2 * c0[k];
+      }
+      for (int l = 0; l < kLanes; ++l) {
+        fu += vu[l];
+        fuu += vuu[l];
+        fv += vv[l];
+        fuv += vuv[l];
+        fvv += vvv[l];
+      }
+      for (int k = 0; k < kRest; ++k) {
+        fu += bv[0][kSplit + k] * r1[k];
+        fuu += bv[0][kSplit + k] * r2[k];
+        fv += bv[1][kSplit + k] * r0[k];
+        fuv += bv[1][kSplit + k] * r1[k];
+        fvv += bv[2][kSplit + k] * r0[k];
+      }
+    } else {
+      double col0[C], col1[C], col2[C];  // the column sums, in plain arrays
+      for (int k = 0; k < kVec; ++k) {
+        store_lanes(col0 + k * kLanes, c0[k]);
+        store_lanes(col1 + k * kLanes, c1[k]);
+        store_lanes(col2 + k * kLanes, c2[k]);
+      }
+      for (int k = 0; k < kRest; ++k) {
+        col0[kSplit + k] = r0[k];
+        col1[kSplit + k] = r1[k];
+        col2[kSplit + k] = r2[k];
+      }
+      const auto dot = [](const double* b, const double* c) {
+        constexpr int kPairs = C / 2;
+        double lane[2] = {0.0, 0.0};
+        for (int k = 0; k < kPairs; ++k) {
+          for (int l = 0; l < 2; ++l)
+            lane[l] += b[2 * k + l] * c[2 * k + l];
+        }
+        double f = 0.0;
+        f += lane[0];
+        f += lane[1];
+        for (int j = 2 * kPairs; j < C; ++j)
+          f += b[j] * c[j];
+        return f;
+      };
+      fu = dot(bv[0], col1);
+      fuu = dot(bv[0], col2);
+      fv = dot(bv[1], col0);
+      fuv = dot(bv[1], col1);
+      fvv = dot(bv[2], col0);
     }
     const bool free_u = !((u <= 0.0 && fu >= 0.0) || (u >= 1.0 && fu <= 0.0));
     const bool free_v = !((v <= 0.0 && fv >= 0.0) || (v >= 1.0 && fv <= 0.0));
