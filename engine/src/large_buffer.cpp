@@ -1,6 +1,8 @@
 #include "nurbsreg/engine/large_buffer.hpp"
 
 #include <sys/mman.h>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
 
 #include <cstdint>
 
@@ -28,6 +30,17 @@ void* allocate_large(std::size_t bytes) {
   if (end > aligned + size) munmap(reinterpret_cast<void*>(aligned + size), end - aligned - size);
   void* p = reinterpret_cast<void*>(aligned);
   madvise(p, size, MADV_HUGEPAGE);  // advice only: without THP the mapping works as usual
+  // Fault the pages in now, on every thread, rather than page by page in whatever serial loop
+  // first writes the array (std::vector's value-initialisation): a first touch costs the kernel
+  // a zeroed page and, on a VM whose host backs guest memory lazily, a host fault too. Measured
+  // on this 2-core VM for 512 MB: 830 ms on one thread, 450 ms on two (and ~30 ms once backed).
+  constexpr std::size_t kPage = 4096;
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, size, kHugePage),
+                    [p](const tbb::blocked_range<std::size_t>& r) {
+                      auto* bytes = static_cast<volatile unsigned char*>(p);
+                      for (std::size_t offset = r.begin(); offset < r.end(); offset += kPage)
+                        bytes[offset] = 0;
+                    });
   return p;
 }
 

@@ -4,8 +4,10 @@
 // pages (madvise(MADV_HUGEPAGE); Linux with THP "madvise" or "always"). The first touch of such
 // an array then costs one page fault per 2 MiB instead of per 4 KiB: on a 2-core VM the faults
 // of a 1,000,000-point alignment's fresh arrays (~300 MB) took about a quarter of its time
-// (bench/README.md "Warm certificates"). Smaller allocations, and systems without THP, use plain
-// operator new / the mapping as is. Stateless: every instance compares equal.
+// (bench/README.md "Warm certificates"). The pages are faulted in at allocation, on all TBB
+// threads (a first touch is a zeroed page and, on a VM, possibly a host fault: half the wall
+// time on 2 threads). Smaller allocations, and systems without THP, use plain operator new / the
+// mapping as is. Stateless: every instance compares equal.
 
 #include <cstddef>
 #include <new>
