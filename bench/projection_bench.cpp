@@ -25,6 +25,7 @@
 #include "nurbsreg/engine/projection.hpp"
 #include "nurbsreg/engine/sampling.hpp"
 #include "nurbsreg/io/model_json.hpp"
+#include "support/polygon_loop.hpp"
 
 namespace {
 
@@ -39,20 +40,7 @@ struct Fixture {
   std::vector<ProjectionHint> hints;  // feet of `perturbed`
 };
 
-// Degree-1 uv curves through `corners` (closed): the engine computes their exact 3-D edges.
-TrimLoop polygon_loop(const std::vector<Vec2>& corners) {
-  TrimLoop loop;
-  for (std::size_t k = 0; k < corners.size(); ++k) {
-    const Vec2 a = corners[k], b = corners[(k + 1) % corners.size()];
-    NurbsCurve c;
-    c.degree = 1;
-    c.dimension = 2;
-    c.knots = {0.0, 0.0, 1.0, 1.0};
-    c.control_points = {Vec3(a.x(), a.y(), 0.0), Vec3(b.x(), b.y(), 0.0)};
-    loop.curves.push_back({c, std::nullopt});
-  }
-  return loop;
-}
+using nurbsreg::test::polygon_loop;
 
 void trim_every_surface(Model& model) {
   for (NurbsSurface& s : model.surfaces) {

@@ -20,6 +20,7 @@
 #include "nurbsreg/engine/projection.hpp"
 #include "nurbsreg/engine/shapes.hpp"
 #include "support/example_surface.hpp"
+#include "support/polygon_loop.hpp"
 
 namespace {
 
@@ -58,19 +59,7 @@ void add_results(Digest& d, const ProjectionResults& r, std::size_t n) {
   }
 }
 
-TrimLoop polygon_loop(const std::vector<Vec2>& corners) {
-  TrimLoop loop;
-  for (std::size_t k = 0; k < corners.size(); ++k) {
-    const Vec2 a = corners[k], b = corners[(k + 1) % corners.size()];
-    NurbsCurve c;
-    c.degree = 1;
-    c.dimension = 2;
-    c.knots = {0.0, 0.0, 1.0, 1.0};
-    c.control_points = {Vec3(a.x(), a.y(), 0.0), Vec3(b.x(), b.y(), 0.0)};
-    loop.curves.push_back({c, std::nullopt});
-  }
-  return loop;
-}
+using nurbsreg::test::polygon_loop;
 
 Model single(NurbsSurface s) {
   Model m;

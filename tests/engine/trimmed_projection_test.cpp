@@ -21,6 +21,7 @@
 #include "nurbsreg/engine/trim_region.hpp"
 #include "support/example_surface.hpp"
 #include "support/golden_section.hpp"
+#include "support/polygon_loop.hpp"
 #include "support/random_entities.hpp"
 
 namespace nurbsreg::engine {
@@ -28,22 +29,8 @@ namespace {
 
 constexpr double kPi = 3.14159265358979323846;
 
-NurbsCurve uv_line(const Vec2& a, const Vec2& b) {
-  NurbsCurve c;
-  c.degree = 1;
-  c.dimension = 2;
-  c.knots = {0.0, 0.0, 1.0, 1.0};
-  c.control_points = {Vec3(a.x(), a.y(), 0.0), Vec3(b.x(), b.y(), 0.0)};
-  return c;
-}
-
-// A closed polygon of degree-1 uv curves (the engine computes their exact 3-D edges).
-TrimLoop polygon_loop(const std::vector<Vec2>& corners) {
-  TrimLoop loop;
-  for (std::size_t k = 0; k < corners.size(); ++k)
-    loop.curves.push_back({uv_line(corners[k], corners[(k + 1) % corners.size()]), std::nullopt});
-  return loop;
-}
+using test::polygon_loop;
+using test::uv_line;
 
 TrimLoop rectangle_loop(double u0, double u1, double v0, double v1) {
   return polygon_loop({{u0, v0}, {u1, v0}, {u1, v1}, {u0, v1}});
