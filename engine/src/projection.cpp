@@ -257,7 +257,7 @@ void Projector::project_range(PointView points, const ProjectionOptions& options
           // ball's rim, or too little clearance): its point still bounds alpha (certificates
           // are made on untrimmed surfaces, so it is a face point) and is where the patch's
           // clipping restarts Newton, which costs less than a second Newton over the whole
-          // patch and the patch-wide convexity test below (4% fewer instructions per point on
+          // patch and the patch-wide convexity test below (4-11% fewer instructions per point on
           // the peers benchmark's panels with certificates).
           bool in_box = false;
           // Cheapest: the hint's WarmCertificate covers p. One Newton on its box N proves the
