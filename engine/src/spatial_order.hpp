@@ -1,12 +1,13 @@
 #pragma once
 // A cache-friendly processing order for a frame of points: the points' indices sorted by the
-// Morton (Z-order) index of a 64^3 grid over the points' own bounding box.
+// Morton (Z-order) index of a grid over the points' own bounding box (2^b cells along each
+// axis, b from 2 to 7: about four points per cell).
 //
 // Why: a point's projection walks the patch hierarchy from the root and clips a few patches;
 // consecutive points in the same grid cell take the same path and touch the same patches, so
 // the walk's nodes, the patches' cached coefficients and the branch predictors stay warm.
 // Projecting a frame whose points come in no spatial order (a random subsample, a merged
-// multi-view scan, the peers benchmark's points) is about a quarter faster in this order. Each
+// multi-view scan, the peers benchmark's points) is 15-30% faster in this order. Each
 // point's answer depends on that point alone, so the order changes no result.
 
 #include <cstdint>

@@ -44,8 +44,7 @@ std::vector<Vec3> points_around_patch(const PreparedModel& model, std::size_t k,
   }
   const Vec3 lo = box.lo - 0.5 * (box.hi - box.lo), hi = box.hi + 0.5 * (box.hi - box.lo);
   for (int n = 0; n < 20; ++n) {
-    points.emplace_back(uniform(rng, lo.x(), hi.x()), uniform(rng, lo.y(), hi.y()),
-                        uniform(rng, lo.z(), hi.z()));
+    points.push_back(test::uniform_point(rng, lo, hi));
   }
   return points;
 }
@@ -130,8 +129,7 @@ std::vector<Vec3> hard_cold_points(const PreparedModel& model, std::mt19937_64& 
   }
   const Vec3 lo = box.lo - 0.25 * (box.hi - box.lo), hi = box.hi + 0.25 * (box.hi - box.lo);
   for (int n = 0; n < 60; ++n) {
-    points.emplace_back(uniform(rng, lo.x(), hi.x()), uniform(rng, lo.y(), hi.y()),
-                        uniform(rng, lo.z(), hi.z()));
+    points.push_back(test::uniform_point(rng, lo, hi));
   }
   return points;
 }

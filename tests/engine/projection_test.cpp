@@ -36,10 +36,8 @@ std::vector<Vec3> query_points(const Aabb& box, std::size_t n, std::uint64_t see
   const Vec3 lo = box.lo - 0.2 * (box.hi - box.lo);
   const Vec3 hi = box.hi + 0.2 * (box.hi - box.lo);
   std::vector<Vec3> points(n);
-  for (Vec3& p : points) {
-    p = Vec3(uniform(rng, lo.x(), hi.x()), uniform(rng, lo.y(), hi.y()),
-             uniform(rng, lo.z(), hi.z()));
-  }
+  for (Vec3& p : points)
+    p = test::uniform_point(rng, lo, hi);
   return points;
 }
 

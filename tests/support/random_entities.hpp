@@ -18,6 +18,12 @@ inline double uniform(std::mt19937_64& rng, double lo, double hi) {
   return lo + (hi - lo) * static_cast<double>(rng() >> 11) * 0x1.0p-53;
 }
 
+// A point drawn uniformly in the box [lo, hi].
+inline Vec3 uniform_point(std::mt19937_64& rng, const Vec3& lo, const Vec3& hi) {
+  return Vec3(uniform(rng, lo.x(), hi.x()), uniform(rng, lo.y(), hi.y()),
+              uniform(rng, lo.z(), hi.z()));
+}
+
 // Clamped (or unclamped) knot vector with random interior knots; interior multiplicity <= max_mult.
 inline std::vector<double> random_knots(std::mt19937_64& rng, int degree, int count, bool clamped,
                                         int max_mult = 1, double lo = 0.0, double hi = 1.0) {

