@@ -17,12 +17,17 @@
 //
 //   align_peers_bench [--model FILE] [--points N] [--noise SIGMA] [--dense N] [--threads T]
 //                     [--seed S] [--seeds N] [--nurbsreg-variants all|default]
-//                     [--pcl-max-iterations N] [--pcl 0|1|2]
+//                     [--pcl-max-iterations N] [--pcl 0|1|2] [--reuse 0|1]
 // --pcl: 0 runs nurbsreg only, 1 adds PCL point-to-plane, 2 (default) both PCL methods.
 // --nurbsreg-variants: all (default when --seeds is 1) runs the three nurbsreg rows, default
 // (default when --seeds > 1) only the default schedule.
 // With --seeds > 1 the exit status is 1 when nurbsreg's RMS error exceeds 3 noise bounds (a
 // broken alignment; an N-seed RMS of a Gaussian error that far out is vanishingly unlikely).
+// --reuse 1 aligns the seeds' scans frame after frame with ONE IcpSolver and ONE finder for the
+// default schedule (as an inspection line or a tracker would): the first frame pays the first
+// touch of the per-point arrays (~300 MB for 1 M points), the later ones reuse them. Each frame
+// still starts from the identity with no hints (align() resets the finder). 0 (default): a fresh
+// solver and finder per scan, so every row includes that first touch.
 #include <pcl/kdtree/kdtree_flann.h>
 #include <pcl/point_cloud.h>
 #include <pcl/point_types.h>
@@ -39,6 +44,7 @@
 #include <exception>
 #include <memory>
 #include <numbers>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <type_traits>
@@ -71,14 +77,16 @@ struct Settings {
   Variants variants = Variants::unset;
   int pcl_max_iterations = 30;
   int pcl = 2;
+  bool reuse = false;
 };
 
 [[noreturn]] void usage(const char* message) {
-  std::fprintf(stderr,
-               "align_peers_bench: %s\nusage: align_peers_bench [--model FILE] [--points N] "
-               "[--noise SIGMA] [--dense N] [--threads T] [--seed S] [--seeds N] "
-               "[--nurbsreg-variants all|default] [--pcl-max-iterations N] [--pcl 0|1|2]\n",
-               message);
+  std::fprintf(
+      stderr,
+      "align_peers_bench: %s\nusage: align_peers_bench [--model FILE] [--points N] "
+      "[--noise SIGMA] [--dense N] [--threads T] [--seed S] [--seeds N] "
+      "[--nurbsreg-variants all|default] [--pcl-max-iterations N] [--pcl 0|1|2] [--reuse 0|1]\n",
+      message);
   std::exit(2);
 }
 
@@ -124,6 +132,9 @@ Settings parse(int argc, char** argv) {
       s.pcl_max_iterations = static_cast<int>(number);
     } else if (arg == "--pcl") {
       s.pcl = static_cast<int>(number);
+    } else if (arg == "--reuse") {
+      if (number != 0 && number != 1) usage("--reuse must be 0 or 1");
+      s.reuse = number == 1;
     } else {
       usage(("unknown option " + std::string(arg)).c_str());
     }
@@ -493,6 +504,8 @@ int main(int argc, char** argv) try {
   const double prepare_wall = prep.wall();
   const double prepare_cpu = prep.cpu();
   enum class Mode { plain, schedule, schedule_predicted };
+  std::optional<icp::ModelCorrespondenceFinder> reused_finder;
+  std::optional<icp::IcpSolver> reused_solver;
   // Aligns `points`; fills `bound` from the run's covariance when it is given.
   const auto run_nurbsreg = [&](const char* label, Mode mode, const std::vector<Vec3>& points,
                                 NoiseBound* bound) {
@@ -500,7 +513,6 @@ int main(int argc, char** argv) try {
     o.method = label;
     o.prepare_wall = prepare_wall;
     o.prepare_cpu = prepare_cpu;
-    icp::ModelCorrespondenceFinder finder(prepared);
     icp::IcpOptions options;
     options.method = icp::IcpMethod::point_to_plane;
     options.max_iterations = 50;
@@ -514,7 +526,16 @@ int main(int argc, char** argv) try {
       options.predict_convergence = false;
       options.statistical_tolerance = 0.0;
     }
-    icp::IcpSolver solver(options);
+    // --reuse: the default schedule's solver and finder live across the scans (frames).
+    const bool reuse = settings.reuse && mode == Mode::schedule;
+    std::optional<icp::ModelCorrespondenceFinder> own_finder;
+    std::optional<icp::IcpSolver> own_solver;
+    if (!reuse || !reused_solver) {
+      (reuse ? reused_finder : own_finder).emplace(prepared);
+      (reuse ? reused_solver : own_solver).emplace(options);
+    }
+    icp::ModelCorrespondenceFinder& finder = reuse ? *reused_finder : *own_finder;
+    icp::IcpSolver& solver = reuse ? *reused_solver : *own_solver;
     Stopwatch run;
     const icp::IcpResult r = solver.align(finder, points, Eigen::Isometry3d::Identity());
     o.wall = run.wall();

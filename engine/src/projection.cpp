@@ -6,6 +6,8 @@
 
 #include <cmath>
 #include <limits>
+#include <stdexcept>
+#include <string>
 
 #include "cpu_dispatch.hpp"
 #include "nurbsreg/engine/sampling.hpp"
@@ -192,7 +194,7 @@ WarmCertificate Projector::make_certificate(const Vec3& p, const SurfaceHit& bes
 }
 
 void Projector::project_range(PointView points, const ProjectionOptions& options,
-                              ProjectionResults& out, std::span<const ProjectionHint> hints,
+                              ProjectionResults& out, HintView hints,
                               std::span<const std::uint32_t> order, std::size_t begin,
                               std::size_t end, ThreadState& state) const {
   const Model& model = model_.model();
@@ -215,7 +217,13 @@ void Projector::project_range(PointView points, const ProjectionOptions& options
       out.certificate[i] = WarmCertificate{};
       continue;
     }
-    const ProjectionHint* hint = hints.empty() ? nullptr : &hints[i];
+    // A copy: the source may be `out` itself (HintView), whose entry i is written below.
+    ProjectionHint hint_copy;
+    const ProjectionHint* hint = nullptr;
+    if (!hints.empty()) {
+      hint_copy = hints[i];
+      hint = &hint_copy;
+    }
     if (surfaces) {
       // Seed alpha with the hint: an upper bound only, so the answer stays exact.
       SurfaceHit best;
@@ -459,8 +467,18 @@ void Projector::project_range(PointView points, const ProjectionOptions& options
   }
 }
 
+namespace {
+void check_hint_count(PointView points, HintView hints) {
+  if (!hints.empty() && hints.size() != points.size()) {
+    throw std::invalid_argument("Projector: " + std::to_string(hints.size()) + " hints for " +
+                                std::to_string(points.size()) + " points");
+  }
+}
+}  // namespace
+
 void Projector::project(PointView points, const ProjectionOptions& options, ProjectionResults& out,
-                        std::span<const ProjectionHint> hints, ProjectionCounters* counters) {
+                        HintView hints, ProjectionCounters* counters) {
+  check_hint_count(points, hints);
   out.resize(points.size());
   for (ThreadState& s : impl_->states) {
     s.counters = {};
@@ -499,8 +517,9 @@ void Projector::project(PointView points, const ProjectionOptions& options, Proj
 }
 
 void Projector::project_serial(PointView points, const ProjectionOptions& options,
-                               ProjectionResults& out, std::span<const ProjectionHint> hints,
+                               ProjectionResults& out, HintView hints,
                                ProjectionCounters* counters) {
+  check_hint_count(points, hints);
   out.resize(points.size());
   ThreadState& state = impl_->states.local();
   state.counters = {};

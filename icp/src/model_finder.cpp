@@ -20,8 +20,104 @@ double ModelCorrespondenceFinder::cell_side() const {
 }
 
 void ModelCorrespondenceFinder::reset(std::size_t scan_size) {
-  hints_.assign(scan_size, engine::ProjectionHint{});
+  scan_size_ = scan_size;
+  has_previous_ = false;
+  previous_position_.assign(scan_size, kNoPosition);
   atlas_.reset(cell_side());
+}
+
+bool ModelCorrespondenceFinder::repeats_previous_query(const CorrespondenceQuery& query) const {
+  const std::span<const std::size_t> ids = query.scan_indices;
+  const std::size_t n = query.points.size();
+  if (!has_previous_ || previous_size_ != n) return false;
+  if (previous_all_) {
+    for (std::size_t k = 0; k < ids.size(); ++k)
+      if (ids[k] != k) return false;
+    return true;
+  }
+  return ids.size() == n && std::equal(ids.begin(), ids.end(), previous_indices_.begin());
+}
+
+// Point k's hint (engine::HintView): its previous answer, if it had one, and a certificate
+// borrowed from the atlas when that one does not cover the point.
+struct ModelCorrespondenceFinder::HintSource {
+  // Same query as before: the previous answers, read in place (the projector reads hint k
+  // before it writes answer k).
+  const engine::ProjectionResults* in_place = nullptr;
+  // Otherwise: the copied previous answers, by previous position of scan point s.
+  const engine::ProjectionHint* carried = nullptr;
+  const std::uint32_t* previous_position = nullptr;
+  std::size_t scan_size = 0;
+  std::span<const std::size_t> scan_indices;
+  const CertificateAtlas* atlas = nullptr;
+  const engine::Vec3* points = nullptr;
+
+  static engine::ProjectionHint at(const void* data, std::size_t k) {
+    const auto& source = *static_cast<const HintSource*>(data);
+    engine::ProjectionHint h;
+    if (source.in_place != nullptr) {
+      h = source.in_place->hint(k);
+    } else if (source.carried != nullptr) {
+      const std::size_t s = source.scan_indices.empty() ? k : source.scan_indices[k];
+      if (s < source.scan_size && source.previous_position[s] != kNoPosition) {
+        h = source.carried[source.previous_position[s]];
+      }
+    }
+    if (!h.certificate.covers(source.points[k])) {
+      if (const engine::ProjectionHint* b = source.atlas->find(source.points[k])) h = *b;
+    }
+    return h;
+  }
+};
+
+ModelCorrespondenceFinder::HintSource ModelCorrespondenceFinder::prepare_hints(
+    const CorrespondenceQuery& query, bool repeats) {
+  HintSource source;
+  source.atlas = &atlas_;
+  source.points = query.points.data();
+  if (repeats) {
+    source.in_place = &results_;
+  } else if (has_previous_) {
+    // The projection overwrites results_, so the previous answers move out first.
+    carried_.resize(previous_size_);
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, previous_size_, 4096),
+                      [&](const tbb::blocked_range<std::size_t>& r) {
+                        for (std::size_t j = r.begin(); j < r.end(); ++j)
+                          carried_[j] = results_.hint(j);
+                      });
+    for (std::size_t j = 0; j < previous_size_; ++j)
+      previous_position_[previous_index(j)] = static_cast<std::uint32_t>(j);
+    source.carried = carried_.data();
+    source.previous_position = previous_position_.data();
+    source.scan_size = previous_position_.size();
+    source.scan_indices = query.scan_indices;
+  }
+  return source;
+}
+
+void ModelCorrespondenceFinder::remember_query(const CorrespondenceQuery& query, bool repeats) {
+  if (repeats) return;
+  if (has_previous_) {
+    for (std::size_t j = 0; j < previous_size_; ++j)
+      previous_position_[previous_index(j)] = kNoPosition;
+  }
+  const std::span<const std::size_t> ids = query.scan_indices;
+  bool all = true;
+  for (std::size_t k = 0; all && k < ids.size(); ++k)
+    all = ids[k] == k;
+  has_previous_ = true;
+  previous_all_ = all;
+  previous_size_ = query.points.size();
+  std::size_t needed = all ? previous_size_ : 0;
+  if (all) {
+    previous_indices_.clear();
+  } else {
+    previous_indices_.assign(ids.begin(), ids.end());
+    for (const std::size_t s : ids)
+      needed = std::max(needed, s + 1);
+  }
+  // Scan indices should be below reset()'s scan_size; more is tolerated.
+  if (previous_position_.size() < needed) previous_position_.resize(needed, kNoPosition);
 }
 
 // The point lies beyond an open edge of the model when its foot is on a face boundary (a trim
@@ -49,48 +145,15 @@ bool ModelCorrespondenceFinder::beyond_edge(std::size_t k, const engine::Vec3& p
 void ModelCorrespondenceFinder::find(const CorrespondenceQuery& query,
                                      std::span<Correspondence> out) {
   const std::size_t n = query.points.size();
-  auto scan_index = [&](std::size_t k) {
-    return query.scan_indices.empty() ? k : query.scan_indices[k];
-  };
   // Certificates are made on the coarse stages' subsamples once the solver expects small moves:
   // the full-resolution stage then borrows them for the points between (about 90% of its first
   // pass). Making one costs about two cold projections, so at full resolution, where ICP
   // usually ends after one more pass, they are used but not made.
-  const bool subsample = !query.scan_indices.empty() && query.scan_indices.size() < hints_.size();
+  const bool subsample = !query.scan_indices.empty() && query.scan_indices.size() < scan_size_;
   const bool certify = subsample && query.expected_motion < 0.5 * certificate_radius_;
-  // Hints live by scan index; the projector wants them by query position. A full-resolution
-  // query in scan order uses them in place (no copy of ~64 bytes per point).
-  bool identity = true;
-  std::size_t needed = n;
-  for (std::size_t k = 0; k < n; ++k) {
-    const std::size_t s = scan_index(k);
-    identity = identity && s == k;
-    needed = std::max(needed, s + 1);
-  }
-  if (hints_.size() < needed) hints_.resize(needed);
-  const auto gather = [&](std::size_t begin, std::size_t end) {
-    for (std::size_t k = begin; k < end; ++k) {
-      // In place only in scan order (k == s, one writer per entry); otherwise a copy, so that
-      // a query that names a scan point twice cannot race on its hint.
-      engine::ProjectionHint& h = identity ? hints_[k] : query_hints_[k];
-      if (!identity) h = hints_[scan_index(k)];
-      // A point whose own certificate does not cover it borrows a neighbour's, if one does.
-      if (!h.certificate.covers(query.points[k])) {
-        if (const engine::ProjectionHint* b = atlas_.find(query.points[k])) h = *b;
-      }
-    }
-  };
-  if (!identity) query_hints_.resize(n);
-  if (query.parallel) {
-    tbb::parallel_for(
-        tbb::blocked_range<std::size_t>(0, n, 4096),
-        [&](const tbb::blocked_range<std::size_t>& r) { gather(r.begin(), r.end()); });
-  } else {
-    gather(0, n);
-  }
-  const std::span<const engine::ProjectionHint> hints =
-      identity ? std::span<const engine::ProjectionHint>(hints_).first(n)
-               : std::span<const engine::ProjectionHint>(query_hints_);
+  const bool repeats = repeats_previous_query(query);
+  const HintSource source = prepare_hints(query, repeats);
+  const engine::HintView hints(&source, n, &HintSource::at);
   engine::ProjectionOptions options;
   options.max_distance = query.max_distance;
   options.certify = certify;
@@ -101,8 +164,7 @@ void ModelCorrespondenceFinder::find(const CorrespondenceQuery& query,
   } else {
     projector_.project_serial(points, options, results_, hints, &counters_);
   }
-  // Answers and next hints per point: in parallel for a query in scan order (one writer per
-  // hint); otherwise serially, so that a query naming a scan point twice cannot race on it.
+  remember_query(query, repeats);
   const auto answer = [&](std::size_t begin, std::size_t end) {
     for (std::size_t k = begin; k < end; ++k) {
       Correspondence& c = out[k];
@@ -112,10 +174,9 @@ void ModelCorrespondenceFinder::find(const CorrespondenceQuery& query,
       c.normal = results_.normal[k];
       c.distance = results_.distance[k];
       c.on_boundary = beyond_edge(k, query.points[k]);
-      hints_[scan_index(k)] = results_.hint(k);
     }
   };
-  if (query.parallel && identity) {
+  if (query.parallel) {
     tbb::parallel_for(
         tbb::blocked_range<std::size_t>(0, n, 4096),
         [&](const tbb::blocked_range<std::size_t>& r) { answer(r.begin(), r.end()); });
@@ -130,7 +191,7 @@ void ModelCorrespondenceFinder::find(const CorrespondenceQuery& query,
       if (results_.status[k] != engine::ProjectionStatus::ok) continue;
       const engine::WarmCertificate& c = results_.certificate[k];
       if (c.radius > 0.0f && c.anchor == query.points[k].cast<float>()) {
-        atlas_.insert(hints_[scan_index(k)]);
+        atlas_.insert(results_.hint(k));
       }
     }
   }

@@ -5,6 +5,7 @@
 #include <tbb/global_control.h>
 
 #include <limits>
+#include <stdexcept>
 
 #include "nurbsreg/engine/projection.hpp"
 #include "nurbsreg/engine/shapes.hpp"
@@ -184,6 +185,66 @@ TEST_F(ProjectionTest, WarmStartsStayExactEvenWithWrongHints) {
   // order (best-first by each patch's own bound) it visits as few, and the gain is in Newton.
   EXPECT_LE(warm_counters.patches_visited, cold_counters.patches_visited);
   EXPECT_LT(warm_counters.newton_iterations, cold_counters.newton_iterations);
+}
+
+// HintView: hints read in place from the very results being written (the previous pass's
+// answers, ProjectionResults::hint) give the same answers, certificates and work as the same
+// hints copied into an array first; with 2 threads and small tasks, so a point reading another
+// point's entry (or one already overwritten) would show.
+TEST_F(ProjectionTest, HintsReadInPlaceFromTheResultsEqualCopiedHints) {
+  // Certificates need polynomial patches: a sheet like mixed_model's, not rational.
+  Model sheet;
+  sheet.surfaces.push_back(test::random_surface(11, 3, 3, 8, 8, false));
+  const PreparedModel prepared(std::move(sheet));
+  const std::vector<Vec3> points = query_points(prepared.bounds(), 3000, 9);
+  ProjectionOptions options;
+  options.certify = true;
+  options.grain = 5;
+  Projector projector(prepared);
+  ProjectionResults first;
+  projector.project(PointView::of(points), options, first);
+  std::mt19937_64 rng(5);
+  std::vector<Vec3> moved(points);
+  for (Vec3& p : moved)
+    p += Vec3(uniform(rng, -1, 1), uniform(rng, -1, 1), uniform(rng, -1, 1)) * 1e-4;
+  std::vector<ProjectionHint> copied(points.size());
+  for (std::size_t i = 0; i < points.size(); ++i)
+    copied[i] = first.hint(i);
+
+  tbb::global_control limit(tbb::global_control::max_allowed_parallelism, 2);
+  ProjectionResults from_array;
+  ProjectionCounters array_counters;
+  projector.project(PointView::of(moved), options, from_array, copied, &array_counters);
+  ProjectionResults in_place = first;
+  const HintView own(&in_place, in_place.size(), [](const void* d, std::size_t i) {
+    return static_cast<const ProjectionResults*>(d)->hint(i);
+  });
+  ProjectionCounters in_place_counters;
+  projector.project(PointView::of(moved), options, in_place, own, &in_place_counters);
+
+  ASSERT_GT(array_counters.certified, points.size() / 4);  // the certificates were used
+  EXPECT_EQ(in_place_counters.certified, array_counters.certified);
+  EXPECT_EQ(in_place_counters.certificates_made, array_counters.certificates_made);
+  EXPECT_EQ(in_place_counters.patches_visited, array_counters.patches_visited);
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    ASSERT_EQ(in_place.status[i], from_array.status[i]) << i;
+    ASSERT_EQ(in_place.distance[i], from_array.distance[i]) << i;
+    ASSERT_EQ(in_place.entity[i], from_array.entity[i]) << i;
+    ASSERT_EQ(in_place.u[i], from_array.u[i]) << i;
+    ASSERT_EQ(in_place.v[i], from_array.v[i]) << i;
+    ASSERT_EQ(in_place.foot[i], from_array.foot[i]) << i;
+    ASSERT_EQ(in_place.certificate[i].anchor, from_array.certificate[i].anchor) << i;
+    ASSERT_EQ(in_place.certificate[i].radius, from_array.certificate[i].radius) << i;
+  }
+}
+
+TEST_F(ProjectionTest, HintCountMustMatchThePoints) {
+  Projector projector(prepared_);
+  ProjectionResults out;
+  const std::vector<ProjectionHint> hints(points_.size() - 1);
+  EXPECT_THROW(projector.project(PointView::of(points_), {}, out, hints), std::invalid_argument);
+  EXPECT_THROW(projector.project_serial(PointView::of(points_), {}, out, hints),
+               std::invalid_argument);
 }
 
 TEST_F(ProjectionTest, NonFinitePointsAreSkippedAndCounted) {

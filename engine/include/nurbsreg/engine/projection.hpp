@@ -20,6 +20,7 @@
 #include <limits>
 #include <memory>
 #include <span>
+#include <type_traits>
 #include <vector>
 
 #include "nurbsreg/engine/large_buffer.hpp"
@@ -166,6 +167,36 @@ struct PointView {
   }
 };
 
+// The hints of a frame without a per-point array: any source that can hand out point i's hint
+// (empty: no hints). The projector calls at(data, i) once per point, from the thread that
+// projects point i, before it writes any result of point i, and for no other index; so the
+// source may read the very ProjectionResults being written (the previous pass's answers, in
+// place: ProjectionResults::hint(i)), which saves a frame-sized hint array (~70 bytes a point).
+struct HintView {
+  using Source = ProjectionHint (*)(const void* data, std::size_t i);
+
+  HintView() = default;
+  HintView(const void* data, std::size_t count, Source at) : data_(data), count_(count), at_(at) {}
+  // An array of hints (any contiguous container of them).
+  HintView(std::span<const ProjectionHint> hints)  // NOLINT: implicit by design
+      : HintView(hints.data(), hints.size(), [](const void* d, std::size_t i) {
+          return static_cast<const ProjectionHint*>(d)[i];
+        }) {}
+  template <class Container>
+  requires std::is_convertible_v<const Container&, std::span<const ProjectionHint>> HintView(
+      const Container& hints)  // NOLINT: implicit by design
+      : HintView(std::span<const ProjectionHint>(hints)) {}
+
+  bool empty() const { return count_ == 0; }
+  std::size_t size() const { return count_; }
+  ProjectionHint operator[](std::size_t i) const { return at_(data_, i); }
+
+ private:
+  const void* data_ = nullptr;
+  std::size_t count_ = 0;
+  Source at_ = nullptr;
+};
+
 class Projector {
  public:
   explicit Projector(const PreparedModel& model);
@@ -173,13 +204,13 @@ class Projector {
   Projector(const Projector&) = delete;
   Projector& operator=(const Projector&) = delete;
 
-  // Projects every point; `hints` is empty or has one entry per point.
+  // Projects every point; `hints` is empty or has one entry per point (std::invalid_argument
+  // otherwise).
   void project(PointView points, const ProjectionOptions& options, ProjectionResults& out,
-               std::span<const ProjectionHint> hints = {}, ProjectionCounters* counters = nullptr);
+               HintView hints = {}, ProjectionCounters* counters = nullptr);
   // The same on the calling thread only (debugging, and the reference for "parallel == serial").
   void project_serial(PointView points, const ProjectionOptions& options, ProjectionResults& out,
-                      std::span<const ProjectionHint> hints = {},
-                      ProjectionCounters* counters = nullptr);
+                      HintView hints = {}, ProjectionCounters* counters = nullptr);
 
   const PreparedModel& model() const { return model_; }
 
@@ -204,8 +235,8 @@ class Projector {
                                    std::int64_t edge, double radius_cap, ThreadState& state) const;
   // Projects points order[begin, end) (or begin .. end - 1 when order is empty).
   void project_range(PointView points, const ProjectionOptions& options, ProjectionResults& out,
-                     std::span<const ProjectionHint> hints, std::span<const std::uint32_t> order,
-                     std::size_t begin, std::size_t end, ThreadState& state) const;
+                     HintView hints, std::span<const std::uint32_t> order, std::size_t begin,
+                     std::size_t end, ThreadState& state) const;
   const PreparedModel& model_;
   std::unique_ptr<Impl> impl_;
 };

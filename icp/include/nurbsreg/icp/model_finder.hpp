@@ -3,6 +3,11 @@
 // point from its previous foot (surface, u, v). Hints only speed the search up; every
 // correspondence is the exact closest point (DESIGN.md "Engine", "ICP").
 //
+// Hints are the previous find()'s answers (no hint array per scan point): read in place from
+// its results when a query names the same scan points as the one before (the iterations of one
+// stage); otherwise (the first query of a coarse-to-fine stage) copied out of them for the
+// points the two queries share, which are found through a position per scan point (4 bytes).
+//
 // Once the solver expects small moves (CorrespondenceQuery::expected_motion below half the
 // certificate radius), projections also make warm certificates (engine::WarmCertificate): the
 // next iterations then answer each point with one Newton on one patch. Points without a
@@ -38,13 +43,33 @@ class ModelCorrespondenceFinder final : public CorrespondenceFinder {
  private:
   bool beyond_edge(std::size_t k, const engine::Vec3& p) const;
   double cell_side() const;
+  // The previous query's answers as hints for this one (HintSource in the .cpp); after the
+  // projection, remember_query clears what it set up and remembers this query.
+  struct HintSource;
+  HintSource prepare_hints(const CorrespondenceQuery& query, bool repeats);
+  void remember_query(const CorrespondenceQuery& query, bool repeats);
+  bool repeats_previous_query(const CorrespondenceQuery& query) const;
+  std::size_t previous_index(std::size_t j) const {
+    return previous_all_ ? j : previous_indices_[j];
+  }
 
   engine::Projector projector_;
-  engine::FrameVector<engine::ProjectionHint> hints_;        // by scan index
-  engine::FrameVector<engine::ProjectionHint> query_hints_;  // by query position (reused)
   engine::ProjectionResults results_;
   engine::ProjectionCounters counters_;
   double certificate_radius_ = 0.0;
+  std::size_t scan_size_ = 0;
+  // The scan points of the previous query since reset(): all of them in order
+  // (previous_all_), or previous_indices_.
+  bool has_previous_ = false;
+  bool previous_all_ = false;
+  std::size_t previous_size_ = 0;
+  engine::FrameVector<std::size_t> previous_indices_;
+  // For a query that differs from the previous one: the previous answers' hints (by previous
+  // position) and, per scan point, its previous position or kNoPosition (kept all kNoPosition
+  // between calls).
+  static constexpr std::uint32_t kNoPosition = 0xffffffffu;
+  engine::FrameVector<engine::ProjectionHint> carried_;
+  engine::FrameVector<std::uint32_t> previous_position_;
   CertificateAtlas atlas_;
 };
 
