@@ -80,11 +80,17 @@ ModelCorrespondenceFinder::HintSource ModelCorrespondenceFinder::prepare_hints(
   } else if (has_previous_) {
     // The projection overwrites results_, so the previous answers move out first.
     carried_.resize(previous_size_);
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, previous_size_, 4096),
-                      [&](const tbb::blocked_range<std::size_t>& r) {
-                        for (std::size_t j = r.begin(); j < r.end(); ++j)
-                          carried_[j] = results_.hint(j);
-                      });
+    const auto carry = [&](std::size_t begin, std::size_t end) {
+      for (std::size_t j = begin; j < end; ++j)
+        carried_[j] = results_.hint(j);
+    };
+    if (query.parallel) {
+      tbb::parallel_for(
+          tbb::blocked_range<std::size_t>(0, previous_size_, 4096),
+          [&](const tbb::blocked_range<std::size_t>& r) { carry(r.begin(), r.end()); });
+    } else {
+      carry(0, previous_size_);
+    }
     for (std::size_t j = 0; j < previous_size_; ++j)
       previous_position_[previous_index(j)] = static_cast<std::uint32_t>(j);
     source.carried = carried_.data();
