@@ -8,6 +8,20 @@
 
 namespace nurbsreg::icp {
 
+namespace {
+// body(begin, end) over blocks of [0, n): in parallel, or on the calling thread only (a serial
+// query, CorrespondenceQuery::parallel).
+template <class Body>
+void for_blocks(bool parallel, std::size_t n, const Body& body) {
+  if (!parallel) {
+    body(std::size_t{0}, n);
+    return;
+  }
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 4096),
+                    [&](const tbb::blocked_range<std::size_t>& r) { body(r.begin(), r.end()); });
+}
+}  // namespace
+
 ModelCorrespondenceFinder::ModelCorrespondenceFinder(const engine::PreparedModel& model)
     : projector_(model), certificate_radius_(1e-2 * model.bounds().diagonal()) {
   atlas_.reset(cell_side());
@@ -80,17 +94,10 @@ ModelCorrespondenceFinder::HintSource ModelCorrespondenceFinder::prepare_hints(
   } else if (has_previous_) {
     // The projection overwrites results_, so the previous answers move out first.
     carried_.resize(previous_size_);
-    const auto carry = [&](std::size_t begin, std::size_t end) {
+    for_blocks(query.parallel, previous_size_, [&](std::size_t begin, std::size_t end) {
       for (std::size_t j = begin; j < end; ++j)
         carried_[j] = results_.hint(j);
-    };
-    if (query.parallel) {
-      tbb::parallel_for(
-          tbb::blocked_range<std::size_t>(0, previous_size_, 4096),
-          [&](const tbb::blocked_range<std::size_t>& r) { carry(r.begin(), r.end()); });
-    } else {
-      carry(0, previous_size_);
-    }
+    });
     for (std::size_t j = 0; j < previous_size_; ++j)
       previous_position_[previous_index(j)] = static_cast<std::uint32_t>(j);
     source.carried = carried_.data();
@@ -171,7 +178,7 @@ void ModelCorrespondenceFinder::find(const CorrespondenceQuery& query,
     projector_.project_serial(points, options, results_, hints, &counters_);
   }
   remember_query(query, repeats);
-  const auto answer = [&](std::size_t begin, std::size_t end) {
+  for_blocks(query.parallel, n, [&](std::size_t begin, std::size_t end) {
     for (std::size_t k = begin; k < end; ++k) {
       Correspondence& c = out[k];
       c.valid = results_.status[k] == engine::ProjectionStatus::ok;
@@ -181,14 +188,7 @@ void ModelCorrespondenceFinder::find(const CorrespondenceQuery& query,
       c.distance = results_.distance[k];
       c.on_boundary = beyond_edge(k, query.points[k]);
     }
-  };
-  if (query.parallel) {
-    tbb::parallel_for(
-        tbb::blocked_range<std::size_t>(0, n, 4096),
-        [&](const tbb::blocked_range<std::size_t>& r) { answer(r.begin(), r.end()); });
-  } else {
-    answer(0, n);
-  }
+  });
   // New certificates (made only when certifying; anchored at this query's point) join the
   // atlas, in query order (the atlas is not thread-safe, and its order decides which of two
   // covering certificates a later point borrows).
