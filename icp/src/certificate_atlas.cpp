@@ -56,7 +56,11 @@ void CertificateAtlas::insert(const engine::ProjectionHint& hint) {
   while (slots_[i].key != 0 && slots_[i].key != k)
     i = (i + 1) & mask;
   if (slots_[i].key == k) {
-    hints_[slots_[i].hint] = hint;  // the newest anchor of the cell
+    // The cell keeps the anchor with the larger clearance (the newer one on a tie): near a patch
+    // edge the clearance is short, and a borrowed certificate proves a query only when the
+    // query's distance plus its distance from the anchor stays below it.
+    engine::ProjectionHint& kept = hints_[slots_[i].hint];
+    if (hint.certificate.clearance >= kept.certificate.clearance) kept = hint;
     return;
   }
   if (2 * (hints_.size() + 1) > slots_.size()) {
@@ -82,20 +86,31 @@ const engine::ProjectionHint* CertificateAtlas::find_in_cell(const engine::Vec3&
   return nullptr;
 }
 
+namespace {
+// What a covering certificate leaves for p's own distance: it proves p's answer when that
+// distance is at most clearance - |p - anchor|.
+double slack(const engine::ProjectionHint& h, const engine::Vec3& p) {
+  return static_cast<double>(h.certificate.clearance) - h.certificate.distance_to_anchor(p);
+}
+}  // namespace
+
 const engine::ProjectionHint* CertificateAtlas::find(const engine::Vec3& p) const {
   if (hints_.empty()) return nullptr;
-  if (const engine::ProjectionHint* h = find_in_cell(p, p)) return h;
-  // The six face neighbours: a surface sampled more sparsely than the cells leaves some of its
-  // cells empty.
   const double side = 1.0 / inverse_cell_;
+  const engine::ProjectionHint* best = find_in_cell(p, p);
+  // Enough slack for any point within a cell of the surface: take it. Otherwise (p's cell is
+  // empty, or its anchor's foot is near a patch edge) the six face neighbours may do better; a
+  // surface sampled more sparsely than the cells also leaves some of its cells empty.
+  if (best != nullptr && slack(*best, p) >= side) return best;
   for (int axis = 0; axis < 3; ++axis) {
     for (const double sign : {-1.0, 1.0}) {
       engine::Vec3 q = p;
       q[axis] += sign * side;
-      if (const engine::ProjectionHint* h = find_in_cell(p, q)) return h;
+      const engine::ProjectionHint* h = find_in_cell(p, q);
+      if (h != nullptr && (best == nullptr || slack(*h, p) > slack(*best, p))) best = h;
     }
   }
-  return nullptr;
+  return best;
 }
 
 }  // namespace nurbsreg::icp
