@@ -18,11 +18,12 @@ namespace {
 
 using engine::Vec3;
 
-engine::ProjectionHint hint_at(const Vec3& anchor, double radius, int patch) {
+engine::ProjectionHint hint_at(const Vec3& anchor, double radius, int patch,
+                               double clearance = 1.0) {
   engine::WarmCertificate c;
   c.anchor = anchor.cast<float>();
   c.radius = static_cast<float>(radius);
-  c.clearance = 1.0;
+  c.clearance = static_cast<float>(clearance);
   c.patch = patch;
   return engine::ProjectionHint(0, 0.5, 0.5, c);
 }
@@ -45,10 +46,39 @@ TEST(CertificateAtlas, ReturnsOnlyCertificatesThatCoverThePoint) {
   EXPECT_EQ(h->certificate.patch, 7);
   // Far away (and beyond the key's 21-bit range, where keys wrap): never a wrong certificate.
   EXPECT_EQ(atlas.find(Vec3(0.1 + 0.25 * (1 << 21), 0.1, 0.1)), nullptr);
-  // The newest anchor of a cell replaces the older one.
+  // A newer anchor of the cell with at least the same clearance replaces the older one.
   atlas.insert(hint_at(Vec3(0.12, 0.1, 0.1), 0.2, 9));
   EXPECT_EQ(atlas.size(), 1u);
   EXPECT_EQ(atlas.find(Vec3(0.12, 0.1, 0.1))->certificate.patch, 9);
+}
+
+// Near a patch edge certificates have short clearances, and a borrowed one proves a query only
+// if the query's distance plus its distance from the anchor stays below the clearance: a cell
+// keeps its anchor with the larger clearance, and a point whose own cell offers little slack
+// (clearance - distance from the anchor) takes a face neighbour's certificate with more.
+TEST(CertificateAtlas, PrefersCertificatesWithMoreSlack) {
+  CertificateAtlas atlas;
+  atlas.reset(0.25);
+  atlas.insert(hint_at(Vec3(0.1, 0.1, 0.1), 0.4, 1, 0.8));
+  atlas.insert(hint_at(Vec3(0.12, 0.1, 0.1), 0.4, 2, 0.05));  // same cell, shorter: not kept
+  EXPECT_EQ(atlas.find(Vec3(0.1, 0.1, 0.1))->certificate.patch, 1);
+  atlas.insert(hint_at(Vec3(0.11, 0.1, 0.1), 0.4, 3, 0.8));  // same clearance, newer: kept
+  EXPECT_EQ(atlas.find(Vec3(0.1, 0.1, 0.1))->certificate.patch, 3);
+
+  // Cell (0, 0, 0) with a short clearance, its +x neighbour with a long one.
+  atlas.reset(0.25);
+  atlas.insert(hint_at(Vec3(0.2, 0.1, 0.1), 0.4, 4, 0.1));
+  atlas.insert(hint_at(Vec3(0.3, 0.1, 0.1), 0.4, 5, 0.9));
+  // Slack in the own cell 0.1 - 0.05 < one cell: the neighbour's 0.9 - 0.05 wins.
+  EXPECT_EQ(atlas.find(Vec3(0.25 - 1e-3, 0.1, 0.1))->certificate.patch, 5);
+  // Enough slack in the own cell (long clearance): kept without looking further.
+  atlas.insert(hint_at(Vec3(0.21, 0.1, 0.1), 0.4, 6, 0.7));
+  EXPECT_EQ(atlas.find(Vec3(0.2, 0.1, 0.1))->certificate.patch, 6);
+  // The neighbour does not cover the point: the own cell's certificate even with little slack.
+  atlas.reset(0.25);
+  atlas.insert(hint_at(Vec3(0.2, 0.1, 0.1), 0.4, 7, 0.1));
+  atlas.insert(hint_at(Vec3(0.4, 0.1, 0.1), 0.1, 8, 0.9));
+  EXPECT_EQ(atlas.find(Vec3(0.1, 0.1, 0.1))->certificate.patch, 7);
 }
 
 TEST(CertificateAtlas, GrowsAndFindsEveryAnchor) {

@@ -6,8 +6,11 @@
 // them (ModelCorrespondenceFinder).
 //
 // A hash table over a cubic grid (open addressing, linear probing) keeping, per cell, the hint
-// (foot and certificate) of the last anchor inserted there. Built and read by the owner's thread;
-// `find` is const and may be called from many threads at once while nothing is inserted.
+// (foot and certificate) of the anchor inserted there with the largest clearance (the newest of
+// equals): near a patch edge clearances are short, and a borrowed certificate proves a query only
+// when the query's distance plus its distance from the anchor stays below the clearance. Built and
+// read by the owner's thread; `find` is const and may be called from many threads at once while
+// nothing is inserted.
 
 #include <cstdint>
 #include <vector>
@@ -23,7 +26,8 @@ class CertificateAtlas {
   // Adds a hint whose certificate has radius > 0 (others are ignored).
   void insert(const engine::ProjectionHint& hint);
   // A hint kept for p's cell or one of its six face neighbours whose certificate covers p
-  // (|p - anchor| <= radius), else null.
+  // (|p - anchor| <= radius), else null: p's own cell's when it leaves at least one cell side of
+  // slack (clearance - |p - anchor|), otherwise the covering one with the most slack.
   const engine::ProjectionHint* find(const engine::Vec3& p) const;
   std::size_t size() const { return hints_.size(); }
 
