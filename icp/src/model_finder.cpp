@@ -52,7 +52,7 @@ bool ModelCorrespondenceFinder::repeats_previous_query(const CorrespondenceQuery
   return ids.size() == n && std::equal(ids.begin(), ids.end(), previous_indices_.begin());
 }
 
-// Point k's hint (engine::HintView): its previous answer, if it had one, and a certificate
+// Point k's hint (engine::HintView): its previous answer, if it had one, or a certificate
 // borrowed from the atlas when that one does not cover the point.
 struct ModelCorrespondenceFinder::HintSource {
   // Same query as before: the previous answers, read in place (the projector reads hint k
@@ -63,32 +63,42 @@ struct ModelCorrespondenceFinder::HintSource {
   const std::uint32_t* previous_position = nullptr;
   std::size_t scan_size = 0;
   std::span<const std::size_t> scan_indices;
-  const CertificateAtlas* atlas = nullptr;
-  const engine::Vec3* points = nullptr;
+  // Per point, the atlas's certificate to use instead (null: its own hint), looked up before
+  // the projection: in a loop of their own the lookups' cache misses overlap, inside the
+  // projection's they would wait one after another (measured: 40-60 ms more per 1 M points).
+  const engine::ProjectionHint* const* borrowed = nullptr;
+  std::size_t count = 0;  // query points
 
-  static engine::ProjectionHint at(const void* data, std::size_t k) {
-    const auto& source = *static_cast<const HintSource*>(data);
-    engine::ProjectionHint h;
-    if (source.in_place != nullptr) {
-      h = source.in_place->hint(k);
-    } else if (source.carried != nullptr) {
-      const std::size_t s = source.scan_indices.empty() ? k : source.scan_indices[k];
-      if (s < source.scan_size && source.previous_position[s] != kNoPosition) {
-        h = source.carried[source.previous_position[s]];
+  engine::ProjectionHint own(std::size_t k) const {
+    if (in_place != nullptr) return in_place->hint(k);
+    if (carried != nullptr) {
+      const std::size_t s = scan_indices.empty() ? k : scan_indices[k];
+      if (s < scan_size && previous_position[s] != kNoPosition) {
+        return carried[previous_position[s]];
       }
     }
-    if (!h.certificate.covers(source.points[k])) {
-      if (const engine::ProjectionHint* b = source.atlas->find(source.points[k])) h = *b;
+    return {};
+  }
+  static engine::ProjectionHint at(const void* data, std::size_t k) {
+    const auto& source = *static_cast<const HintSource*>(data);
+    if (source.borrowed != nullptr) {
+      // The projector asks in index order within its blocks: fetch a later point's borrowed
+      // hint (random in the atlas) while this one is projected.
+      constexpr std::size_t kAhead = 8;
+      if (k + kAhead < source.count && source.borrowed[k + kAhead] != nullptr) {
+        const auto* ahead = reinterpret_cast<const char*>(source.borrowed[k + kAhead]);
+        __builtin_prefetch(ahead);
+        __builtin_prefetch(ahead + sizeof(engine::ProjectionHint) - 1);
+      }
+      if (source.borrowed[k] != nullptr) return *source.borrowed[k];
     }
-    return h;
+    return source.own(k);
   }
 };
 
 ModelCorrespondenceFinder::HintSource ModelCorrespondenceFinder::prepare_hints(
     const CorrespondenceQuery& query, bool repeats) {
   HintSource source;
-  source.atlas = &atlas_;
-  source.points = query.points.data();
   if (repeats) {
     source.in_place = &results_;
   } else if (has_previous_) {
@@ -104,6 +114,18 @@ ModelCorrespondenceFinder::HintSource ModelCorrespondenceFinder::prepare_hints(
     source.previous_position = previous_position_.data();
     source.scan_size = previous_position_.size();
     source.scan_indices = query.scan_indices;
+  }
+  if (atlas_.size() > 0) {
+    const std::size_t n = query.points.size();
+    borrowed_.resize(n);
+    for_blocks(query.parallel, n, [&](std::size_t begin, std::size_t end) {
+      for (std::size_t k = begin; k < end; ++k) {
+        const engine::Vec3& p = query.points[k];
+        borrowed_[k] = source.own(k).certificate.covers(p) ? nullptr : atlas_.find(p);
+      }
+    });
+    source.borrowed = borrowed_.data();
+    source.count = n;
   }
   return source;
 }

@@ -70,6 +70,8 @@ class ModelCorrespondenceFinder final : public CorrespondenceFinder {
   static constexpr std::uint32_t kNoPosition = 0xffffffffu;
   engine::FrameVector<engine::ProjectionHint> carried_;
   engine::FrameVector<std::uint32_t> previous_position_;
+  // Per query point: the atlas certificate it borrows, or null (HintSource::borrowed).
+  engine::FrameVector<const engine::ProjectionHint*> borrowed_;
   CertificateAtlas atlas_;
 };
 
