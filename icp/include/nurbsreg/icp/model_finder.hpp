@@ -7,12 +7,14 @@
 // its results when a query names the same scan points as the one before (the iterations of one
 // stage); otherwise (the first query of a coarse-to-fine stage) copied out of them for the
 // points the two queries share, which are found through a position per scan point (4 bytes).
+// Only the previous query's answers carry over: a scan point left out of it starts afresh.
 //
 // Once the solver expects small moves (CorrespondenceQuery::expected_motion below half the
 // certificate radius), projections also make warm certificates (engine::WarmCertificate): the
 // next iterations then answer each point with one Newton on one patch. Points without a
 // certificate of their own (the full-resolution stage's points that the coarse stages did not
-// use) borrow a neighbour's from a CertificateAtlas.
+// use) borrow a neighbour's from a CertificateAtlas, looked up before the projection (a pointer
+// per query point).
 
 #include <vector>
 
