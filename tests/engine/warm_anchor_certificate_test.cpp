@@ -11,10 +11,12 @@
 // Models: a bicubic sheet with C0 creases (random knots of full multiplicity), a hairpin (two
 // layers 0.3 apart: two near-equal minima everywhere between them), the same fold inside one
 // degree-5 patch (the other layer is the anchor's own patch), two stacked sheets (the clearance
-// must see the other surface), and the rational sphere (no certificates).
+// must see the other surface), and the rational sphere (no certificates). A ramp patch gives
+// queries inside a certificate's ball whose answer lies on the same patch outside the box N.
 #include <gtest/gtest.h>
 #include <tbb/global_control.h>
 
+#include <algorithm>
 #include <cmath>
 #include <random>
 
@@ -298,6 +300,76 @@ TEST_P(WarmAnchorAnswers, EqualBruteForce) {
 }
 
 INSTANTIATE_TEST_SUITE_P(RadiusCaps, WarmAnchorAnswers, ::testing::Values(0.0, 0.03));
+
+// One bicubic patch, flat along x for most of it, then ramping up 6 units over its last third:
+// F is not convex over the whole patch for points above the ramp's bowl, so their certificates'
+// boxes N are sub-boxes, while the flat and gently curved parts give them wide radii.
+NurbsSurface ramp() {
+  NurbsSurface s;
+  s.name = "ramp";
+  s.degree_u = s.degree_v = 3;
+  s.count_u = s.count_v = 4;
+  s.knots_u = s.knots_v = {0, 0, 0, 0, 1, 1, 1, 1};
+  for (int i = 0; i < 4; ++i) {
+    for (int j = 0; j < 4; ++j)
+      s.control_points.emplace_back(2.0 * i, 2.0 * j, i == 3 ? 6.0 : 0.0);
+  }
+  return s;
+}
+
+// A query inside a certificate's ball whose closest point is on the certificate's own patch but
+// outside its box N: the certificate proves nothing, and the patch must still be searched (its
+// Newton on N only gave an upper bound). Moves of up to the radius from anchors above the ramp;
+// each answer against brute force, and the decisive cases (N's own minimum is not the answer)
+// must occur.
+TEST(WarmAnchorCertificate, AnswersOnTheSamePatchOutsideTheBoxStayExact) {
+  const NurbsSurface surface = ramp();
+  const PreparedModel pm{model_of({surface})};
+  const test::SurfaceReference reference(surface);
+  const BezierPatch& patch = pm.patch(0).patch;
+  Projector projector(pm);
+  ProjectionOptions options;
+  options.certify = true;
+  options.certificate_radius = 0.5 * pm.bounds().diagonal();
+  const double tolerance = 1e-9 * pm.bounds().diagonal();
+  int sub_boxes = 0, decisive = 0;
+  for (const double x : {1.0, 3.0, 5.0}) {
+    for (const double z : {3.0, 5.0, 7.0}) {
+      const std::vector<Vec3> anchor{Vec3(x, 3.0, z)};
+      ProjectionResults made;
+      projector.project(PointView::of(anchor), options, made);
+      const WarmCertificate& c = made.certificate[0];
+      if (!(c.radius > 0.0f) || (c.s0 == 0.0f && c.s1 == 1.0f && c.t0 == 0.0f && c.t1 == 1.0f)) {
+        continue;
+      }
+      ++sub_boxes;
+      for (const Vec3& direction : {Vec3(1, 0, 0), Vec3(-1, 0, 0), Vec3(0, 1, 0), Vec3(0, 0, 1),
+                                    Vec3(0, 0, -1), Vec3(1, 1, 1).normalized()}) {
+        for (const double fraction : {0.3, 0.6, 0.9, 1.0}) {
+          const std::vector<Vec3> query{anchor[0] + fraction * c.radius * direction};
+          const std::vector<ProjectionHint> hint{made.hint(0)};
+          ProjectionResults warm;
+          projector.project(PointView::of(query), ProjectionOptions{}, warm, hint);
+          const test::ReferenceHit exact = reference.closest(query[0]);
+          ASSERT_EQ(warm.status[0], ProjectionStatus::ok);
+          EXPECT_NEAR(warm.distance[0], std::sqrt(exact.distance_sq), tolerance)
+              << "anchor " << anchor[0].transpose() << ", query " << query[0].transpose();
+          // Decisive: N's own minimum (a Newton on N, as the warm path runs it) is not the answer.
+          double s = std::clamp(patch.param_u.to_local(made.u[0]), double(c.s0), double(c.s1));
+          double t = std::clamp(patch.param_v.to_local(made.v[0]), double(c.t0), double(c.t1));
+          Vec3 foot;
+          const double on_n = std::sqrt(
+              newton_on_patch(patch, query[0], c.s0, c.s1, c.t0, c.t1, s, t, foot, nullptr));
+          if (on_n > std::sqrt(exact.distance_sq) + 1e3 * tolerance) ++decisive;
+        }
+      }
+    }
+  }
+  EXPECT_GE(sub_boxes, 2);
+  EXPECT_GE(decisive, 4);
+  std::printf("[ report ] %d certificates on sub-boxes, %d queries answered outside N\n", sub_boxes,
+              decisive);
+}
 
 TEST(WarmAnchorCertificate, SameCertificatesForAnyThreadCount) {
   const Model model = test_models().front();
