@@ -22,17 +22,9 @@ using namespace nurbsreg::engine;
 using nurbsreg::test::uniform;
 
 NurbsSurface single_patch() {
-  NurbsSurface s;
-  s.name = "curved_bicubic";
-  s.degree_u = s.degree_v = 3;
-  s.count_u = s.count_v = 4;
-  s.knots_u = s.knots_v = {0, 0, 0, 0, 1, 1, 1, 1};
   const double z[4][4] = {{0, 3, -3, 0}, {3, -6, 6, -3}, {-3, 6, -6, 3}, {0, -3, 3, 0}};
-  for (int i = 0; i < 4; ++i) {
-    for (int j = 0; j < 4; ++j)
-      s.control_points.emplace_back(i, j, z[i][j]);
-  }
-  return s;
+  return nurbsreg::test::bicubic_patch("curved_bicubic",
+                                       [&](int i, int j) { return Vec3(i, j, z[i][j]); });
 }
 
 // 10 x 10 control points, uniform knots: 7 x 7 = 49 bicubic Bézier patches; a wavy panel.

@@ -125,17 +125,8 @@ Comparison compare_with_reference(const NurbsSurface& s, const std::vector<Vec3>
 
 // Seed 001 Fig. 4 style: a strongly curved bicubic Bézier surface.
 NurbsSurface curved_bicubic() {
-  NurbsSurface s;
-  s.name = "curved_bicubic";
-  s.degree_u = s.degree_v = 3;
-  s.count_u = s.count_v = 4;
-  s.knots_u = s.knots_v = {0, 0, 0, 0, 1, 1, 1, 1};
   const double z[4][4] = {{0, 3, -3, 0}, {3, -6, 6, -3}, {-3, 6, -6, 3}, {0, -3, 3, 0}};
-  for (int i = 0; i < 4; ++i) {
-    for (int j = 0; j < 4; ++j)
-      s.control_points.emplace_back(i, j, z[i][j]);
-  }
-  return s;
+  return test::bicubic_patch("curved_bicubic", [&](int i, int j) { return Vec3(i, j, z[i][j]); });
 }
 
 TEST(SurfaceProjection, Seed001RobustnessOffsetTest) {

@@ -305,16 +305,8 @@ INSTANTIATE_TEST_SUITE_P(RadiusCaps, WarmAnchorAnswers, ::testing::Values(0.0, 0
 // F is not convex over the whole patch for points above the ramp's bowl, so their certificates'
 // boxes N are sub-boxes, while the flat and gently curved parts give them wide radii.
 NurbsSurface ramp() {
-  NurbsSurface s;
-  s.name = "ramp";
-  s.degree_u = s.degree_v = 3;
-  s.count_u = s.count_v = 4;
-  s.knots_u = s.knots_v = {0, 0, 0, 0, 1, 1, 1, 1};
-  for (int i = 0; i < 4; ++i) {
-    for (int j = 0; j < 4; ++j)
-      s.control_points.emplace_back(2.0 * i, 2.0 * j, i == 3 ? 6.0 : 0.0);
-  }
-  return s;
+  return test::bicubic_patch(
+      "ramp", [](int i, int j) { return Vec3(2.0 * i, 2.0 * j, i == 3 ? 6.0 : 0.0); });
 }
 
 // A query inside a certificate's ball whose closest point is on the certificate's own patch but

@@ -4,6 +4,8 @@
 
 #include <algorithm>
 #include <random>
+#include <string>
+#include <utility>
 
 #include "nurbsreg/engine/nurbs_curve.hpp"
 #include "nurbsreg/engine/nurbs_surface.hpp"
@@ -13,6 +15,22 @@ namespace nurbsreg::test {
 using engine::NurbsCurve;
 using engine::NurbsSurface;
 using engine::Vec3;
+
+// One bicubic Bézier patch (a single-span NURBS surface, domain [0, 1]^2) with control point
+// (i, j) at point(i, j), i along u, for i, j in 0..3.
+template <class ControlPoint>
+NurbsSurface bicubic_patch(std::string name, ControlPoint point) {
+  NurbsSurface s;
+  s.name = std::move(name);
+  s.degree_u = s.degree_v = 3;
+  s.count_u = s.count_v = 4;
+  s.knots_u = s.knots_v = {0, 0, 0, 0, 1, 1, 1, 1};
+  for (int i = 0; i < 4; ++i) {
+    for (int j = 0; j < 4; ++j)
+      s.control_points.push_back(point(i, j));
+  }
+  return s;
+}
 
 inline double uniform(std::mt19937_64& rng, double lo, double hi) {
   return lo + (hi - lo) * static_cast<double>(rng() >> 11) * 0x1.0p-53;
