@@ -231,13 +231,22 @@ TEST_F(ProjectionTest, HintsReadInPlaceFromTheResultsEqualCopiedHints) {
   });
   ProjectionCounters in_place_counters;
   projector.project(PointView::of(moved), options, in_place, own, &in_place_counters);
+  // The same on the calling thread only.
+  ProjectionResults serial_in_place = first;
+  const HintView serial_own(&serial_in_place, serial_in_place.size(),
+                            [](const void* d, std::size_t i) {
+                              return static_cast<const ProjectionResults*>(d)->hint(i);
+                            });
+  projector.project_serial(PointView::of(moved), options, serial_in_place, serial_own);
 
   ASSERT_GT(array_counters.certified, points.size() / 4);  // the certificates were used
   EXPECT_EQ(in_place_counters.certified, array_counters.certified);
   EXPECT_EQ(in_place_counters.certificates_made, array_counters.certificates_made);
   EXPECT_EQ(in_place_counters.patches_visited, array_counters.patches_visited);
-  for (std::size_t i = 0; i < points.size(); ++i)
+  for (std::size_t i = 0; i < points.size(); ++i) {
     ASSERT_TRUE(same_entry(in_place, from_array, i));
+    ASSERT_TRUE(same_entry(serial_in_place, from_array, i));
+  }
 }
 
 TEST_F(ProjectionTest, HintCountMustMatchThePoints) {
