@@ -65,6 +65,13 @@ std::vector<Vec3> query_points(const Aabb& box, std::size_t n, std::uint64_t see
          << (same_certificate ? "" : " (certificates differ)");
 }
 
+// The hints of `results` read in place: point i's is results.hint(i).
+HintView hints_of(const ProjectionResults& results) {
+  return HintView(&results, results.size(), [](const void* d, std::size_t i) {
+    return static_cast<const ProjectionResults*>(d)->hint(i);
+  });
+}
+
 class ProjectionTest : public ::testing::Test {
  protected:
   ProjectionTest() : prepared_(mixed_model()), points_(query_points(prepared_.bounds(), 3000, 7)) {}
@@ -226,17 +233,12 @@ TEST_F(ProjectionTest, HintsReadInPlaceFromTheResultsEqualCopiedHints) {
   ProjectionCounters array_counters;
   projector.project(PointView::of(moved), options, from_array, copied, &array_counters);
   ProjectionResults in_place = first;
-  const HintView own(&in_place, in_place.size(), [](const void* d, std::size_t i) {
-    return static_cast<const ProjectionResults*>(d)->hint(i);
-  });
+  const HintView own = hints_of(in_place);
   ProjectionCounters in_place_counters;
   projector.project(PointView::of(moved), options, in_place, own, &in_place_counters);
   // The same on the calling thread only.
   ProjectionResults serial_in_place = first;
-  const HintView serial_own(&serial_in_place, serial_in_place.size(),
-                            [](const void* d, std::size_t i) {
-                              return static_cast<const ProjectionResults*>(d)->hint(i);
-                            });
+  const HintView serial_own = hints_of(serial_in_place);
   projector.project_serial(PointView::of(moved), options, serial_in_place, serial_own);
 
   ASSERT_GT(array_counters.certified, points.size() / 4);  // the certificates were used
