@@ -168,9 +168,9 @@ struct PointView {
 };
 
 // The hints of a frame without a per-point array: any source that can hand out point i's hint
-// (empty: no hints). The projector calls at(data, i) once per point, from the thread that
-// projects point i, before it writes any result of point i, and for no other index; so the
-// source may read the very ProjectionResults being written (the previous pass's answers, in
+// (empty: no hints). The projector calls at(data, i) at most once per point (not for skipped
+// points), from the thread that projects point i, before it writes any result of point i. So
+// the source may read the very ProjectionResults being written (the previous pass's answers, in
 // place: ProjectionResults::hint(i)), which saves a frame-sized hint array (~70 bytes a point).
 struct HintView {
   using Source = ProjectionHint (*)(const void* data, std::size_t i);
