@@ -16,15 +16,15 @@
 
 namespace nurbsreg::engine {
 
-void ProjectionResults::resize(std::size_t n) {
+void ProjectionResults::resize(std::size_t n, bool feet) {
   certificate.resize(n);
-  foot.resize(n);
+  foot.resize(feet ? n : 0);
   distance.resize(n);
   signed_distance.resize(n);
   entity.resize(n);
   u.resize(n);
   v.resize(n);
-  normal.resize(n);
+  normal.resize(feet ? n : 0);
   status.resize(n);
   on_trim_edge.resize(n);
 }
@@ -64,14 +64,27 @@ namespace {
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
+// Foot and normal of point i: to the sink, or to the results.
+void write_foot(ProjectionResults& out, const FootSink& sink, std::size_t i, const Vec3& foot,
+                const Vec3& normal) {
+  if (sink) {
+    sink.write(sink.data, i, foot, normal);
+  } else {
+    out.foot[i] = foot;
+    out.normal[i] = normal;
+  }
+}
+
 void write_missing(ProjectionResults& out, std::size_t i, ProjectionStatus status) {
-  out.foot[i] = Vec3::Constant(kNaN);
+  if (!out.foot.empty()) {  // empty when a FootSink takes the feet (it gets none here)
+    out.foot[i] = Vec3::Constant(kNaN);
+    out.normal[i] = Vec3::Zero();
+  }
   out.distance[i] = kNaN;
   out.signed_distance[i] = kNaN;
   out.entity[i] = -1;
   out.u[i] = kNaN;
   out.v[i] = kNaN;
-  out.normal[i] = Vec3::Zero();
   out.on_trim_edge[i] = 0;
   out.status[i] = status;
 }
@@ -412,14 +425,13 @@ void Projector::project_range(PointView points, const ProjectionOptions& options
       if (n.isZero(0.0)) n = surface_normal(s, best.u, best.v);
       // A reversed face's outer side is -(S_u x S_v): normal and signed distance follow it.
       if (s.reversed) n = -n;
-      out.foot[i] = best.foot;
+      write_foot(out, options.foot_sink, i, best.foot, n);
       out.distance[i] = distance;
       out.signed_distance[i] = (p - best.foot).dot(n) < 0.0 ? -distance : distance;
       out.entity[i] = best_surface;
       out.u[i] = best.u;
       out.v[i] = best.v;
       out.on_trim_edge[i] = best_edge >= 0 ? 1 : 0;
-      out.normal[i] = n;
     } else {
       CurveHit best;
       int best_curve = -1;
@@ -453,13 +465,12 @@ void Projector::project_range(PointView points, const ProjectionOptions& options
         continue;
       }
       const double distance = std::sqrt(best.distance_sq);
-      out.foot[i] = best.foot;
+      write_foot(out, options.foot_sink, i, best.foot, Vec3::Zero());
       out.distance[i] = distance;
       out.signed_distance[i] = distance;
       out.entity[i] = best_curve;
       out.u[i] = best.u;
       out.v[i] = 0.0;
-      out.normal[i] = Vec3::Zero();
       out.on_trim_edge[i] = 0;
       out.certificate[i] = WarmCertificate{};
     }
@@ -479,7 +490,7 @@ void check_hint_count(PointView points, HintView hints) {
 void Projector::project(PointView points, const ProjectionOptions& options, ProjectionResults& out,
                         HintView hints, ProjectionCounters* counters) {
   check_hint_count(points, hints);
-  out.resize(points.size());
+  out.resize(points.size(), !options.foot_sink);
   for (ThreadState& s : impl_->states) {
     s.counters = {};
     s.surface_stats = {};
@@ -520,7 +531,7 @@ void Projector::project_serial(PointView points, const ProjectionOptions& option
                                ProjectionResults& out, HintView hints,
                                ProjectionCounters* counters) {
   check_hint_count(points, hints);
-  out.resize(points.size());
+  out.resize(points.size(), !options.foot_sink);
   ThreadState& state = impl_->states.local();
   state.counters = {};
   state.surface_stats = {};

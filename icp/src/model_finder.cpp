@@ -158,12 +158,13 @@ void ModelCorrespondenceFinder::remember_query(const CorrespondenceQuery& query,
 // The point lies beyond an open edge of the model when its foot is on a face boundary (a trim
 // edge, as the engine reports, or the surface's domain boundary) and the offset is not along the
 // normal (an interior-type foot, e.g. on a closed seam, has p - foot parallel to the normal).
-bool ModelCorrespondenceFinder::beyond_edge(std::size_t k, const engine::Vec3& p) const {
+bool ModelCorrespondenceFinder::beyond_edge(std::size_t k, const engine::Vec3& p,
+                                            const Correspondence& c) const {
   const int entity = results_.entity[k];
   const double distance = results_.distance[k];
   if (entity < 0 || !(distance > 0.0)) return false;
   const auto off_normal = [&] {
-    return std::abs((p - results_.foot[k]).dot(results_.normal[k])) < (1.0 - 1e-6) * distance;
+    return std::abs((p - c.foot).dot(c.normal)) < (1.0 - 1e-6) * distance;
   };
   if (results_.on_trim_edge[k]) return off_normal();
   const engine::NurbsSurface& s = projector_.model().model().surfaces[entity];
@@ -193,6 +194,13 @@ void ModelCorrespondenceFinder::find(const CorrespondenceQuery& query,
   options.max_distance = query.max_distance;
   options.certify = certify;
   options.certificate_radius = certificate_radius_;
+  // Feet and normals straight into the answers (no copy, 48 bytes a point less in results_).
+  options.foot_sink = {out.data(), [](void* data, std::size_t k, const engine::Vec3& foot,
+                                      const engine::Vec3& normal) {
+                         Correspondence& c = static_cast<Correspondence*>(data)[k];
+                         c.foot = foot;
+                         c.normal = normal;
+                       }};
   const auto points = engine::PointView::of(query.points);
   if (query.parallel) {
     projector_.project(points, options, results_, hints, &counters_);
@@ -205,10 +213,8 @@ void ModelCorrespondenceFinder::find(const CorrespondenceQuery& query,
       Correspondence& c = out[k];
       c.valid = results_.status[k] == engine::ProjectionStatus::ok;
       if (!c.valid) continue;
-      c.foot = results_.foot[k];
-      c.normal = results_.normal[k];
       c.distance = results_.distance[k];
-      c.on_boundary = beyond_edge(k, query.points[k]);
+      c.on_boundary = beyond_edge(k, query.points[k], c);
     }
   });
   // New certificates (made only when certifying; anchored at this query's point) join the

@@ -251,6 +251,57 @@ TEST_F(ProjectionTest, HintsReadInPlaceFromTheResultsEqualCopiedHints) {
   }
 }
 
+// FootSink: feet and normals go to the caller's records instead of the results (which keep no
+// foot or normal), bit for bit the same values, once per point answered `ok` and never for the
+// others; every other field unchanged. Surfaces and curves, NaN points, 2 threads.
+TEST_F(ProjectionTest, FootSinkGetsTheFeetAndNormalsOfAnsweredPoints) {
+  std::vector<Vec3> points(points_);
+  for (std::size_t i = 0; i < points.size(); i += 97)
+    points[i] = Vec3(std::numeric_limits<double>::quiet_NaN(), 0.0, 0.0);
+  struct Record {
+    Vec3 foot = Vec3::Constant(-7.0);
+    Vec3 normal = Vec3::Constant(-7.0);
+    int calls = 0;
+  };
+  tbb::global_control limit(tbb::global_control::max_allowed_parallelism, 2);
+  Projector projector(prepared_);
+  for (const ProjectionTarget target : {ProjectionTarget::surfaces, ProjectionTarget::curves}) {
+    ProjectionOptions options;
+    options.target = target;
+    options.grain = 5;
+    ProjectionResults plain;
+    projector.project(PointView::of(points), options, plain);
+    std::vector<Record> records(points.size());
+    options.foot_sink = {records.data(),
+                         [](void* data, std::size_t i, const Vec3& foot, const Vec3& normal) {
+                           Record& r = static_cast<Record*>(data)[i];
+                           r.foot = foot;
+                           r.normal = normal;
+                           ++r.calls;
+                         }};
+    ProjectionResults sunk = plain;  // stale feet must not survive
+    projector.project(PointView::of(points), options, sunk);
+    EXPECT_TRUE(sunk.foot.empty());
+    EXPECT_TRUE(sunk.normal.empty());
+    ASSERT_EQ(sunk.size(), points.size());
+    for (std::size_t i = 0; i < points.size(); ++i) {
+      ASSERT_EQ(sunk.status[i], plain.status[i]) << i;
+      if (plain.status[i] != ProjectionStatus::ok) {
+        EXPECT_EQ(records[i].calls, 0) << i;
+        continue;
+      }
+      ASSERT_EQ(records[i].calls, 1) << i;
+      EXPECT_EQ(records[i].foot, plain.foot[i]) << i;
+      EXPECT_EQ(records[i].normal, plain.normal[i]) << i;
+      EXPECT_EQ(sunk.distance[i], plain.distance[i]) << i;
+      EXPECT_EQ(sunk.signed_distance[i], plain.signed_distance[i]) << i;
+      EXPECT_EQ(sunk.entity[i], plain.entity[i]) << i;
+      EXPECT_EQ(sunk.u[i], plain.u[i]) << i;
+      EXPECT_EQ(sunk.v[i], plain.v[i]) << i;
+    }
+  }
+}
+
 TEST_F(ProjectionTest, HintCountMustMatchThePoints) {
   Projector projector(prepared_);
   ProjectionResults out;

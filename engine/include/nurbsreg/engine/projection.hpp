@@ -90,6 +90,7 @@ struct ProjectionHint {
 // Structure of arrays, one entry per input point, written by index (FrameVector: huge pages for
 // large frames, large_buffer.hpp).
 struct ProjectionResults {
+  // Empty when ProjectionOptions::foot_sink took the feet and normals (as `normal`).
   FrameVector<Vec3> foot;
   FrameVector<double> distance;         // >= 0, Euclidean
   FrameVector<double> signed_distance;  // positive on the side the normal points to (0 side: +)
@@ -108,13 +109,26 @@ struct ProjectionResults {
   FrameVector<WarmCertificate> certificate;
 
   std::size_t size() const { return status.size(); }
-  void resize(std::size_t n);
+  // Every array to n entries; with feet == false, foot and normal to none (their memory is
+  // kept for a later frame).
+  void resize(std::size_t n, bool feet = true);
   // Copies `part` into entries [offset, offset + part.size()) (frames projected in blocks).
   void copy_from(const ProjectionResults& part, std::size_t offset);
   ProjectionHint hint(std::size_t i) const {
     if (status[i] != ProjectionStatus::ok) return ProjectionHint{};
     return ProjectionHint{entity[i], u[i], v[i], certificate[i]};
   }
+};
+
+// Where a frame's feet and normals go instead of ProjectionResults::foot and ::normal, which then
+// stay empty: e.g. straight into the caller's own per-point records, which saves a copy and
+// 48 bytes a point. write(data, i, foot, normal) is called once for every point whose status is
+// `ok`, from the thread that projects point i; points with another status get no call.
+struct FootSink {
+  void* data = nullptr;
+  void (*write)(void* data, std::size_t i, const Vec3& foot, const Vec3& normal) = nullptr;
+
+  explicit operator bool() const { return write != nullptr; }
 };
 
 struct ProjectionOptions {
@@ -139,6 +153,8 @@ struct ProjectionOptions {
   // Largest anchor radius sought (the certificate's radius is also limited by convexity); <= 0:
   // 0.1% of the model's bounding-box diagonal.
   double certificate_radius = 0.0;
+  // Empty: feet and normals go to ProjectionResults. Set: to the sink only (see FootSink).
+  FootSink foot_sink;
 };
 
 // Work counters summed over a frame (for benchmarks and progress logs).

@@ -33,8 +33,9 @@ class ModelCorrespondenceFinder final : public CorrespondenceFinder {
   void reset(std::size_t scan_size) override;
   void find(const CorrespondenceQuery& query, std::span<Correspondence> out) override;
 
-  // The full projection results of the last find() (entity, u, v, signed distance, ...), in
-  // query order: what `align --aligned` writes per point.
+  // The projection results of the last find() (entity, u, v, signed distance, ...), in query
+  // order: what `align --aligned` writes per point. Without feet and normals (foot and normal
+  // are empty): those went straight into find()'s correspondences.
   const engine::ProjectionResults& last_results() const { return results_; }
   const engine::ProjectionCounters& last_counters() const { return counters_; }
   // Radius cap of the certificates (engine::ProjectionOptions::certificate_radius): 1% of the
@@ -43,7 +44,7 @@ class ModelCorrespondenceFinder final : public CorrespondenceFinder {
   double certificate_radius() const { return certificate_radius_; }
 
  private:
-  bool beyond_edge(std::size_t k, const engine::Vec3& p) const;
+  bool beyond_edge(std::size_t k, const engine::Vec3& p, const Correspondence& c) const;
   double cell_side() const;
   // The previous query's answers as hints for this one (HintSource in the .cpp); after the
   // projection, remember_query clears what it set up and remembers this query.
