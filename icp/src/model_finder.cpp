@@ -60,6 +60,7 @@ struct ModelCorrespondenceFinder::HintSource {
   const engine::ProjectionResults* in_place = nullptr;
   // Otherwise: the copied previous answers, by previous position of scan point s.
   const engine::ProjectionHint* carried = nullptr;
+  std::size_t carried_count = 0;
   const std::uint32_t* previous_position = nullptr;
   std::size_t scan_size = 0;
   std::span<const std::size_t> scan_indices;
@@ -73,7 +74,9 @@ struct ModelCorrespondenceFinder::HintSource {
     if (in_place != nullptr) return in_place->hint(k);
     if (carried != nullptr) {
       const std::size_t s = scan_indices.empty() ? k : scan_indices[k];
-      if (s < scan_size && previous_position[s] != kNoPosition) {
+      // kNoPosition is beyond every count; the bound also keeps a stale position (a find()
+      // that threw between prepare_hints and remember_query) from reading outside `carried`.
+      if (s < scan_size && previous_position[s] < carried_count) {
         return carried[previous_position[s]];
       }
     }
@@ -111,6 +114,7 @@ ModelCorrespondenceFinder::HintSource ModelCorrespondenceFinder::prepare_hints(
     for (std::size_t j = 0; j < previous_size_; ++j)
       previous_position_[previous_index(j)] = static_cast<std::uint32_t>(j);
     source.carried = carried_.data();
+    source.carried_count = previous_size_;
     source.previous_position = previous_position_.data();
     source.scan_size = previous_position_.size();
     source.scan_indices = query.scan_indices;
