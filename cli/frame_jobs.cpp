@@ -67,7 +67,8 @@ ProjectFrameResult project_frame(engine::Projector& projector, const io::PointCl
   engine::ProjectionOptions options;
   options.target = target;
   engine::ProjectionResults results;
-  results.resize(cloud.size());
+  // No certificates: the blocks are projected without hints and without certifying.
+  results.resize(cloud.size(), /*feet=*/true, /*certificates=*/false);
   engine::ProjectionResults block;
   const Stopwatch compute;
   for (std::size_t begin = 0; begin < cloud.size(); begin += kProgressBlock) {

@@ -16,8 +16,8 @@
 
 namespace nurbsreg::engine {
 
-void ProjectionResults::resize(std::size_t n, bool feet) {
-  certificate.resize(n);
+void ProjectionResults::resize(std::size_t n, bool feet, bool certificates) {
+  certificate.resize(certificates ? n : 0);
   foot.resize(feet ? n : 0);
   distance.resize(n);
   signed_distance.resize(n);
@@ -73,6 +73,11 @@ void write_foot(ProjectionResults& out, const FootSink& sink, std::size_t i, con
     out.foot[i] = foot;
     out.normal[i] = normal;
   }
+}
+
+// Point i has no certificate (the array is empty when the frame can have none).
+void clear_certificate(ProjectionResults& out, std::size_t i) {
+  if (!out.certificate.empty()) out.certificate[i] = WarmCertificate{};
 }
 
 void write_missing(ProjectionResults& out, std::size_t i, ProjectionStatus status) {
@@ -222,12 +227,12 @@ void Projector::project_range(PointView points, const ProjectionOptions& options
     if (!p.allFinite()) {
       ++state.counters.skipped;
       write_missing(out, i, ProjectionStatus::skipped_nonfinite);
-      out.certificate[i] = WarmCertificate{};
+      clear_certificate(out, i);
       continue;
     }
     if (entities == 0) {
       write_missing(out, i, ProjectionStatus::no_geometry);
-      out.certificate[i] = WarmCertificate{};
+      clear_certificate(out, i);
       continue;
     }
     // A copy: the source may be `out` itself (HintView), whose entry i is written below.
@@ -382,7 +387,7 @@ void Projector::project_range(PointView points, const ProjectionOptions& options
       }
       if (best_surface < 0) {
         write_missing(out, i, ProjectionStatus::beyond_max_distance);
-        out.certificate[i] = WarmCertificate{};
+        clear_certificate(out, i);
         continue;
       }
       if (proven) {
@@ -398,7 +403,7 @@ void Projector::project_range(PointView points, const ProjectionOptions& options
             tried_here ? hint->certificate
                        : make_certificate(p, best, best_patch, best_edge, certificate_cap, state);
       } else {
-        out.certificate[i] = WarmCertificate{};
+        clear_certificate(out, i);
       }
       const NurbsSurface& s = model.surfaces[best_surface];
       if (best_edge >= 0) {
@@ -461,7 +466,7 @@ void Projector::project_range(PointView points, const ProjectionOptions& options
           });
       if (best_curve < 0) {
         write_missing(out, i, ProjectionStatus::beyond_max_distance);
-        out.certificate[i] = WarmCertificate{};
+        clear_certificate(out, i);
         continue;
       }
       const double distance = std::sqrt(best.distance_sq);
@@ -472,7 +477,7 @@ void Projector::project_range(PointView points, const ProjectionOptions& options
       out.u[i] = best.u;
       out.v[i] = 0.0;
       out.on_trim_edge[i] = 0;
-      out.certificate[i] = WarmCertificate{};
+      clear_certificate(out, i);
     }
     out.status[i] = ProjectionStatus::ok;
   }
@@ -490,7 +495,7 @@ void check_hint_count(PointView points, HintView hints) {
 void Projector::project(PointView points, const ProjectionOptions& options, ProjectionResults& out,
                         HintView hints, ProjectionCounters* counters) {
   check_hint_count(points, hints);
-  out.resize(points.size(), !options.foot_sink);
+  out.resize(points.size(), !options.foot_sink, options.certify || !hints.empty());
   for (ThreadState& s : impl_->states) {
     s.counters = {};
     s.surface_stats = {};
@@ -531,7 +536,7 @@ void Projector::project_serial(PointView points, const ProjectionOptions& option
                                ProjectionResults& out, HintView hints,
                                ProjectionCounters* counters) {
   check_hint_count(points, hints);
-  out.resize(points.size(), !options.foot_sink);
+  out.resize(points.size(), !options.foot_sink, options.certify || !hints.empty());
   ThreadState& state = impl_->states.local();
   state.counters = {};
   state.surface_stats = {};

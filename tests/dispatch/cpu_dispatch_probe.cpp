@@ -55,7 +55,7 @@ void add_results(Digest& d, const ProjectionResults& r, std::size_t n) {
     d.add(&status, 1);
     d.add(&r.entity[i], sizeof r.entity[i]);
     d.add(&r.on_trim_edge[i], sizeof r.on_trim_edge[i]);
-    d.add(r.certificate[i].radius);
+    if (!r.certificate.empty()) d.add(r.certificate[i].radius);
   }
 }
 

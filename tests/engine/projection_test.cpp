@@ -302,6 +302,34 @@ TEST_F(ProjectionTest, FootSinkGetsTheFeetAndNormalsOfAnsweredPoints) {
   }
 }
 
+// The certificate array exists only for frames that can have certificates (certifying, or with
+// hints that may carry them); hint(i) of a frame without one carries none.
+TEST_F(ProjectionTest, CertificatesAreKeptOnlyWhenAFrameCanHaveThem) {
+  Projector projector(prepared_);
+  ProjectionResults cold;
+  projector.project(PointView::of(points_), {}, cold);
+  EXPECT_TRUE(cold.certificate.empty());
+  EXPECT_EQ(cold.hint(0).certificate.radius, 0.0f);
+  EXPECT_EQ(cold.hint(0).entity, cold.entity[0]);
+  std::vector<ProjectionHint> hints(points_.size());
+  for (std::size_t i = 0; i < points_.size(); ++i)
+    hints[i] = cold.hint(i);
+  ProjectionResults warm;
+  projector.project(PointView::of(points_), {}, warm, hints);
+  EXPECT_EQ(warm.certificate.size(), points_.size());
+  ProjectionOptions certify;
+  certify.certify = true;
+  ProjectionResults certifying = cold;
+  projector.project(PointView::of(points_), certify, certifying);
+  EXPECT_EQ(certifying.certificate.size(), points_.size());
+  // Warm starts reach the same minima by other Newton paths: equal to rounding.
+  const double tolerance = 1e-9 * prepared_.bounds().diagonal();
+  for (std::size_t i = 0; i < points_.size(); ++i) {
+    EXPECT_NEAR(warm.distance[i], cold.distance[i], tolerance) << i;
+    EXPECT_EQ(certifying.distance[i], cold.distance[i]) << i;
+  }
+}
+
 TEST_F(ProjectionTest, HintCountMustMatchThePoints) {
   Projector projector(prepared_);
   ProjectionResults out;

@@ -106,17 +106,20 @@ struct ProjectionResults {
   FrameVector<std::uint8_t> on_trim_edge;
   // The certificate that proves this point's answer: the hint's, when it still held (so its
   // anchor may be an earlier point), or a new one (ProjectionOptions::certify); radius 0 if none.
+  // Empty after a frame that neither certified nor had hints (no certificate can exist then;
+  // 44 bytes a point saved).
   FrameVector<WarmCertificate> certificate;
 
   std::size_t size() const { return status.size(); }
-  // Every array to n entries; with feet == false, foot and normal to none (their memory is
-  // kept for a later frame).
-  void resize(std::size_t n, bool feet = true);
+  // Every array to n entries; with feet == false, foot and normal to none, with certificates ==
+  // false, certificate to none (their memory is kept for a later frame).
+  void resize(std::size_t n, bool feet = true, bool certificates = true);
   // Copies `part` into entries [offset, offset + part.size()) (frames projected in blocks).
   void copy_from(const ProjectionResults& part, std::size_t offset);
   ProjectionHint hint(std::size_t i) const {
     if (status[i] != ProjectionStatus::ok) return ProjectionHint{};
-    return ProjectionHint{entity[i], u[i], v[i], certificate[i]};
+    return ProjectionHint{entity[i], u[i], v[i],
+                          certificate.empty() ? WarmCertificate{} : certificate[i]};
   }
 };
 
