@@ -186,8 +186,8 @@ void ModelCorrespondenceFinder::find(const CorrespondenceQuery& query,
                                      std::span<Correspondence> out) {
   const std::size_t n = query.points.size();
   // Certificates are made on the coarse stages' subsamples once the solver expects small moves:
-  // the full-resolution stage then borrows them for the points between (about 90% of its first
-  // pass). Making one costs about two cold projections, so at full resolution, where ICP
+  // the full-resolution stage then borrows them for the points between (about 95% of its first
+  // pass are proven by one). Making one costs about two cold projections, so at full resolution, where ICP
   // usually ends after one more pass, they are used but not made.
   const bool subsample = !query.scan_indices.empty() && query.scan_indices.size() < scan_size_;
   const bool certify = subsample && query.expected_motion < 0.5 * certificate_radius_;
@@ -222,8 +222,8 @@ void ModelCorrespondenceFinder::find(const CorrespondenceQuery& query,
     }
   });
   // New certificates (made only when certifying; anchored at this query's point) join the
-  // atlas, in query order (the atlas is not thread-safe, and its order decides which of two
-  // covering certificates a later point borrows).
+  // atlas, in query order (the atlas is not thread-safe, and between equal clearances the order
+  // decides which one a cell keeps).
   if (certify) {
     for (std::size_t k = 0; k < n; ++k) {
       if (results_.status[k] != engine::ProjectionStatus::ok) continue;
