@@ -186,9 +186,9 @@ void ModelCorrespondenceFinder::find(const CorrespondenceQuery& query,
                                      std::span<Correspondence> out) {
   const std::size_t n = query.points.size();
   // Certificates are made on the coarse stages' subsamples once the solver expects small moves:
-  // the full-resolution stage then borrows them for the points between (about 95% of its first
-  // pass are proven by one). Making one costs about two cold projections, so at full resolution, where ICP
-  // usually ends after one more pass, they are used but not made.
+  // the full-resolution stage then borrows them for the points between (they prove about 95% of
+  // its first pass). Making one costs about two cold projections, so at full resolution, where
+  // ICP usually ends after one more pass, they are used but not made.
   const bool subsample = !query.scan_indices.empty() && query.scan_indices.size() < scan_size_;
   const bool certify = subsample && query.expected_motion < 0.5 * certificate_radius_;
   const bool repeats = repeats_previous_query(query);
