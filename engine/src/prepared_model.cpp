@@ -11,11 +11,6 @@
 namespace nurbsreg::engine {
 namespace {
 
-double sphere_lower_bound(const BoundingSphere& s, const Vec3& p) {
-  const double d = std::max(0.0, (p - s.center).norm() - s.radius);
-  return d * d;
-}
-
 // The frame of a patch's control net: a = the direction between its first and last rows, n the
 // normal of the net's two diagonals' plane made orthogonal to a, b = n x a. Any orthonormal
 // frame gives a valid bound (the control points are projected on each axis); this one makes the
@@ -248,7 +243,7 @@ Vec2 PreparedModel::edge_uv(std::size_t i, double t) const {
 }
 
 double PreparedModel::piece_lower_bound(std::size_t i, const Vec3& p) const {
-  return std::max(piece_boxes_[i].squared_distance(p), sphere_lower_bound(piece_spheres_[i], p));
+  return std::max(piece_boxes_[i].squared_distance(p), piece_spheres_[i].squared_distance(p));
 }
 
 }  // namespace nurbsreg::engine

@@ -5,10 +5,10 @@
 // per-stage index list and the iteration log; nothing per point.
 #include "nurbsreg/icp/icp.hpp"
 
+#include "blocks.hpp"
 #include "nurbsreg/engine/large_buffer.hpp"
 
 #include <spdlog/spdlog.h>
-#include <tbb/parallel_for.h>
 
 #include <Eigen/Eigenvalues>
 #include <Eigen/SVD>
@@ -26,26 +26,10 @@ using Eigen::Isometry3d;
 using Eigen::Matrix3d;
 using engine::Vec3;
 using Clock = std::chrono::steady_clock;
+using detail::for_each_block;
 
 double seconds_since(Clock::time_point start) {
   return std::chrono::duration<double>(Clock::now() - start).count();
-}
-
-// Runs body(begin, end, block) over fixed blocks of kReductionBlock indices in [0, n), on TBB
-// threads or serially. Bodies write only to their own block's slot, so combining the slots
-// in block order afterwards gives the same bits for any thread count (STYLE.md point 9).
-template <class Body>
-void for_each_block(std::size_t n, bool parallel, const Body& body) {
-  const std::size_t blocks = (n + kReductionBlock - 1) / kReductionBlock;
-  const auto run = [&](std::size_t b) {
-    body(b * kReductionBlock, std::min(n, (b + 1) * kReductionBlock), b);
-  };
-  if (parallel && blocks > 1) {
-    tbb::parallel_for(std::size_t{0}, blocks, run);
-  } else {
-    for (std::size_t b = 0; b < blocks; ++b)
-      run(b);
-  }
 }
 
 std::size_t block_count(std::size_t n) {

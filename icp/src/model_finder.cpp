@@ -1,26 +1,11 @@
 #include "nurbsreg/icp/model_finder.hpp"
 
-#include <tbb/blocked_range.h>
-#include <tbb/parallel_for.h>
+#include "blocks.hpp"
 
 #include <algorithm>
 #include <cmath>
 
 namespace nurbsreg::icp {
-
-namespace {
-// body(begin, end) over blocks of [0, n): in parallel, or on the calling thread only (a serial
-// query, CorrespondenceQuery::parallel).
-template <class Body>
-void for_blocks(bool parallel, std::size_t n, const Body& body) {
-  if (!parallel) {
-    body(std::size_t{0}, n);
-    return;
-  }
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 4096),
-                    [&](const tbb::blocked_range<std::size_t>& r) { body(r.begin(), r.end()); });
-}
-}  // namespace
 
 ModelCorrespondenceFinder::ModelCorrespondenceFinder(const engine::PreparedModel& model)
     : projector_(model), certificate_radius_(1e-2 * model.bounds().diagonal()) {
@@ -107,10 +92,11 @@ ModelCorrespondenceFinder::HintSource ModelCorrespondenceFinder::prepare_hints(
   } else if (has_previous_) {
     // The projection overwrites results_, so the previous answers move out first.
     carried_.resize(previous_size_);
-    for_blocks(query.parallel, previous_size_, [&](std::size_t begin, std::size_t end) {
-      for (std::size_t j = begin; j < end; ++j)
-        carried_[j] = results_.hint(j);
-    });
+    detail::for_each_block(previous_size_, query.parallel,
+                           [&](std::size_t begin, std::size_t end, std::size_t) {
+                             for (std::size_t j = begin; j < end; ++j)
+                               carried_[j] = results_.hint(j);
+                           });
     for (std::size_t j = 0; j < previous_size_; ++j)
       previous_position_[previous_index(j)] = static_cast<std::uint32_t>(j);
     source.carried = carried_.data();
@@ -122,7 +108,7 @@ ModelCorrespondenceFinder::HintSource ModelCorrespondenceFinder::prepare_hints(
   if (atlas_.size() > 0) {
     const std::size_t n = query.points.size();
     borrowed_.resize(n);
-    for_blocks(query.parallel, n, [&](std::size_t begin, std::size_t end) {
+    detail::for_each_block(n, query.parallel, [&](std::size_t begin, std::size_t end, std::size_t) {
       for (std::size_t k = begin; k < end; ++k) {
         const engine::Vec3& p = query.points[k];
         borrowed_[k] = source.own(k).certificate.covers(p) ? nullptr : atlas_.find(p);
@@ -212,7 +198,7 @@ void ModelCorrespondenceFinder::find(const CorrespondenceQuery& query,
     projector_.project_serial(points, options, results_, hints, &counters_);
   }
   remember_query(query, repeats);
-  for_blocks(query.parallel, n, [&](std::size_t begin, std::size_t end) {
+  detail::for_each_block(n, query.parallel, [&](std::size_t begin, std::size_t end, std::size_t) {
     for (std::size_t k = begin; k < end; ++k) {
       Correspondence& c = out[k];
       c.valid = results_.status[k] == engine::ProjectionStatus::ok;

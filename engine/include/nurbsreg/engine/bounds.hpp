@@ -2,6 +2,7 @@
 // Bounding volumes from control points: by the convex hull property (positive weights) they
 // contain the piece or patch.
 
+#include <algorithm>
 #include <limits>
 #include <span>
 
@@ -33,6 +34,12 @@ struct Aabb {
 struct BoundingSphere {
   Vec3 center = Vec3::Zero();
   double radius = 0.0;
+
+  // Squared distance from p to the ball (0 inside).
+  double squared_distance(const Vec3& p) const {
+    const double d = std::max(0.0, (p - center).norm() - radius);
+    return d * d;
+  }
 };
 
 Aabb bounding_box(const BezierCurve& piece);

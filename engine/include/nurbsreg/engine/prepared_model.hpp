@@ -15,7 +15,6 @@
 // against one PreparedModel at the same time.
 
 #include <algorithm>
-#include <cmath>
 #include <cstdint>
 #include <vector>
 
@@ -160,11 +159,7 @@ class PreparedModel {
 inline double PreparedModel::item_lower_bound(std::uint32_t k, const Vec3& p) const {
   // The item's axis-aligned box is not repeated here: the hierarchy walk already takes the larger
   // of this bound and the box distance (Bvh::nearest).
-  if (k >= item_oriented_.size()) {  // edge piece: its bounding sphere
-    const BoundingSphere& s = item_spheres_[k];
-    const double d = std::max(0.0, (p - s.center).norm() - s.radius);
-    return d * d;
-  }
+  if (k >= item_oriented_.size()) return item_spheres_[k].squared_distance(p);  // edge piece
   const OrientedBox& ob = item_oriented_[k];
   double oriented = 0.0;
   for (int a = 0; a < 3; ++a) {
