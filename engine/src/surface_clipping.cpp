@@ -141,26 +141,26 @@ int monotone_edge(const FDerivatives& f) {
   return -1;
 }
 
-// convex_polynomial for a fixed grid (R, C): the same differences (element-wise, in the same
-// order of operations) and the same minima and maxima (they do not depend on the order they are
-// taken in), with the columns of a row in vector lanes (vector_lanes below) and one horizontal
-// pass per derivative.
+// second_derivative_ranges for a fixed grid (R, C): the same differences (element-wise, in the
+// same order of operations) and the same minima and maxima (they do not depend on the order they
+// are taken in), with the columns of a row in vector lanes (vector_lanes below) and one
+// horizontal pass per derivative.
 template <int R, int C>
-[[gnu::always_inline]] inline bool convex_polynomial_fixed(const double* a);
+[[gnu::always_inline]] inline bool second_derivative_ranges_fixed(const double* a, FDerivatives& f);
 
-// Polynomial F (D == 1) only: the termination test of `convex` on F's own second derivatives,
-// computed in one pass per derivative with an exit as soon as a bound shows the test fails
-// (min F_ss <= 0 or min F_tt <= 0 fails whatever the margin is). Same result as
-// convex(f_derivatives(...)) for a polynomial patch; the first-derivative ranges are not needed
-// there (monotone_edge is used for rational patches only).
-NURBSREG_HOT_CLONES
-bool convex_polynomial(const double* a, int rows, int cols) {
+// Polynomial F (D == 1) only: the ranges of F's own second derivatives on the box (f.ss, f.tt,
+// f.st; the first-derivative ranges are left alone), computed in one pass per derivative with an
+// exit as soon as min F_ss <= 0 or min F_tt <= 0 (false): `convex` then fails whatever the margin
+// is, and so does any widening of the ranges (grid_convexity_radius). The same values as
+// derivative_ranges. Inlined: it then runs in its callers' own (possibly AVX2) code.
+[[gnu::always_inline]] inline bool second_derivative_ranges(const double* a, int rows, int cols,
+                                                            FDerivatives& f) {
   if (rows < 3 || cols < 3) return false;  // F_ss or F_tt identically zero
   // The grids of bicubic and biquadratic patches (and their mixes) get unrolled code.
-  if (rows == 7 && cols == 7) return convex_polynomial_fixed<7, 7>(a);
-  if (rows == 5 && cols == 5) return convex_polynomial_fixed<5, 5>(a);
-  if (rows == 5 && cols == 7) return convex_polynomial_fixed<5, 7>(a);
-  if (rows == 7 && cols == 5) return convex_polynomial_fixed<7, 5>(a);
+  if (rows == 7 && cols == 7) return second_derivative_ranges_fixed<7, 7>(a, f);
+  if (rows == 5 && cols == 5) return second_derivative_ranges_fixed<5, 5>(a, f);
+  if (rows == 5 && cols == 7) return second_derivative_ranges_fixed<5, 7>(a, f);
+  if (rows == 7 && cols == 5) return second_derivative_ranges_fixed<7, 5>(a, f);
   double ss_lo = std::numeric_limits<double>::infinity(), ss_hi = -ss_lo;
   for (int i = 0; i + 2 < rows; ++i) {
     const double* r0 = a + i * cols;
@@ -193,14 +193,23 @@ bool convex_polynomial(const double* a, int rows, int cols) {
       st_hi = std::max(st_hi, x);
     }
   }
-  // The same scaling and margin as derivative_ranges + convex.
+  // The same scaling as derivative_ranges.
   const int m = rows - 1, n = cols - 1;
   const double ks = double(m) * (m - 1), kt = double(n) * (n - 1), kst = double(m) * n;
-  FDerivatives f{};
   f.ss = {ks * ss_lo, ks * ss_hi};
   f.tt = {kt * tt_lo, kt * tt_hi};
   f.st = {kst * st_lo, kst * st_hi};
-  return convex(f);
+  return true;
+}
+
+// Polynomial F (D == 1) only: the termination test of `convex` on F's own second derivatives,
+// with an exit as soon as a bound shows it fails. Same result as convex(f_derivatives(...)) for a
+// polynomial patch; the first-derivative ranges are not needed there (monotone_edge is used for
+// rational patches only).
+NURBSREG_HOT_CLONES
+bool convex_polynomial(const double* a, int rows, int cols) {
+  FDerivatives f{};
+  return second_derivative_ranges(a, rows, cols, f) && convex(f);
 }
 
 // Binomial coefficients C(n, i), n <= N, exact in double.
@@ -422,7 +431,8 @@ struct SlotRange {
 };
 
 template <int R, int C>
-[[gnu::always_inline]] inline bool convex_polynomial_fixed(const double* a) {
+[[gnu::always_inline]] inline bool second_derivative_ranges_fixed(const double* a,
+                                                                  FDerivatives& f) {
   static_assert(R >= 3 && C >= 3);
   constexpr int m = R - 1, n = C - 1;
   // F_ss: second differences down the columns, all C columns.
@@ -473,13 +483,12 @@ template <int R, int C>
     }
   }
   const Iv st_range = st.reduce();
-  // The same scaling and margin as derivative_ranges + convex.
+  // The same scaling as derivative_ranges.
   const double ks = double(m) * (m - 1), kt = double(n) * (n - 1), kst = double(m) * n;
-  FDerivatives f{};
   f.ss = {ks * ss_range.lo, ks * ss_range.hi};
   f.tt = {kt * tt_range.lo, kt * tt_range.hi};
   f.st = {kst * st_range.lo, kst * st_range.hi};
-  return convex(f);
+  return true;
 }
 
 // patch_derivatives for fixed degrees (P, Q): the same sums, fully unrolled by the compiler, W
@@ -1805,13 +1814,15 @@ bool squared_distance_convex(const PreparedPatch& pp, const Vec3& p, SurfaceScra
   return convex(f_derivatives(n, pp.d.data(), pp.rows, pp.cols, true, {range.lo, range.hi}));
 }
 
+NURBSREG_HOT_CLONES
 double grid_convexity_radius(const double* n, int rows, int cols, double e_ss, double e_tt,
                              double e_st, double r_max) {
   // F's second-derivative ranges on the box (the clipping's own bounds), then `convex` on them
   // widened: N_ij(q) = G_ij - 2 (q - o).E_ij + |q - o|^2, so for |q - a| <= r each second
   // difference moves by at most 2 r |second difference of E| (the constant term has none),
   // scaled like the differences themselves.
-  const DerivativeRanges d = derivative_ranges(n, rows, cols);
+  FDerivatives d{};
+  if (!second_derivative_ranges(n, rows, cols, d)) return 0.0;  // fails at r = 0 already
   const int m = rows - 1, k = cols - 1;
   const double ks = 2.0 * double(m) * (m - 1) * e_ss, kt = 2.0 * double(k) * (k - 1) * e_tt,
                kst = 2.0 * double(m) * k * e_st;

@@ -7,64 +7,114 @@
 namespace nurbsreg::engine {
 namespace {
 
-// de Casteljau restriction of the 1-D Bernstein polynomial c[0], c[stride], ... (degree n) from
-// [0, 1] to [a, b]: the part left of b, then the part of that right of a / b.
-void restrict_line(double* c, int n, int stride, double a, double b) {
-  if (b < 1.0) {
+// `out` = the grid `in` (rows x cols, s along rows) restricted from [0, 1] to [s0, s1] in s: on
+// every column, the de Casteljau restriction of its Bernstein polynomial (degree rows - 1), first
+// to the part left of s1, then to the part of that right of s0 / s1. The columns are the inner
+// loop (whole rows at a time, which vectorises).
+void restrict_s(const double* in, double* out, int rows, int cols, double s0, double s1) {
+  std::copy(in, in + rows * cols, out);
+  const int n = rows - 1;
+  if (s1 < 1.0) {
     for (int r = 1; r <= n; ++r) {
-      for (int k = n; k >= r; --k)
-        c[k * stride] = (1.0 - b) * c[(k - 1) * stride] + b * c[k * stride];
+      for (int k = n; k >= r; --k) {
+        double* row = out + k * cols;
+        const double* prev = row - cols;
+        for (int j = 0; j < cols; ++j)
+          row[j] = (1.0 - s1) * prev[j] + s1 * row[j];
+      }
     }
   }
-  const double t = b > 0.0 ? a / b : 0.0;
+  const double t = s1 > 0.0 ? s0 / s1 : 0.0;
   if (t > 0.0) {
     for (int r = 1; r <= n; ++r) {
-      for (int k = 0; k <= n - r; ++k)
-        c[k * stride] = (1.0 - t) * c[k * stride] + t * c[(k + 1) * stride];
+      for (int k = 0; k <= n - r; ++k) {
+        double* row = out + k * cols;
+        const double* next = row + cols;
+        for (int j = 0; j < cols; ++j)
+          row[j] = (1.0 - t) * row[j] + t * next[j];
+      }
     }
   }
 }
 
-// `out` = the grid `in` (rows x cols, s along rows) restricted to [s0, s1] x [t0, t1].
-void restrict_grid(const double* in, double* out, int rows, int cols, double s0, double s1,
-                   double t0, double t1) {
-  std::copy(in, in + rows * cols, out);
-  for (int j = 0; j < cols; ++j)
-    restrict_line(out + j, rows - 1, cols, s0, s1);
-  for (int i = 0; i < rows; ++i)
-    restrict_line(out + i * cols, cols - 1, 1, t0, t1);
+// `out` (cols x rows) = the transpose of `in` (rows x cols): a restriction in t is then one in s
+// of the transpose (whole rows again), with the same values.
+void transpose(const double* in, double* out, int rows, int cols) {
+  for (int i = 0; i < rows; ++i) {
+    for (int j = 0; j < cols; ++j)
+      out[j * rows + i] = in[i * cols + j];
+  }
+}
+
+// The smallest of x[0, n): four running minima (independent chains, which vectorise), then theirs.
+double smallest_of(const double* x, int n) {
+  const double inf = std::numeric_limits<double>::infinity();
+  double m[4] = {inf, inf, inf, inf};
+  int k = 0;
+  for (; k + 4 <= n; k += 4) {
+    for (int l = 0; l < 4; ++l)
+      m[l] = std::min(m[l], x[k + l]);
+  }
+  for (; k < n; ++k)
+    m[0] = std::min(m[0], x[k]);
+  return std::min(std::min(m[0], m[1]), std::min(m[2], m[3]));
 }
 
 struct LocalBox {
   double s0, s1, t0, t1;
 };
 
+// `out` = the grid `in` restricted to the box (s first, then t), through `work` and `strip`.
+void restrict_grid(const double* in, double* out, double* work, double* strip, int rows, int cols,
+                   const LocalBox& b) {
+  restrict_s(in, work, rows, cols, b.s0, b.s1);
+  transpose(work, strip, rows, cols);
+  restrict_s(strip, work, cols, rows, b.t0, b.t1);
+  transpose(work, out, cols, rows);
+}
+
 // Lower bound of F on P \ N: the eight tiles of P around N (the 3 x 3 tiling by N's sides, less
 // N), each bounded by its restricted grid's smallest coefficient (convex hull property); a tile
-// whose bound is below target_sq is halved once along its longer side and bounded again.
-double outside_lower_bound(const double* full, double* grid, int rows, int cols, const LocalBox& n,
-                           double target_sq, double rounding) {
+// whose bound is below target_sq is halved once along its longer side and bounded again. Each
+// column of tiles shares one restriction in s, kept transposed (`strip`) so that the tiles'
+// restrictions in t run on whole rows too; only their smallest coefficient is needed, which the
+// transpose does not change. `work` and `tile` are scratch grids.
+double outside_lower_bound(const double* full, double* strip, double* work, double* tile, int rows,
+                           int cols, const LocalBox& n, double target_sq, double rounding) {
   const double s_cuts[4] = {0.0, n.s0, n.s1, 1.0};
   const double t_cuts[4] = {0.0, n.t0, n.t1, 1.0};
-  const auto lower = [&](const LocalBox& b) {
-    restrict_grid(full, grid, rows, cols, b.s0, b.s1, b.t0, b.t1);
-    return *std::min_element(grid, grid + rows * cols) - rounding;
+  const int size = rows * cols;
+  // The smallest coefficient of `from` (transposed: cols x rows) restricted to [t0, t1] in t.
+  const auto smallest = [&](const double* from, double t0, double t1) {
+    restrict_s(from, tile, cols, rows, t0, t1);
+    return smallest_of(tile, size) - rounding;
   };
   double bound = target_sq;
   for (int a = 0; a < 3; ++a) {
+    if (!(s_cuts[a + 1] > s_cuts[a])) continue;
+    restrict_s(full, work, rows, cols, s_cuts[a], s_cuts[a + 1]);
+    transpose(work, strip, rows, cols);
     for (int b = 0; b < 3; ++b) {
       if (a == 1 && b == 1) continue;
-      const LocalBox tile{s_cuts[a], s_cuts[a + 1], t_cuts[b], t_cuts[b + 1]};
-      if (!(tile.s1 > tile.s0) || !(tile.t1 > tile.t0)) continue;
-      double value = lower(tile);
+      const double t0 = t_cuts[b], t1 = t_cuts[b + 1];
+      if (!(t1 > t0)) continue;
+      double value = smallest(strip, t0, t1);
       if (value < bound) {
-        LocalBox half0 = tile, half1 = tile;
-        if (tile.s1 - tile.s0 >= tile.t1 - tile.t0) {
-          half0.s1 = half1.s0 = 0.5 * (tile.s0 + tile.s1);
+        // Halved along the longer side; each half restricted from the full grid, as the tile was.
+        const double s0 = s_cuts[a], s1 = s_cuts[a + 1];
+        if (s1 - s0 >= t1 - t0) {
+          const double mid = 0.5 * (s0 + s1);
+          double* half = work;  // the strip is transposed: `work` is free
+          restrict_s(full, tile, rows, cols, s0, mid);
+          transpose(tile, half, rows, cols);
+          value = smallest(half, t0, t1);
+          restrict_s(full, tile, rows, cols, mid, s1);
+          transpose(tile, half, rows, cols);
+          value = std::min(value, smallest(half, t0, t1));
         } else {
-          half0.t1 = half1.t0 = 0.5 * (tile.t0 + tile.t1);
+          const double mid = 0.5 * (t0 + t1);
+          value = std::min(smallest(strip, t0, mid), smallest(strip, mid, t1));
         }
-        value = std::min(lower(half0), lower(half1));
       }
       bound = std::min(bound, value);
     }
@@ -146,6 +196,8 @@ PatchCertificate certify_patch(const PreparedPatch& pp, const Vec3& a, double s,
   const int rows = pp.rows, cols = pp.cols;
   double* full = scratch.grids.data();
   double* grid = full + SurfaceScratch::kGridCapacity;
+  double* strip = grid + SurfaceScratch::kGridCapacity;
+  double* work = strip + SurfaceScratch::kGridCapacity;
   pp.numerator(a, full);
   c.radius = grid_convexity_radius(full, rows, cols, pp.e_ss, pp.e_tt, pp.e_st, r_max);
   if (c.radius > 0.0) {
@@ -164,7 +216,7 @@ PatchCertificate certify_patch(const PreparedPatch& pp, const Vec3& a, double s,
     float_range(t, h, c.t0, c.t1);
     const double ws = double(c.s1) - c.s0, wt = double(c.t1) - c.t0;
     if (!(ws > 0.0) || !(wt > 0.0)) continue;
-    restrict_grid(full, grid, rows, cols, c.s0, c.s1, c.t0, c.t1);
+    restrict_grid(full, grid, work, strip, rows, cols, {c.s0, c.s1, c.t0, c.t1});
     // E restricted to the box: its first and second differences are those of the derivatives'
     // coefficients scaled by the box's widths, convex combinations of the whole patch's.
     c.radius = h == 1.0 ? 0.0
@@ -176,8 +228,8 @@ PatchCertificate certify_patch(const PreparedPatch& pp, const Vec3& a, double s,
     }
     if (c.radius > 0.0) {
       const double target = (d + 2.0 * c.radius) * (d + 2.0 * c.radius);
-      c.outside_sq =
-          outside_lower_bound(full, grid, rows, cols, {c.s0, c.s1, c.t0, c.t1}, target, rounding);
+      c.outside_sq = outside_lower_bound(full, strip, work, grid, rows, cols,
+                                         {c.s0, c.s1, c.t0, c.t1}, target, rounding);
       return c;
     }
   }

@@ -36,7 +36,7 @@ struct PatchCertificate {
 // the convexity test holds (or, for a foot on P's edge or corner, F increasing away from it and
 // convex along it: edge_radius in the .cpp) is kept, with radius <= r_max, and P outside it is
 // bounded against (d + 2 radius)^2 where d = |S(s, t) - a|. Polynomial patches only (radius 0
-// otherwise). Uses the scratch's first two grids; no heap allocation.
+// otherwise). Uses the scratch's first four grids; no heap allocation.
 PatchCertificate certify_patch(const PreparedPatch& pp, const Vec3& a, double s, double t, double d,
                                double r_max, SurfaceScratch& scratch);
 
