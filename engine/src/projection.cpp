@@ -64,6 +64,46 @@ namespace {
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
+}  // namespace
+
+// What a certifying search learns of the items other than its answer, so that the certificate
+// needs no second search: the walk prunes at (d + margin)^2 instead of d^2 (d: the best distance
+// so far) and clips each item it visits against that threshold, so every item ends up either
+// with its exact minimum recorded or proven at least (d_final + margin)^2 away (pruned, or
+// clipped without a point below the threshold, which never falls below the final one). Kept:
+// the two smallest minima of distinct items (patch index, or -1 - edge piece), enough for "the
+// nearest item other than the answer's".
+struct Projector::OtherItems {
+  static constexpr std::int64_t kNone = std::numeric_limits<std::int64_t>::min();
+  double margin = 0.0;
+  std::int64_t item[2] = {kNone, kNone};
+  double minimum[2] = {std::numeric_limits<double>::infinity(),
+                       std::numeric_limits<double>::infinity()};
+
+  double threshold(double best_sq) const {
+    const double d = std::sqrt(best_sq) + margin;
+    return d * d;
+  }
+  void add(std::int64_t id, double value) {
+    if (id == item[0]) {
+      minimum[0] = std::min(minimum[0], value);
+    } else if (id == item[1]) {
+      minimum[1] = std::min(minimum[1], value);
+    } else if (value < minimum[1]) {
+      item[1] = id;
+      minimum[1] = value;
+    }
+    if (minimum[1] < minimum[0]) {
+      std::swap(item[0], item[1]);
+      std::swap(minimum[0], minimum[1]);
+    }
+  }
+  // The smallest recorded minimum of an item other than `id` (infinity: none below threshold).
+  double excluding(std::int64_t id) const { return item[0] == id ? minimum[1] : minimum[0]; }
+};
+
+namespace {
+
 // Foot and normal of point i: to the sink, or to the results.
 void write_foot(ProjectionResults& out, const FootSink& sink, std::size_t i, const Vec3& foot,
                 const Vec3& normal) {
@@ -120,7 +160,13 @@ void Projector::search_surfaces(const Vec3& p, SurfaceSearch& search, std::int64
   // Hierarchy items: patches first (item_patch maps them), then trim-edge pieces.
   const std::uint32_t patch_items = static_cast<std::uint32_t>(model_.hierarchy_patch_items());
   SurfaceHit& best = search.best;
-  double alpha = best.distance_sq;
+  OtherItems* others = search.others;
+  // The walk's pruning threshold for the best squared distance so far.
+  const auto threshold = [others](double best_sq) {
+    return others == nullptr ? best_sq : others->threshold(best_sq);
+  };
+  if (others != nullptr && skip_patch >= 0) others->add(skip_patch, best.distance_sq);
+  double alpha = threshold(best.distance_sq);
   model_.patch_hierarchy().nearest(
       p, alpha, state.bvh_scratch,
       [this](std::uint32_t k, const Vec3& x) { return model_.item_lower_bound(k, x); },
@@ -130,13 +176,23 @@ void Projector::search_surfaces(const Vec3& p, SurfaceSearch& search, std::int64
           const std::uint32_t patch = model_.item_patch(k);
           if (static_cast<std::int64_t>(patch) == skip_patch) return;
           const bool guessed = static_cast<std::int64_t>(patch) == guess_patch;
-          if (project_onto_patch(model_.patch(patch), p, best, state.surface_scratch,
+          // A certifying search clips against the threshold, not the best: the patch's own
+          // minimum, when below it, is wanted even if it does not improve the best.
+          SurfaceHit hit;
+          SurfaceHit& target = others == nullptr ? best : hit;
+          if (others != nullptr) hit.distance_sq = a;
+          if (project_onto_patch(model_.patch(patch), p, target, state.surface_scratch,
                                  &state.surface_stats, guessed ? guess_s : kNaN,
                                  guessed ? guess_t : kNaN, model_.patch_region(patch))) {
+            if (others != nullptr) {
+              others->add(patch, hit.distance_sq);
+              if (!(hit.distance_sq < best.distance_sq)) return;
+              best = hit;
+            }
             search.surface = model_.patch_surface(patch);
             search.patch = patch;
             search.edge = -1;
-            a = best.distance_sq;
+            a = threshold(best.distance_sq);
           }
           return;
         }
@@ -144,22 +200,26 @@ void Projector::search_surfaces(const Vec3& p, SurfaceSearch& search, std::int64
         // edges): the curve projector, exact on the piece.
         const std::size_t e = k - patch_items;
         CurveHit hit;
-        hit.distance_sq = best.distance_sq;
+        hit.distance_sq = others == nullptr ? best.distance_sq : a;
         if (project_onto_piece(model_.edge_piece(e), p, hit, &state.curve_stats)) {
+          if (others != nullptr) {
+            others->add(-1 - static_cast<std::int64_t>(e), hit.distance_sq);
+            if (!(hit.distance_sq < best.distance_sq)) return;
+          }
           best.distance_sq = hit.distance_sq;
           best.foot = hit.foot;
           search.surface = model_.edge_piece_info(e).surface;
           search.patch = -1;
           search.edge = static_cast<std::int64_t>(e);
           search.edge_t = hit.u;
-          a = best.distance_sq;
+          a = threshold(best.distance_sq);
         }
       });
 }
 
 WarmCertificate Projector::make_certificate(const Vec3& p, const SurfaceHit& best,
                                             std::int64_t patch, std::int64_t edge,
-                                            double radius_cap, ThreadState& state) const {
+                                            const OtherItems& others, ThreadState& state) const {
   WarmCertificate tried;
   tried.anchor = p.cast<float>();
   tried.patch = WarmCertificate::kTried;
@@ -169,23 +229,19 @@ WarmCertificate Projector::make_certificate(const Vec3& p, const SurfaceHit& bes
   const std::size_t k = static_cast<std::size_t>(patch);
   if (model_.surface_region(model_.patch_surface(k)) != nullptr) return tried;
   const double d = std::sqrt(best.distance_sq);
+  // The search bounded everything but the answer up to (d + margin)^2 = (d + 2 cap)^2, and a
+  // query within radius <= cap of p has its own distance at most d + radius: nothing beyond
+  // d + 2 radius is ever needed.
+  const double radius_cap = 0.5 * others.margin;
   const PatchCertificate local =
       certify_patch(model_.patch(k), p, best.s, best.t, d, radius_cap, state.surface_scratch);
   if (!(local.radius > 0.0)) return tried;
-  // The rest of the model, searched exactly (the same best-first walk without patch k) against
-  // alpha = (d + 2 radius)^2, or the bound over the rest of the patch if lower: whatever it ends
-  // with is a lower bound of the distance from p to everything outside N, and nothing beyond
-  // d + 2 radius is ever needed (a query within radius of p has its own distance at most
-  // d + radius).
-  SurfaceHit other;
-  other.distance_sq =
-      std::min((d + 2.0 * local.radius) * (d + 2.0 * local.radius), local.outside_sq);
-  int other_surface = -1;
-  std::int64_t other_patch = -1, other_edge = -1;
-  double other_edge_t = 0.0;
-  SurfaceSearch search{other, other_surface, other_patch, other_edge, other_edge_t};
-  search_surfaces(p, search, patch, -1, kNaN, kNaN, state);
-  const double clearance = std::sqrt(other.distance_sq);
+  // The rest of the model: the nearest other item the search met, or the bound over the rest of
+  // the patch, or d + 2 radius, whichever is least. It bounds the distance from p to everything
+  // outside N from below.
+  const double reach = (d + 2.0 * local.radius) * (d + 2.0 * local.radius);
+  const double other_sq = std::min({reach, local.outside_sq, others.excluding(patch)});
+  const double clearance = std::sqrt(other_sq);
   if (!(clearance > d)) return tried;
   // Stored in single precision (WarmCertificate): the rounded anchor is e away from p, so the
   // ball of radius r - e about it lies in the proven one, and everything outside N is at least
@@ -359,6 +415,16 @@ void Projector::project_range(PointView points, const ProjectionOptions& options
       }
       std::int64_t best_edge = -1;  // the best point is on this trim-edge piece
       double best_edge_t = 0.0;
+      // A hint that says a certificate was sought near here and could not be made: none is
+      // sought again until the point has moved by the radius cap.
+      const bool tried_here = options.certify && hint != nullptr &&
+                              hint->certificate.patch == WarmCertificate::kTried &&
+                              hint->certificate.distance_to_anchor(p) <= certificate_cap;
+      // A point that gets a new certificate: its search also bounds the rest of the model, for
+      // the certificate's clearance (a radius of at most the cap needs (d + 2 cap)^2).
+      OtherItems others;
+      others.margin = 2.0 * certificate_cap;
+      const bool certifying = options.certify && !proven && !tried_here;
       if (!proven) {
         // Cold start: seed alpha with a surface point near p (PreparedModel::seed_from_grid), so
         // the walk prunes from its first step. Only an upper bound: the answer stays exact.
@@ -367,7 +433,8 @@ void Projector::project_range(PointView points, const ProjectionOptions& options
             model_.seed_from_grid(p, limit_sq, best, best_surface, best_patch)) {
           seed_sq = best.distance_sq;
         }
-        SurfaceSearch search{best, best_surface, best_patch, best_edge, best_edge_t};
+        SurfaceSearch search{best,      best_surface, best_patch,
+                             best_edge, best_edge_t,  certifying ? &others : nullptr};
         search_surfaces(p, search, hint_certified ? hint_patch : -1, hint_patch, hint_s, hint_t,
                         state);
         if (best_edge < 0 && best.distance_sq == seed_sq) {
@@ -394,14 +461,9 @@ void Projector::project_range(PointView points, const ProjectionOptions& options
         ++state.counters.certified;
         out.certificate[i] = hint->certificate;
       } else if (options.certify) {
-        // A hint that says a certificate was sought near here and could not be made is not
-        // retried until the point has moved by the radius cap.
-        const bool tried_here = hint != nullptr &&
-                                hint->certificate.patch == WarmCertificate::kTried &&
-                                hint->certificate.distance_to_anchor(p) <= certificate_cap;
-        out.certificate[i] =
-            tried_here ? hint->certificate
-                       : make_certificate(p, best, best_patch, best_edge, certificate_cap, state);
+        out.certificate[i] = tried_here
+                                 ? hint->certificate
+                                 : make_certificate(p, best, best_patch, best_edge, others, state);
       } else {
         clear_certificate(out, i);
       }

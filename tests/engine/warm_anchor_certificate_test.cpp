@@ -12,7 +12,9 @@
 // layers 0.3 apart: two near-equal minima everywhere between them), the same fold inside one
 // degree-5 patch (the other layer is the anchor's own patch), two stacked sheets (the clearance
 // must see the other surface), and the rational sphere (no certificates). A ramp patch gives
-// queries inside a certificate's ball whose answer lies on the same patch outside the box N.
+// queries inside a certificate's ball whose answer lies on the same patch outside the box N. Two
+// flat sheets with a hint on the farther one: the hinted patch, whose clipping the search skips,
+// must still bound the clearance.
 #include <gtest/gtest.h>
 #include <tbb/global_control.h>
 
@@ -361,6 +363,52 @@ TEST(WarmAnchorCertificate, AnswersOnTheSamePatchOutsideTheBoxStayExact) {
   EXPECT_GE(decisive, 4);
   std::printf("[ report ] %d certificates on sub-boxes, %d queries answered outside N\n", sub_boxes,
               decisive);
+}
+
+// A flat bicubic sheet over [0, 1]^2 at height z (uniform control points: F is quadratic and
+// convex for every point, so a hint on it skips the sheet's clipping).
+NurbsSurface flat_sheet(double z) {
+  NurbsSurface s;
+  s.name = "sheet";
+  s.degree_u = 3;
+  s.degree_v = 3;
+  s.count_u = 4;
+  s.count_v = 4;
+  s.knots_u = {0, 0, 0, 0, 1, 1, 1, 1};
+  s.knots_v = s.knots_u;
+  for (int i = 0; i < 4; ++i) {
+    for (int j = 0; j < 4; ++j)
+      s.control_points.emplace_back(i / 3.0, j / 3.0, z);
+  }
+  return s;
+}
+
+TEST(WarmAnchorCertificate, TheHintedSurfaceCountsInTheClearance) {
+  // Between two sheets 1 apart, 0.05 nearer the upper one, with a hint on the lower one: the
+  // hinted patch is proven convex, so the search skips its clipping and its minimum (0.55) comes
+  // from the hint. The answer is the upper sheet (0.45); with the radius cap at 0.2 the search
+  // bounds the rest up to 0.45 + 0.4 = 0.85, so the lower sheet must limit the clearance.
+  const PreparedModel pm{model_of({flat_sheet(0.0), flat_sheet(1.0)})};
+  const std::vector<Vec3> points = {Vec3(0.5, 0.5, 0.55), Vec3(0.3, 0.6, 0.52),
+                                    Vec3(0.7, 0.2, 0.58)};
+  std::vector<ProjectionHint> hints;
+  for (const Vec3& p : points)
+    hints.emplace_back(0, p.x(), p.y());
+  ProjectionOptions options;
+  options.certify = true;
+  options.certificate_radius = 0.2;
+  Projector projector(pm);
+  ProjectionResults results;
+  projector.project(PointView::of(points), options, results, hints);
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    ASSERT_EQ(results.entity[i], 1) << i;
+    EXPECT_NEAR(results.distance[i], 1.0 - points[i].z(), 1e-12) << i;
+    const WarmCertificate& c = results.certificate[i];
+    ASSERT_GT(c.radius, 0.0f) << i;  // the check below is not vacuous
+    // The lower sheet is outside N (another surface): the clearance is at most its distance from
+    // the anchor.
+    EXPECT_LE(double(c.clearance), double(c.anchor.z()) + 1e-12) << i;
+  }
 }
 
 TEST(WarmAnchorCertificate, SameCertificatesForAnyThreadCount) {

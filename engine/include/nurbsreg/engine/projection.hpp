@@ -236,6 +236,7 @@ class Projector {
  private:
   struct ThreadState;
   struct Impl;
+  struct OtherItems;
   // The state of one best-first search over the surfaces' hierarchy (the caller's variables).
   struct SurfaceSearch {
     SurfaceHit& best;
@@ -243,6 +244,8 @@ class Projector {
     std::int64_t& patch;
     std::int64_t& edge;  // the best point is on this trim-edge piece (then patch is -1)
     double& edge_t;
+    // A certifying search: also bounds every item but its answer (projection.cpp, OtherItems).
+    OtherItems* others = nullptr;
   };
   // Exact best-first search over patches and trim edges, improving search.best; skip_patch is
   // not visited (its minimum is already known), guess_patch's clipping starts Newton at
@@ -250,8 +253,10 @@ class Projector {
   void search_surfaces(const Vec3& p, SurfaceSearch& search, std::int64_t skip_patch,
                        std::int64_t guess_patch, double guess_s, double guess_t,
                        ThreadState& state) const;
+  // `others`: what the certifying search that found `best` learnt of the rest of the model.
   WarmCertificate make_certificate(const Vec3& p, const SurfaceHit& best, std::int64_t patch,
-                                   std::int64_t edge, double radius_cap, ThreadState& state) const;
+                                   std::int64_t edge, const OtherItems& others,
+                                   ThreadState& state) const;
   // Projects points order[begin, end) (or begin .. end - 1 when order is empty).
   void project_range(PointView points, const ProjectionOptions& options, ProjectionResults& out,
                      HintView hints, std::span<const std::uint32_t> order, std::size_t begin,
