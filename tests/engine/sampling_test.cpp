@@ -5,6 +5,8 @@
 
 #include "nurbsreg/engine/sampling.hpp"
 #include "nurbsreg/engine/shapes.hpp"
+#include "nurbsreg/engine/trim_region.hpp"
+#include "support/polygon_loop.hpp"
 
 namespace nurbsreg::engine {
 namespace {
@@ -46,6 +48,57 @@ TEST(Sampling, TorusArea) {
   const auto b = sample_surfaces(model, 100, 42);
   for (std::size_t i = 0; i < a.size(); ++i)
     EXPECT_EQ(a[i].point, b[i].point);
+}
+
+TEST(Sampling, TrimmedFaceOnly) {
+  // A flat bicubic sheet S(u, v) = (4u, 4v, 0) trimmed to a square ring: outer loop
+  // [0.125, 0.875]^2, hole [0.375, 0.625]^2 (even-odd), area 16 (0.75^2 - 0.25^2) = 8. Samples
+  // of the trimmed-away parts would be points no projection of the face can reach.
+  NurbsSurface s;
+  s.degree_u = 3;
+  s.degree_v = 3;
+  s.count_u = 4;
+  s.count_v = 4;
+  s.knots_u = {0, 0, 0, 0, 1, 1, 1, 1};
+  s.knots_v = s.knots_u;
+  for (int i = 0; i < 4; ++i) {
+    for (int j = 0; j < 4; ++j)
+      s.control_points.emplace_back(4.0 * i / 3.0, 4.0 * j / 3.0, 0.0);
+  }
+  s.trim_loops.push_back(
+      test::polygon_loop({{0.125, 0.125}, {0.875, 0.125}, {0.875, 0.875}, {0.125, 0.875}}));
+  s.trim_loops.push_back(
+      test::polygon_loop({{0.375, 0.375}, {0.375, 0.625}, {0.625, 0.625}, {0.625, 0.375}}));
+  Model model;
+  model.surfaces.push_back(s);
+  EXPECT_NEAR(surface_area(model), 8.0, 0.02 * 8.0);
+  const TrimRegion region(s);
+  const auto samples = sample_surfaces(model, 20000, 5);
+  ASSERT_EQ(samples.size(), 20000u);
+  int left = 0;
+  for (const SurfaceSample& x : samples) {
+    ASSERT_TRUE(region.contains(x.u, x.v)) << x.u << " " << x.v;
+    EXPECT_NEAR((x.point - Vec3(4.0 * x.u, 4.0 * x.v, 0.0)).norm(), 0.0, 1e-12);
+    const bool in_outer =
+        x.point.x() >= 0.5 && x.point.x() <= 3.5 && x.point.y() >= 0.5 && x.point.y() <= 3.5;
+    const bool in_hole =
+        x.point.x() > 1.5 && x.point.x() < 2.5 && x.point.y() > 1.5 && x.point.y() < 2.5;
+    EXPECT_TRUE(in_outer && !in_hole) << x.point.transpose();
+    left += x.point.x() < 2.0;
+  }
+  // Uniform by area: the half x < 2 holds 4 of the 8 units.
+  EXPECT_NEAR(left, 10000, 5 * std::sqrt(5000.0));
+}
+
+TEST(Sampling, FaceWithoutAreaIsAClearError) {
+  // A loop of zero area: every draw is rejected; the sampler says so instead of looping.
+  Model model;
+  model.surfaces.push_back(make_sphere(Vec3::Zero(), 1.0));
+  NurbsSurface& s = model.surfaces.back();
+  const ParamInterval du = s.domain_u(), dv = s.domain_v();
+  const double u = du.lo + 0.3 * du.width(), v = dv.lo + 0.3 * dv.width();
+  s.trim_loops.push_back(test::polygon_loop({{u, v}, {u + 1e-9 * du.width(), v}, {u, v}}));
+  EXPECT_THROW(sample_surfaces(model, 10, 1), std::exception);
 }
 
 }  // namespace

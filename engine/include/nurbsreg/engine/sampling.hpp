@@ -24,11 +24,17 @@ Vec3 surface_normal(const NurbsSurface& surface, double u, double v);
 // `count` samples distributed uniformly by area over all surfaces of the model, deterministic
 // for a given seed. The density is the area element |Su x Sv| integrated on a 16 x 16 grid of
 // cells per Bézier patch and taken as constant inside a cell: uniform to within the area
-// element's variation across a 1/16 cell.
+// element's variation across a 1/16 cell. A trimmed surface is sampled on its face only (the
+// region of its trim loops, TrimRegion): draws outside it are rejected. Throws
+// std::invalid_argument for trim loops a TrimRegion cannot be built from, and
+// std::runtime_error when the model has no area to sample (no surfaces, trimmed faces whose
+// regions are empty, or almost every draw rejected).
 std::vector<SurfaceSample> sample_surfaces(const Model& model, std::size_t count,
                                            std::uint64_t seed);
 
-// Total surface area of the model (same quadrature as sample_surfaces, 4-point Gauss per cell).
+// Total surface area of the model (same quadrature as sample_surfaces, 4-point Gauss per cell);
+// of a trimmed surface, the face's: a cell a trim loop may cross counts with the fraction of an
+// 8 x 8 grid of its points inside the region.
 double surface_area(const Model& model);
 
 }  // namespace nurbsreg::engine
