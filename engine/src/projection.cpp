@@ -58,6 +58,9 @@ struct Projector::Impl {
   // The frame's processing order (ProjectionOptions::locality_order), reused across frames.
   FrameVector<std::uint32_t> order;
   SpatialOrderScratch order_scratch;
+  // Per surface: can a certificate be made on it (untrimmed, with a polynomial patch)?
+  std::vector<std::uint8_t> certifiable;
+  bool any_certifiable = false;
 };
 
 namespace {
@@ -141,6 +144,14 @@ double certificate_radius_cap(const ProjectionOptions& options, const PreparedMo
                                           : 1e-3 * model.bounds().diagonal();
 }
 
+// The mark of a point for which no certificate could be made (WarmCertificate::kTried).
+WarmCertificate tried_at(const Vec3& p) {
+  WarmCertificate tried;
+  tried.anchor = p.cast<float>();
+  tried.patch = WarmCertificate::kTried;
+  return tried;
+}
+
 bool valid_hint(const ProjectionHint* hint, std::size_t entities) {
   return hint != nullptr && hint->entity >= 0 &&
          static_cast<std::size_t>(hint->entity) < entities && std::isfinite(hint->u) &&
@@ -149,7 +160,16 @@ bool valid_hint(const ProjectionHint* hint, std::size_t entities) {
 
 }  // namespace
 
-Projector::Projector(const PreparedModel& model) : model_(model), impl_(std::make_unique<Impl>()) {}
+Projector::Projector(const PreparedModel& model) : model_(model), impl_(std::make_unique<Impl>()) {
+  impl_->certifiable.assign(model_.model().surfaces.size(), 0);
+  for (std::size_t k = 0; k < model_.patch_count(); ++k) {
+    const int surface = model_.patch_surface(k);
+    if (!model_.patch(k).rational && model_.surface_region(surface) == nullptr) {
+      impl_->certifiable[static_cast<std::size_t>(surface)] = 1;
+      impl_->any_certifiable = true;
+    }
+  }
+}
 
 Projector::~Projector() = default;
 
@@ -220,9 +240,7 @@ void Projector::search_surfaces(const Vec3& p, SurfaceSearch& search, std::int64
 WarmCertificate Projector::make_certificate(const Vec3& p, const SurfaceHit& best,
                                             std::int64_t patch, std::int64_t edge,
                                             const OtherItems& others, ThreadState& state) const {
-  WarmCertificate tried;
-  tried.anchor = p.cast<float>();
-  tried.patch = WarmCertificate::kTried;
+  const WarmCertificate tried = tried_at(p);
   // Only a foot on an untrimmed polynomial patch (a foot on a trim edge, or on a patch edge
   // shared with a neighbour, gets no clearance anyway).
   if (patch < 0 || edge >= 0) return tried;
@@ -421,10 +439,16 @@ void Projector::project_range(PointView points, const ProjectionOptions& options
                               hint->certificate.patch == WarmCertificate::kTried &&
                               hint->certificate.distance_to_anchor(p) <= certificate_cap;
       // A point that gets a new certificate: its search also bounds the rest of the model, for
-      // the certificate's clearance (a radius of at most the cap needs (d + 2 cap)^2).
+      // the certificate's clearance (a radius of at most the cap needs (d + 2 cap)^2). Only where
+      // one can be made: none on a model without an untrimmed polynomial surface, and none for
+      // a hint on a trimmed or rational surface, where the answer most likely lies again (such a
+      // point is marked as tried instead).
       OtherItems others;
       others.margin = 2.0 * certificate_cap;
-      const bool certifying = options.certify && !proven && !tried_here;
+      const bool certifiable = impl_->any_certifiable &&
+                               (!valid_hint(hint, entities) ||
+                                impl_->certifiable[static_cast<std::size_t>(hint->entity)] != 0);
+      const bool certifying = options.certify && !proven && !tried_here && certifiable;
       if (!proven) {
         // Cold start: seed alpha with a surface point near p (PreparedModel::seed_from_grid), so
         // the walk prunes from its first step. Only an upper bound: the answer stays exact.
@@ -461,9 +485,11 @@ void Projector::project_range(PointView points, const ProjectionOptions& options
         ++state.counters.certified;
         out.certificate[i] = hint->certificate;
       } else if (options.certify) {
-        out.certificate[i] = tried_here
-                                 ? hint->certificate
-                                 : make_certificate(p, best, best_patch, best_edge, others, state);
+        // make_certificate needs what the certifying search learnt (`others`).
+        out.certificate[i] = tried_here ? hint->certificate
+                             : certifying
+                                 ? make_certificate(p, best, best_patch, best_edge, others, state)
+                                 : tried_at(p);
       } else {
         clear_certificate(out, i);
       }
