@@ -7,6 +7,7 @@
 #include "nurbsreg/engine/shapes.hpp"
 #include "nurbsreg/engine/trim_region.hpp"
 #include "support/polygon_loop.hpp"
+#include "support/random_entities.hpp"
 
 namespace nurbsreg::engine {
 namespace {
@@ -54,17 +55,8 @@ TEST(Sampling, TrimmedFaceOnly) {
   // A flat bicubic sheet S(u, v) = (4u, 4v, 0) trimmed to a square ring: outer loop
   // [0.125, 0.875]^2, hole [0.375, 0.625]^2 (even-odd), area 16 (0.75^2 - 0.25^2) = 8. Samples
   // of the trimmed-away parts would be points no projection of the face can reach.
-  NurbsSurface s;
-  s.degree_u = 3;
-  s.degree_v = 3;
-  s.count_u = 4;
-  s.count_v = 4;
-  s.knots_u = {0, 0, 0, 0, 1, 1, 1, 1};
-  s.knots_v = s.knots_u;
-  for (int i = 0; i < 4; ++i) {
-    for (int j = 0; j < 4; ++j)
-      s.control_points.emplace_back(4.0 * i / 3.0, 4.0 * j / 3.0, 0.0);
-  }
+  NurbsSurface s = test::bicubic_patch(
+      "ring", [](int i, int j) { return Vec3(4.0 * i / 3.0, 4.0 * j / 3.0, 0.0); });
   s.trim_loops.push_back(
       test::polygon_loop({{0.125, 0.125}, {0.875, 0.125}, {0.875, 0.875}, {0.125, 0.875}}));
   s.trim_loops.push_back(

@@ -368,19 +368,7 @@ TEST(WarmAnchorCertificate, AnswersOnTheSamePatchOutsideTheBoxStayExact) {
 // A flat bicubic sheet over [0, 1]^2 at height z (uniform control points: F is quadratic and
 // convex for every point, so a hint on it skips the sheet's clipping).
 NurbsSurface flat_sheet(double z) {
-  NurbsSurface s;
-  s.name = "sheet";
-  s.degree_u = 3;
-  s.degree_v = 3;
-  s.count_u = 4;
-  s.count_v = 4;
-  s.knots_u = {0, 0, 0, 0, 1, 1, 1, 1};
-  s.knots_v = s.knots_u;
-  for (int i = 0; i < 4; ++i) {
-    for (int j = 0; j < 4; ++j)
-      s.control_points.emplace_back(i / 3.0, j / 3.0, z);
-  }
-  return s;
+  return test::bicubic_patch("sheet", [z](int i, int j) { return Vec3(i / 3.0, j / 3.0, z); });
 }
 
 TEST(WarmAnchorCertificate, TheHintedSurfaceCountsInTheClearance) {
