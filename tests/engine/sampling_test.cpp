@@ -3,6 +3,8 @@
 
 #include <numbers>
 
+#include "nurbsreg/engine/prepared_model.hpp"
+#include "nurbsreg/engine/projection.hpp"
 #include "nurbsreg/engine/sampling.hpp"
 #include "nurbsreg/engine/shapes.hpp"
 #include "nurbsreg/engine/trim_region.hpp"
@@ -80,6 +82,26 @@ TEST(Sampling, TrimmedFaceOnly) {
   }
   // Uniform by area: the half x < 2 holds 4 of the 8 units.
   EXPECT_NEAR(left, 10000, 5 * std::sqrt(5000.0));
+}
+
+TEST(Sampling, NormalsAreOnTheFacesOuterSide) {
+  // A reversed face (a CAD face whose outer side is -(S_u x S_v)): the samples' normals are the
+  // ones the projector reports for the same points, here pointing into the sphere.
+  Model model;
+  model.surfaces.push_back(make_sphere(Vec3(1, 2, 3), 2.0));
+  model.surfaces.back().reversed = true;
+  const auto samples = sample_surfaces(model, 500, 3);
+  const PreparedModel prepared{Model(model)};
+  Projector projector(prepared);
+  std::vector<Vec3> points;
+  for (const SurfaceSample& x : samples)
+    points.push_back(x.point);
+  ProjectionResults results;
+  projector.project(PointView::of(points), ProjectionOptions{}, results);
+  for (std::size_t i = 0; i < samples.size(); ++i) {
+    EXPECT_NEAR(samples[i].normal.dot((samples[i].point - Vec3(1, 2, 3)).normalized()), -1.0, 1e-9);
+    EXPECT_GT(samples[i].normal.dot(results.normal[i]), 1.0 - 1e-9) << i;
+  }
 }
 
 TEST(Sampling, FaceWithoutAreaIsAClearError) {

@@ -14,6 +14,8 @@ struct SurfaceSample {
   double u = 0.0;
   double v = 0.0;
   Vec3 point = Vec3::Zero();
+  // Unit normal on the face's outer side: surface_normal, flipped for a reversed face (the
+  // normal the projector reports for this point).
   Vec3 normal = Vec3::UnitZ();
 };
 
