@@ -593,18 +593,21 @@ void Projector::project_range(PointView points, const ProjectionOptions& options
 }
 
 namespace {
-void check_hint_count(PointView points, HintView hints) {
+// Checks the hints and sizes the results for a frame: feet and normals unless a FootSink takes
+// them, certificates only when the frame can have some (it certifies, or hints carry them).
+void prepare_results(PointView points, const ProjectionOptions& options, HintView hints,
+                     ProjectionResults& out) {
   if (!hints.empty() && hints.size() != points.size()) {
     throw std::invalid_argument("Projector: " + std::to_string(hints.size()) + " hints for " +
                                 std::to_string(points.size()) + " points");
   }
+  out.resize(points.size(), !options.foot_sink, options.certify || !hints.empty());
 }
 }  // namespace
 
 void Projector::project(PointView points, const ProjectionOptions& options, ProjectionResults& out,
                         HintView hints, ProjectionCounters* counters) {
-  check_hint_count(points, hints);
-  out.resize(points.size(), !options.foot_sink, options.certify || !hints.empty());
+  prepare_results(points, options, hints, out);
   for (ThreadState& s : impl_->states) {
     s.counters = {};
     s.surface_stats = {};
@@ -644,8 +647,7 @@ void Projector::project(PointView points, const ProjectionOptions& options, Proj
 void Projector::project_serial(PointView points, const ProjectionOptions& options,
                                ProjectionResults& out, HintView hints,
                                ProjectionCounters* counters) {
-  check_hint_count(points, hints);
-  out.resize(points.size(), !options.foot_sink, options.certify || !hints.empty());
+  prepare_results(points, options, hints, out);
   ThreadState& state = impl_->states.local();
   state.counters = {};
   state.surface_stats = {};

@@ -140,8 +140,8 @@ std::vector<SurfaceSample> sample_surfaces(const Model& model, std::size_t count
     const NurbsSurface& surface = model.surfaces[c.surface];
     s.point = surface.evaluate(s.u, s.v);
     // The face's outer side, as the projector reports it (a reversed face's is -(S_u x S_v)).
-    s.normal =
-        surface.reversed ? -surface_normal(surface, s.u, s.v) : surface_normal(surface, s.u, s.v);
+    s.normal = surface_normal(surface, s.u, s.v);
+    if (surface.reversed) s.normal = -s.normal;
     samples.push_back(s);
   }
   return samples;
