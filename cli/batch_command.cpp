@@ -35,6 +35,7 @@
 #include <mutex>
 #include <optional>
 #include <sstream>
+#include <stdexcept>
 #include <vector>
 
 #include "commands.hpp"
@@ -535,6 +536,14 @@ void run_batch(const BatchArgs& args) {
             if (align) {
               const AlignFrameResult r =
                   align_frame(*worker->finder, *worker->solver, token->cloud, init, args.icp);
+              // A failed frame keeps no output (fail() removes them); its reason is in the
+              // summary.
+              if (const auto failure = alignment_failure(r.icp, args.icp.max_distance))
+                throw std::runtime_error(*failure);
+              if (r.icp.termination == icp::IcpTermination::max_iterations) {
+                spdlog::warn("{}: no convergence within {} iterations per stage", token->row.file,
+                             args.icp.max_iterations);
+              }
               write_align_outputs(r, worker->finder->last_results(), token->cloud, args.icp,
                                   frame.align, token->clock);
               token->row.rms = fmt::format("{}", r.icp.rms);

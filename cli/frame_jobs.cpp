@@ -191,6 +191,22 @@ AlignFrameResult align_frame(icp::ModelCorrespondenceFinder& finder, icp::IcpSol
   return frame;
 }
 
+std::optional<std::string> alignment_failure(const icp::IcpResult& result, double max_distance) {
+  using icp::IcpTermination;
+  if (result.termination != IcpTermination::too_few_correspondences &&
+      result.termination != IcpTermination::numerical_failure) {
+    return std::nullopt;
+  }
+  std::string reason =
+      fmt::format("alignment failed after {} iterations: {} ({})", result.iterations,
+                  icp::to_string(result.termination), result.message);
+  if (result.termination == IcpTermination::too_few_correspondences) {
+    reason += "; is the scan near the model? Give a starting pose (--init)";
+    if (std::isfinite(max_distance)) reason += " or a larger --max-distance";
+  }
+  return reason;
+}
+
 void write_align_outputs(const AlignFrameResult& frame, const engine::ProjectionResults& proj,
                          const io::PointCloud& cloud, const IcpArgs& args,
                          const AlignOutputs& outputs, const Stopwatch& clock) {

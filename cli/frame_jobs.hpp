@@ -15,6 +15,7 @@
 #include <Eigen/Geometry>
 #include <cstddef>
 #include <limits>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -93,6 +94,13 @@ struct AlignFrameResult {
 AlignFrameResult align_frame(icp::ModelCorrespondenceFinder& finder, icp::IcpSolver& solver,
                              const io::PointCloud& cloud, const Eigen::Isometry3d& init,
                              const IcpArgs& args);
+
+// Why an alignment gave no pose to use, as one line for the user, or nothing. ICP that lost its
+// correspondences (fewer inliers than it needs: the scan is too far from the model, or beyond
+// --max-distance) or whose normal equations broke down returns whatever pose it had reached, which
+// aligns nothing. A run that only ran out of iterations is not a failure: its pose is reported
+// (converged: false) with a warning. `max_distance`: --max-distance (infinite when not given).
+std::optional<std::string> alignment_failure(const icp::IcpResult& result, double max_distance);
 
 // Writes the requested outputs of an aligned frame; `projections` are the final ones
 // (finder.last_results() right after align_frame). The report's "seconds" is read from `clock`

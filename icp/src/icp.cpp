@@ -197,6 +197,29 @@ void reject_outliers(const IcpOptions& o, Buffers& b) {
   }
 }
 
+// Why the points of an iteration are not inliers, for too_few_correspondences' message: a user
+// whose scan lost its correspondences needs to know whether it is too far from the model, beyond
+// its edges, or cut by trimming and the robust kernel.
+std::string rejection_summary(const IcpOptions& o, const Buffers& b) {
+  std::size_t no_foot = 0, too_far = 0, beyond_edge = 0, inliers = 0;
+  for (std::size_t k = 0; k < b.ids.size(); ++k) {
+    const Correspondence& c = b.matches[k];
+    if (b.inlier[k]) {
+      ++inliers;
+    } else if (!c.valid || !std::isfinite(c.distance)) {
+      ++no_foot;
+    } else if (c.distance > o.max_correspondence_distance) {
+      ++too_far;
+    } else if (o.reject_boundary && c.on_boundary) {
+      ++beyond_edge;
+    }
+  }
+  const std::size_t weighted_out = b.ids.size() - inliers - no_foot - too_far - beyond_edge;
+  return std::to_string(no_foot + too_far) + " farther than max_correspondence_distance, " +
+         std::to_string(beyond_edge) + " beyond the model's free edges, " +
+         std::to_string(weighted_out) + " trimmed or weighted out";
+}
+
 // Inlier count and RMS of d_i over the inliers (serial sum in index order: one cheap pass).
 Rejection inlier_statistics(const Buffers& b) {
   Rejection r;
@@ -614,7 +637,7 @@ IcpResult IcpSolver::align(CorrespondenceFinder& finder, std::span<const Vec3> s
         termination = IcpTermination::too_few_correspondences;
         message = std::to_string(kept.inliers) + " inliers of " + std::to_string(b.ids.size()) +
                   " points, fewer than min_correspondences (" +
-                  std::to_string(o.min_correspondences) + ")";
+                  std::to_string(o.min_correspondences) + "); rejected: " + rejection_summary(o, b);
         break;
       }
       const LinearSystem sys = linearize(L, o.parallel, b);

@@ -334,6 +334,31 @@ TEST_F(Batch, ShardsCoverEveryInputExactlyOnce) {
   expect_same_align_outputs(full, sharded);
 }
 
+// A frame whose alignment fails (ICP loses every correspondence: the scan lies far beside the
+// panel) is a failed frame: exit 4, its reason in the summary, none of its outputs; the other
+// frame is done as usual.
+TEST_F(Batch, AFailedAlignmentIsAFailedFrame) {
+  const std::string beside = path("beside.pcd");
+  const CommandResult synth =
+      run("synth --model " + kPanel + " --points 1000 --seed 9 --pose \"0 0 0 1000 0 0\" --out " +
+          beside);
+  ASSERT_EQ(synth.status, 0) << synth.err;
+  const std::string list = path("failing_list.txt");
+  std::ofstream(list) << scan("f0") << "\n" << beside << "\n";
+  const std::string out = path("failing_out");
+  const CommandResult r = run("batch --model " + kPanel + " --list " + list + " --out " + out);
+  EXPECT_EQ(r.status, 4) << r.err;
+  const auto rows = read_summary(out + "/summary.csv");
+  ASSERT_EQ(rows.size(), 2u);
+  EXPECT_EQ(rows[0][3], "ok");
+  EXPECT_TRUE(fs::exists(out + "/f0.pose.txt"));
+  EXPECT_EQ(rows[1][3], "failed");
+  EXPECT_EQ(rows[1][8].rfind("alignment failed", 0), 0u) << rows[1][8];
+  EXPECT_NE(rows[1][8].find("1000 beyond the model's free edges"), std::string::npos) << rows[1][8];
+  for (const char* ext : {".pose.txt", ".aligned.pcd", ".report.json", ".done.csv"})
+    EXPECT_FALSE(fs::exists(out + "/beside" + std::string(ext))) << ext;
+}
+
 TEST_F(Batch, UsageAndModelErrors) {
   const std::string out = path("usage_out");
   const std::string base = "batch --model " + kPanel + " --out " + out;

@@ -144,5 +144,33 @@ TEST(Cli, AlignRecoversTheSynthPose) {
   EXPECT_NE(align.out.find("deviation"), std::string::npos);
 }
 
+// ICP that loses its correspondences has no pose to give: a scan far beside the panel (every foot
+// on an edge, off the normal) fails with exit 1 and one line naming the scan and the cause. No
+// pose or aligned scan is written; the report is, and says converged: false.
+TEST(Cli, AlignThatLosesItsCorrespondencesFails) {
+  ScratchDir dir("align_fails");
+  const std::string scan = dir / "beside.pcd";
+  const CommandResult synth = run_nurbsreg(
+      "synth --model " + kPanel + " --points 2000 --seed 5 --pose \"0 0 0 1000 0 0\" --out " + scan,
+      dir.path());
+  ASSERT_EQ(synth.status, 0) << synth.err;
+  const CommandResult align = run_nurbsreg(
+      "-q align --model " + kPanel + " --scan " + scan + " --out-pose " + (dir / "pose.txt") +
+          " --aligned " + (dir / "aligned.pcd") + " --report " + (dir / "report.json"),
+      dir.path());
+  EXPECT_EQ(align.status, 1) << align.err;
+  EXPECT_EQ(count_lines(align.err), 1) << align.err;
+  EXPECT_EQ(align.err.rfind("error: " + scan + ": alignment failed", 0), 0u) << align.err;
+  EXPECT_NE(align.err.find("too_few_correspondences"), std::string::npos) << align.err;
+  EXPECT_NE(align.err.find("2000 beyond the model's free edges"), std::string::npos) << align.err;
+  EXPECT_NE(align.err.find("--init"), std::string::npos) << align.err;
+  EXPECT_FALSE(std::filesystem::exists(dir / "pose.txt"));
+  EXPECT_FALSE(std::filesystem::exists(dir / "aligned.pcd"));
+  const auto report = nlohmann::json::parse(read_text(dir / "report.json"));
+  EXPECT_FALSE(report["converged"].get<bool>());
+  EXPECT_EQ(report["inliers"].get<int>(), 0);
+  EXPECT_EQ(report["termination"].get<std::string>().rfind("too_few_correspondences", 0), 0u);
+}
+
 }  // namespace
 }  // namespace nurbsreg::test

@@ -563,6 +563,11 @@ TEST(IcpTerminationCases, TooFewCorrespondencesAndIterationLimit) {
   IcpResult r = align(finder, scan, Isometry3d::Identity(), o);
   EXPECT_EQ(r.termination, IcpTermination::too_few_correspondences) << r.brief_report();
   EXPECT_TRUE(r.T_model_scan.isApprox(Isometry3d::Identity()));
+  // The message says why the points were rejected.
+  EXPECT_NE(r.message.find("rejected: 1000 farther than max_correspondence_distance, 0 beyond "
+                           "the model's free edges, 0 trimmed or weighted out"),
+            std::string::npos)
+      << r.message;
   o = IcpOptions{};
   o.max_iterations = 2;
   r = align(finder, scan, Isometry3d::Identity(), o);

@@ -279,6 +279,26 @@ INSTANTIATE_TEST_SUITE_P(Degrees, ModelAlignmentPlanar, ::testing::Values(1, 3),
 // The finder's warm starts are per scan index and the solver's sums use fixed blocks, so the
 // whole alignment is bit-identical for 1 and 2 threads and for the serial path. Noise,
 // outliers, a robust kernel and trimming exercise every reduction and selection.
+// A scan beside the panel, far beyond one of its edges: every foot lies on that edge and off the
+// normal, so every correspondence is rejected as beyond the model's free edge. ICP stops, and its
+// message says why the points were rejected (the CLI passes it to the user).
+TEST(ModelAlignment, ScanBeyondTheEdgesLosesItsCorrespondencesAndSaysWhy) {
+  const engine::Aabb& box = panel().bounds();
+  std::vector<Vec3> scan = make_scan(panel(), 500, 0.0, 41).points;
+  for (Vec3& p : scan)
+    p.x() += 3.0 * (box.hi.x() - box.lo.x());
+  IcpSolver solver(IcpOptions{});
+  ModelCorrespondenceFinder finder(panel());
+  const IcpResult r = solver.align(finder, scan, Isometry3d::Identity());
+  EXPECT_EQ(r.termination, IcpTermination::too_few_correspondences) << r.brief_report();
+  EXPECT_EQ(r.iterations, 0);
+  EXPECT_NE(r.message.find("0 inliers of 500 points"), std::string::npos) << r.message;
+  EXPECT_NE(r.message.find("0 farther than max_correspondence_distance, 500 beyond the model's "
+                           "free edges, 0 trimmed or weighted out"),
+            std::string::npos)
+      << r.message;
+}
+
 TEST(ModelAlignment, SameBitsForOneAndTwoThreads) {
   const engine::PreparedModel& model = panel();
   const double D = diagonal(model);
