@@ -99,7 +99,7 @@ void run_align(const AlignArgs& args) {
 void add_align_command(CLI::App& app) {
   auto* cmd = app.add_subcommand("align", "ICP: the rigid pose that maps the scan onto the model");
   auto args = std::make_shared<AlignArgs>();
-  cmd->add_option("--model", args->model, "Model file (.json)")->required();
+  cmd->add_option("--model", args->model, "Model file (.json, .step/.stp, .iges/.igs)")->required();
   cmd->add_option("--scan", args->scan, "Scan: .pcd, .ply, .xyz/.txt/.csv")->required();
   cmd->add_option("--init", args->init, "Initial pose T0 (4 lines of 4 numbers)");
   cmd->add_option("--out-pose", args->out_pose, "Write the pose T (model_point = T * scan_point)");

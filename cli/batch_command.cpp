@@ -623,7 +623,7 @@ void add_batch_command(CLI::App& app) {
   auto* cmd = app.add_subcommand(
       "batch", "Align or project many frames with one prepared model (exit 4: some frames failed)");
   auto args = std::make_shared<BatchArgs>();
-  cmd->add_option("--model", args->model, "Model file (.json)")->required();
+  cmd->add_option("--model", args->model, "Model file (.json, .step/.stp, .iges/.igs)")->required();
   cmd->add_option("--scans", args->scans,
                   "Directory of frames (.pcd .ply .xyz .txt .csv, sorted by name)");
   cmd->add_option("--list", args->list,

@@ -59,7 +59,7 @@ void add_project_command(CLI::App& app) {
   auto* cmd =
       app.add_subcommand("project", "Exact closest point on the model for every input point");
   auto args = std::make_shared<ProjectArgs>();
-  cmd->add_option("--model", args->model, "Model file (.json)")->required();
+  cmd->add_option("--model", args->model, "Model file (.json, .step/.stp, .iges/.igs)")->required();
   cmd->add_option("--points", args->points, "Points: .pcd, .ply, .xyz/.txt/.csv")->required();
   cmd->add_option("--out", args->out, "Results: .csv or .pcd (written atomically)")->required();
   cmd->add_option("--threads", args->threads, "Worker threads (0 = all hardware threads)")

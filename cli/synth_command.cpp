@@ -71,7 +71,7 @@ void run_synth(const SynthArgs& args) {
 void add_synth_command(CLI::App& app) {
   auto* cmd = app.add_subcommand("synth", "A synthetic scan of the model (area-uniform samples)");
   auto args = std::make_shared<SynthArgs>();
-  cmd->add_option("--model", args->model, "Model file (.json)")->required();
+  cmd->add_option("--model", args->model, "Model file (.json, .step/.stp, .iges/.igs)")->required();
   cmd->add_option("--points", args->points, "Number of points")
       ->required()
       ->check(CLI::PositiveNumber);
