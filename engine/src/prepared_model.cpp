@@ -55,11 +55,16 @@ PreparedModel::PreparedModel(Model model) : model_(std::move(model)), serial_(ne
     SurfacePatches layout;
     layout.first = patches_.size();
     const std::vector<BezierPatch> pieces = decompose(model_.surfaces[s]);
+    surface_certifiable_.push_back(0);
     for (const BezierPatch& patch : pieces) {
       patches_.push_back(prepare_patch(patch));
       patch_surface_.push_back(static_cast<int>(s));
       patch_class_.push_back(RegionClass::inside);
       bounds_.extend(patches_.back().box);
+      if (!surface.is_trimmed() && !patches_.back().rational) {
+        surface_certifiable_.back() = 1;
+        any_certifiable_ = true;
+      }
     }
     // Recover the span grid from the patches' parameter boxes and check the layout: the warm
     // start's patch lookup relies on it (a mismatch is an internal error, not bad input).

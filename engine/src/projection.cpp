@@ -59,9 +59,6 @@ struct Projector::Impl {
   // The frame's processing order (ProjectionOptions::locality_order), reused across frames.
   FrameVector<std::uint32_t> order;
   SpatialOrderScratch order_scratch;
-  // Per surface: can a certificate be made on it (untrimmed, with a polynomial patch)?
-  std::vector<std::uint8_t> certifiable;
-  bool any_certifiable = false;
 };
 
 namespace {
@@ -161,16 +158,7 @@ bool valid_hint(const ProjectionHint* hint, std::size_t entities) {
 
 }  // namespace
 
-Projector::Projector(const PreparedModel& model) : model_(model), impl_(std::make_unique<Impl>()) {
-  impl_->certifiable.assign(model_.model().surfaces.size(), 0);
-  for (std::size_t k = 0; k < model_.patch_count(); ++k) {
-    const int surface = model_.patch_surface(k);
-    if (!model_.patch(k).rational && model_.surface_region(surface) == nullptr) {
-      impl_->certifiable[static_cast<std::size_t>(surface)] = 1;
-      impl_->any_certifiable = true;
-    }
-  }
-}
+Projector::Projector(const PreparedModel& model) : model_(model), impl_(std::make_unique<Impl>()) {}
 
 Projector::~Projector() = default;
 
@@ -267,7 +255,7 @@ WarmCertificate Projector::make_certificate(const Vec3& p, const SurfaceHit& bes
   // shared with a neighbour, gets no clearance anyway).
   if (patch < 0 || edge >= 0) return tried;
   const std::size_t k = static_cast<std::size_t>(patch);
-  if (model_.surface_region(model_.patch_surface(k)) != nullptr) return tried;
+  if (!model_.surface_certifiable(model_.patch_surface(k))) return tried;
   const double d = std::sqrt(best.distance_sq);
   // The search bounded everything but the answer up to (d + margin)^2 = (d + 2 cap)^2, and a
   // query within radius <= cap of p has its own distance at most d + radius: nothing beyond
@@ -467,9 +455,9 @@ void Projector::project_range(PointView points, const ProjectionOptions& options
       // point is marked as tried instead).
       OtherItems others;
       others.margin = 2.0 * certificate_cap;
-      const bool certifying = options.certify && !proven && !tried_here && impl_->any_certifiable &&
-                              (!valid_hint(hint, entities) ||
-                               impl_->certifiable[static_cast<std::size_t>(hint->entity)] != 0);
+      const bool certifying =
+          options.certify && !proven && !tried_here && model_.any_certifiable() &&
+          (!valid_hint(hint, entities) || model_.surface_certifiable(hint->entity));
       if (!proven) {
         // Cold start: seed alpha with a surface point near p (PreparedModel::seed_from_grid), so
         // the walk prunes from its first step. Only an upper bound: the answer stays exact.

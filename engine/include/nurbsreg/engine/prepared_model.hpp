@@ -52,6 +52,15 @@ class PreparedModel {
     return r < 0 ? nullptr : &regions_[static_cast<std::size_t>(r)];
   }
 
+  // Can a WarmCertificate be made for a foot on surface s: is it untrimmed, with a polynomial
+  // patch (certify_patch proves convexity on polynomial patches only; a trimmed face's region
+  // is not part of the proof)? And on any surface of the model? A projector certifies only
+  // where it can (ProjectionOptions::certify).
+  bool surface_certifiable(int s) const {
+    return surface_certifiable_[static_cast<std::size_t>(s)] != 0;
+  }
+  bool any_certifiable() const { return any_certifiable_; }
+
   // The surfaces' hierarchy. Its primitives ("items") are the patches that are not trimmed away,
   // k < hierarchy_patch_items(), with item_patch(k) their patch index, then the trim-edge pieces,
   // edge piece k - hierarchy_patch_items(). For a model without trimmed surfaces the items are
@@ -117,7 +126,9 @@ class PreparedModel {
   std::vector<SurfacePatches> surface_patches_;
   std::vector<RegionClass> patch_class_;
   std::vector<TrimRegion> regions_;
-  std::vector<int> surface_region_;  // per surface: index into regions_, -1 untrimmed
+  std::vector<int> surface_region_;                // per surface: index into regions_, -1 untrimmed
+  std::vector<std::uint8_t> surface_certifiable_;  // per surface (surface_certifiable)
+  bool any_certifiable_ = false;
   std::vector<std::uint32_t> item_patch_;
   std::vector<Aabb> item_boxes_;  // per hierarchy item (patches, then edge pieces)
   std::vector<BoundingSphere> item_spheres_;
