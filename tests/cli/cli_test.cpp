@@ -3,8 +3,14 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
+#include <algorithm>
+#include <cmath>
+#include <map>
 #include <nlohmann/json.hpp>
+#include <sstream>
+#include <vector>
 
+#include "nurbsreg/io/point_table.hpp"
 #include "nurbsreg/io/pose.hpp"
 #include "support/run_command.hpp"
 
@@ -142,6 +148,56 @@ TEST(Cli, AlignRecoversTheSynthPose) {
   EXPECT_EQ(report["points"].get<int>(), 20000);
   EXPECT_TRUE(std::filesystem::exists(dir / "aligned.pcd"));
   EXPECT_NE(align.out.find("deviation"), std::string::npos);
+}
+
+// The deviation line's statistics are those of the aligned scan's |signed_distance| column
+// (independent order statistics here: a full sort), to the line's 4 significant digits.
+TEST(Cli, AlignDeviationSummaryMatchesTheAlignedScan) {
+  ScratchDir dir("deviation");
+  const std::string scan = dir / "scan.pcd";
+  const CommandResult synth = run_nurbsreg("synth --model " + kPanel +
+                                               " --points 5000 --noise 0.05 --seed 4 --pose \"2 -1 "
+                                               "3 1 0.5 -0.5\" --out " +
+                                               scan,
+                                           dir.path());
+  ASSERT_EQ(synth.status, 0) << synth.err;
+  const CommandResult align = run_nurbsreg(
+      "-q align --model " + kPanel + " --scan " + scan + " --aligned " + (dir / "aligned.pcd"),
+      dir.path());
+  ASSERT_EQ(align.status, 0) << align.err;
+  const io::PointTable table = io::read_point_table(dir / "aligned.pcd");
+  const std::vector<float>* signed_distance = table.values<float>("signed_distance");
+  ASSERT_NE(signed_distance, nullptr);
+  std::vector<double> d;
+  for (float x : *signed_distance)
+    d.push_back(std::abs(static_cast<double>(x)));
+  ASSERT_EQ(d.size(), 5000u);
+  std::sort(d.begin(), d.end());
+  double sum = 0.0, sum_sq = 0.0;
+  for (double x : d) {
+    sum += x;
+    sum_sq += x * x;
+  }
+  const auto at = [&](double q) { return d[static_cast<std::size_t>(q * (d.size() - 1))]; };
+  const std::map<std::string, double> expected = {
+      {"mean", sum / d.size()}, {"rms", std::sqrt(sum_sq / d.size())},
+      {"median", at(0.5)},      {"p95", at(0.95)},
+      {"p99", at(0.99)},        {"max", d.back()}};
+  const std::size_t line = align.out.find("deviation |d| of 5000 points");
+  ASSERT_NE(line, std::string::npos) << align.out;
+  const std::size_t colon = align.out.find(": ", line);  // after "within max distance"
+  std::istringstream words(align.out.substr(colon + 2, align.out.find('\n', line) - colon - 2));
+  std::string word;
+  std::size_t checked = 0;
+  while (words >> word) {
+    const auto it = expected.find(word);
+    if (it == expected.end()) continue;
+    double value = 0.0;
+    ASSERT_TRUE(words >> value) << word;
+    EXPECT_NEAR(value, it->second, 1e-3 * it->second) << word;
+    ++checked;
+  }
+  EXPECT_EQ(checked, expected.size()) << align.out;
 }
 
 // ICP that loses its correspondences has no pose to give: a scan far beside the panel (every foot
