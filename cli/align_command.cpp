@@ -62,17 +62,14 @@ void run_align(const AlignArgs& args) {
   const icp::IcpResult& result = frame.icp;
   const Deviation& dev = frame.deviation;
   spdlog::info("{}", result.brief_report());
-  if (const auto failure = alignment_failure(result, args.icp.max_distance)) {
+  if (const auto failure = alignment_failure(result, args.icp)) {
     // No pose and no aligned scan: they would align nothing. The report says what happened
     // (converged: false, the termination and every iteration).
     write_align_outputs(frame, finder.last_results(), cloud, args.icp,
                         AlignOutputs{"", "", args.report}, total);
     throw std::runtime_error(args.scan + ": " + *failure);
   }
-  if (result.termination == icp::IcpTermination::max_iterations) {
-    spdlog::warn("{}: no convergence within {} iterations per stage; the pose may be inaccurate",
-                 args.scan, args.icp.max_iterations);
-  }
+  warn_if_unconverged(args.scan, result, args.icp);
   if (result.degeneracy.degenerate()) {
     spdlog::warn("the scan does not constrain the pose fully; free directions: {}",
                  result.degeneracy.describe());

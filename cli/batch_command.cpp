@@ -538,12 +538,9 @@ void run_batch(const BatchArgs& args) {
                   align_frame(*worker->finder, *worker->solver, token->cloud, init, args.icp);
               // A failed frame keeps no output (fail() removes them); its reason is in the
               // summary.
-              if (const auto failure = alignment_failure(r.icp, args.icp.max_distance))
+              if (const auto failure = alignment_failure(r.icp, args.icp))
                 throw std::runtime_error(*failure);
-              if (r.icp.termination == icp::IcpTermination::max_iterations) {
-                spdlog::warn("{}: no convergence within {} iterations per stage", token->row.file,
-                             args.icp.max_iterations);
-              }
+              warn_if_unconverged(token->row.file, r.icp, args.icp);
               write_align_outputs(r, worker->finder->last_results(), token->cloud, args.icp,
                                   frame.align, token->clock);
               token->row.rms = fmt::format("{}", r.icp.rms);

@@ -198,7 +198,7 @@ AlignFrameResult align_frame(icp::ModelCorrespondenceFinder& finder, icp::IcpSol
   return frame;
 }
 
-std::optional<std::string> alignment_failure(const icp::IcpResult& result, double max_distance) {
+std::optional<std::string> alignment_failure(const icp::IcpResult& result, const IcpArgs& args) {
   using icp::IcpTermination;
   if (result.termination != IcpTermination::too_few_correspondences &&
       result.termination != IcpTermination::numerical_failure) {
@@ -209,9 +209,16 @@ std::optional<std::string> alignment_failure(const icp::IcpResult& result, doubl
                   icp::to_string(result.termination), result.message);
   if (result.termination == IcpTermination::too_few_correspondences) {
     reason += "; is the scan near the model? Give a starting pose (--init)";
-    if (std::isfinite(max_distance)) reason += " or a larger --max-distance";
+    if (std::isfinite(args.max_distance)) reason += " or a larger --max-distance";
   }
   return reason;
+}
+
+void warn_if_unconverged(const std::string& scan, const icp::IcpResult& result,
+                         const IcpArgs& args) {
+  if (result.termination != icp::IcpTermination::max_iterations) return;
+  spdlog::warn("{}: no convergence within {} iterations per stage; the pose may be inaccurate",
+               scan, args.max_iterations);
 }
 
 void write_align_outputs(const AlignFrameResult& frame, const engine::ProjectionResults& proj,

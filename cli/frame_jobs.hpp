@@ -96,11 +96,15 @@ AlignFrameResult align_frame(icp::ModelCorrespondenceFinder& finder, icp::IcpSol
                              const IcpArgs& args);
 
 // Why an alignment gave no pose to use, as one line for the user, or nothing. ICP that lost its
-// correspondences (fewer inliers than it needs: the scan is too far from the model, or beyond
-// --max-distance) or whose normal equations broke down returns whatever pose it had reached, which
-// aligns nothing. A run that only ran out of iterations is not a failure: its pose is reported
-// (converged: false) with a warning. `max_distance`: --max-distance (infinite when not given).
-std::optional<std::string> alignment_failure(const icp::IcpResult& result, double max_distance);
+// correspondences (fewer inliers than it needs: the scan is too far from the model, beyond
+// --max-distance or beside the model's free edges) or whose normal equations broke down returns
+// whatever pose it had reached, which aligns nothing. A run that only ran out of iterations is
+// not a failure: its pose is reported (converged: false) with warn_if_unconverged's warning.
+std::optional<std::string> alignment_failure(const icp::IcpResult& result, const IcpArgs& args);
+// The warning for a pose that ran out of iterations (IcpTermination::max_iterations), naming the
+// scan; nothing otherwise.
+void warn_if_unconverged(const std::string& scan, const icp::IcpResult& result,
+                         const IcpArgs& args);
 
 // Writes the requested outputs of an aligned frame; `projections` are the final ones
 // (finder.last_results() right after align_frame). The report's "seconds" is read from `clock`

@@ -200,6 +200,29 @@ TEST(Cli, AlignDeviationSummaryMatchesTheAlignedScan) {
   EXPECT_EQ(checked, expected.size()) << align.out;
 }
 
+// A run that ends on --max-iterations still gives its pose (exit 0), says so on stderr and in
+// the report.
+TEST(Cli, AlignOutOfIterationsWarnsAndKeepsItsPose) {
+  ScratchDir dir("align_iterations");
+  const std::string scan = dir / "scan.pcd";
+  const CommandResult synth = run_nurbsreg(
+      "synth --model " + kPanel + " --points 2000 --seed 6 --pose \"4 -3 5 4 -2 3\" --out " + scan,
+      dir.path());
+  ASSERT_EQ(synth.status, 0) << synth.err;
+  const CommandResult align = run_nurbsreg(
+      "align --model " + kPanel + " --scan " + scan + " --max-iterations 1 --out-pose " +
+          (dir / "pose.txt") + " --report " + (dir / "report.json"),
+      dir.path());
+  EXPECT_EQ(align.status, 0) << align.err;
+  EXPECT_NE(align.err.find(scan + ": no convergence within 1 iterations per stage"),
+            std::string::npos)
+      << align.err;
+  EXPECT_TRUE(std::filesystem::exists(dir / "pose.txt"));
+  const auto report = nlohmann::json::parse(read_text(dir / "report.json"));
+  EXPECT_FALSE(report["converged"].get<bool>());
+  EXPECT_EQ(report["termination"].get<std::string>().rfind("max_iterations", 0), 0u);
+}
+
 // ICP that loses its correspondences has no pose to give: a scan far beside the panel (every foot
 // on an edge, off the normal) fails with exit 1 and one line naming the scan and the cause. No
 // pose or aligned scan is written; the report is, and says converged: false.
