@@ -24,6 +24,16 @@ int count_lines(const std::string& text) {
   return static_cast<int>(std::count(text.begin(), text.end(), '\n'));
 }
 
+// `nurbsreg synth` of the panel into dir / name with the given options; the scan's path.
+std::string synth_panel_scan(const ScratchDir& dir, const std::string& name,
+                             const std::string& options) {
+  const std::string scan = dir / name;
+  const CommandResult r =
+      run_nurbsreg("synth --model " + kPanel + " " + options + " --out " + scan, dir.path());
+  EXPECT_EQ(r.status, 0) << r.err;
+  return scan;
+}
+
 TEST(Cli, HelpForEverySubcommand) {
   ScratchDir dir("help");
   for (const char* sub : {"", "info", "project", "synth", "align"}) {
@@ -123,12 +133,9 @@ TEST(Cli, ProjectIsTheSameForOneAndTwoThreads) {
 
 TEST(Cli, AlignRecoversTheSynthPose) {
   ScratchDir dir("align");
-  const std::string scan = dir / "scan.pcd";
-  const CommandResult synth = run_nurbsreg(
-      "synth --model " + kPanel + " --points 20000 --seed 3 --pose \"4 -3 5 4 -2 3\" --out " +
-          scan + " --out-pose " + (dir / "true.txt"),
-      dir.path());
-  ASSERT_EQ(synth.status, 0) << synth.err;
+  const std::string scan = synth_panel_scan(
+      dir, "scan.pcd",
+      "--points 20000 --seed 3 --pose \"4 -3 5 4 -2 3\" --out-pose " + (dir / "true.txt"));
   const CommandResult align = run_nurbsreg(
       "align --model " + kPanel + " --scan " + scan + " --out-pose " + (dir / "pose.txt") +
           " --report " + (dir / "report.json") + " --aligned " + (dir / "aligned.pcd"),
@@ -154,13 +161,8 @@ TEST(Cli, AlignRecoversTheSynthPose) {
 // (independent order statistics here: a full sort), to the line's 4 significant digits.
 TEST(Cli, AlignDeviationSummaryMatchesTheAlignedScan) {
   ScratchDir dir("deviation");
-  const std::string scan = dir / "scan.pcd";
-  const CommandResult synth = run_nurbsreg("synth --model " + kPanel +
-                                               " --points 5000 --noise 0.05 --seed 4 --pose \"2 -1 "
-                                               "3 1 0.5 -0.5\" --out " +
-                                               scan,
-                                           dir.path());
-  ASSERT_EQ(synth.status, 0) << synth.err;
+  const std::string scan = synth_panel_scan(
+      dir, "scan.pcd", "--points 5000 --noise 0.05 --seed 4 --pose \"2 -1 3 1 0.5 -0.5\"");
   const CommandResult align = run_nurbsreg(
       "-q align --model " + kPanel + " --scan " + scan + " --aligned " + (dir / "aligned.pcd"),
       dir.path());
@@ -204,11 +206,8 @@ TEST(Cli, AlignDeviationSummaryMatchesTheAlignedScan) {
 // the report.
 TEST(Cli, AlignOutOfIterationsWarnsAndKeepsItsPose) {
   ScratchDir dir("align_iterations");
-  const std::string scan = dir / "scan.pcd";
-  const CommandResult synth = run_nurbsreg(
-      "synth --model " + kPanel + " --points 2000 --seed 6 --pose \"4 -3 5 4 -2 3\" --out " + scan,
-      dir.path());
-  ASSERT_EQ(synth.status, 0) << synth.err;
+  const std::string scan =
+      synth_panel_scan(dir, "scan.pcd", "--points 2000 --seed 6 --pose \"4 -3 5 4 -2 3\"");
   const CommandResult align = run_nurbsreg(
       "align --model " + kPanel + " --scan " + scan + " --max-iterations 1 --out-pose " +
           (dir / "pose.txt") + " --report " + (dir / "report.json"),
@@ -228,11 +227,8 @@ TEST(Cli, AlignOutOfIterationsWarnsAndKeepsItsPose) {
 // pose or aligned scan is written; the report is, and says converged: false.
 TEST(Cli, AlignThatLosesItsCorrespondencesFails) {
   ScratchDir dir("align_fails");
-  const std::string scan = dir / "beside.pcd";
-  const CommandResult synth = run_nurbsreg(
-      "synth --model " + kPanel + " --points 2000 --seed 5 --pose \"0 0 0 1000 0 0\" --out " + scan,
-      dir.path());
-  ASSERT_EQ(synth.status, 0) << synth.err;
+  const std::string scan =
+      synth_panel_scan(dir, "beside.pcd", "--points 2000 --seed 5 --pose \"0 0 0 1000 0 0\"");
   const CommandResult align = run_nurbsreg(
       "-q align --model " + kPanel + " --scan " + scan + " --out-pose " + (dir / "pose.txt") +
           " --aligned " + (dir / "aligned.pcd") + " --report " + (dir / "report.json"),
