@@ -166,17 +166,23 @@ void find_correspondences(CorrespondenceFinder& finder, double max_distance, boo
 // Trimmed ICP (Chetverikov et al. 2002): keep the
 // ceil(keep_fraction * m) smallest distances (all ties of the cut value, so the set depends
 // on the values only).
+// Why a correspondence is rejected before trimming and weighting: no foot within the maximum
+// distance, or a foot beyond a free edge of the model (reject_boundary); none: it may be an inlier.
+// The one rule for reject_outliers and for rejection_summary's counts.
+enum class Cut { none, too_far, beyond_edge };
+Cut cut_of(const IcpOptions& o, const Correspondence& c) {
+  if (!c.valid || !std::isfinite(c.distance) || !(c.distance <= o.max_correspondence_distance)) {
+    return Cut::too_far;
+  }
+  return o.reject_boundary && c.on_boundary ? Cut::beyond_edge : Cut::none;
+}
+
 void reject_outliers(const IcpOptions& o, Buffers& b) {
-  const double max_distance = o.max_correspondence_distance;
   const double keep_fraction = o.keep_fraction;
   const std::size_t n = b.ids.size();
   for_each_block(n, o.parallel, [&](std::size_t begin, std::size_t end, std::size_t) {
-    for (std::size_t k = begin; k < end; ++k) {
-      const Correspondence& c = b.matches[k];
-      const bool ok = c.valid && std::isfinite(c.distance) && c.distance <= max_distance &&
-                      !(o.reject_boundary && c.on_boundary);
-      b.inlier[k] = ok ? 1 : 0;
-    }
+    for (std::size_t k = begin; k < end; ++k)
+      b.inlier[k] = cut_of(o, b.matches[k]) == Cut::none ? 1 : 0;
   });
   if (keep_fraction < 1.0) {
     b.scratch.clear();
@@ -201,21 +207,18 @@ void reject_outliers(const IcpOptions& o, Buffers& b) {
 // whose scan lost its correspondences needs to know whether it is too far from the model, beyond
 // its edges, or cut by trimming and the robust kernel.
 std::string rejection_summary(const IcpOptions& o, const Buffers& b) {
-  std::size_t no_foot = 0, too_far = 0, beyond_edge = 0, inliers = 0;
+  std::size_t too_far = 0, beyond_edge = 0, inliers = 0;
   for (std::size_t k = 0; k < b.ids.size(); ++k) {
-    const Correspondence& c = b.matches[k];
     if (b.inlier[k]) {
       ++inliers;
-    } else if (!c.valid || !std::isfinite(c.distance)) {
-      ++no_foot;
-    } else if (c.distance > o.max_correspondence_distance) {
-      ++too_far;
-    } else if (o.reject_boundary && c.on_boundary) {
-      ++beyond_edge;
+      continue;
     }
+    const Cut cut = cut_of(o, b.matches[k]);
+    too_far += cut == Cut::too_far;
+    beyond_edge += cut == Cut::beyond_edge;
   }
-  const std::size_t weighted_out = b.ids.size() - inliers - no_foot - too_far - beyond_edge;
-  return std::to_string(no_foot + too_far) + " farther than max_correspondence_distance, " +
+  const std::size_t weighted_out = b.ids.size() - inliers - too_far - beyond_edge;
+  return std::to_string(too_far) + " farther than max_correspondence_distance, " +
          std::to_string(beyond_edge) + " beyond the model's free edges, " +
          std::to_string(weighted_out) + " trimmed or weighted out";
 }
