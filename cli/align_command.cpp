@@ -58,11 +58,12 @@ void run_align(const AlignArgs& args) {
   const engine::PreparedModel prepared(std::move(model));
   icp::ModelCorrespondenceFinder finder(prepared);
   icp::IcpSolver solver(options);
+  const ScanSize sizes = scan_size(cloud, prepared);
   const AlignFrameResult frame = align_frame(finder, solver, cloud, init, args.icp);
   const icp::IcpResult& result = frame.icp;
   const Deviation& dev = frame.deviation;
   spdlog::info("{}", result.brief_report());
-  if (const auto failure = alignment_failure(result, args.icp)) {
+  if (const auto failure = alignment_failure(result, args.icp, sizes)) {
     // No pose and no aligned scan: they would align nothing. The report says what happened
     // (converged: false, the termination and every iteration).
     write_align_outputs(frame, finder.last_results(), cloud, args.icp,
@@ -70,6 +71,7 @@ void run_align(const AlignArgs& args) {
     throw std::runtime_error(args.scan + ": " + *failure);
   }
   warn_if_unconverged(args.scan, result, args.icp);
+  if (const auto note = sizes.warning()) spdlog::warn("{}: {}", args.scan, *note);
   if (result.degeneracy.degenerate()) {
     spdlog::warn("the scan does not constrain the pose fully; free directions: {}",
                  result.degeneracy.describe());

@@ -533,12 +533,13 @@ void run_batch(const BatchArgs& args) {
           // does not start another frame's work on top of it (bounded stack, and each
           // Worker's per-thread scratch is used by one frame at a time).
           tbb::this_task_arena::isolate([&] {
+            const ScanSize sizes = scan_size(token->cloud, prepared);
             if (align) {
               const AlignFrameResult r =
                   align_frame(*worker->finder, *worker->solver, token->cloud, init, args.icp);
               // A failed frame keeps no output (fail() removes them); its reason is in the
               // summary.
-              if (const auto failure = alignment_failure(r.icp, args.icp))
+              if (const auto failure = alignment_failure(r.icp, args.icp, sizes))
                 throw std::runtime_error(*failure);
               warn_if_unconverged(token->row.file, r.icp, args.icp);
               write_align_outputs(r, worker->finder->last_results(), token->cloud, args.icp,
@@ -551,6 +552,7 @@ void run_batch(const BatchArgs& args) {
                   project_frame(*worker->projector, token->cloud, target, frame.projection, false);
               token->row.rms = fmt::format("{}", r.rms_distance);
             }
+            if (const auto note = sizes.warning()) spdlog::warn("{}: {}", token->row.file, *note);
           });
           token->row.status = "ok";
           token->row.seconds = token->clock.seconds();

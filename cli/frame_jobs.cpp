@@ -198,7 +198,33 @@ AlignFrameResult align_frame(icp::ModelCorrespondenceFinder& finder, icp::IcpSol
   return frame;
 }
 
-std::optional<std::string> alignment_failure(const icp::IcpResult& result, const IcpArgs& args) {
+ScanSize scan_size(const io::PointCloud& cloud, const engine::PreparedModel& model) {
+  engine::Aabb box;
+  for (const engine::Vec3& p : cloud.points)
+    box.extend(p);
+  return {box.diagonal(), model.bounds().diagonal(), model.model().units};
+}
+
+std::optional<std::string> ScanSize::note(double smaller, double larger) const {
+  if (!(scan > 0.0) || !(model > 0.0)) return std::nullopt;
+  const double ratio = scan / model;
+  if (ratio >= smaller && ratio <= larger) return std::nullopt;
+  const auto factor = [](double x) { return fmt::format("{:.{}f}", x, x >= 10.0 ? 0 : 1); };
+  const std::string diagonals =
+      fmt::format("(bounding-box diagonals {:.4g} and {:.4g} {})", scan, model, units);
+  if (ratio > larger) {
+    return fmt::format(
+        "the scan is {} times the size of the model {}: are both in the same units (m, mm, in)? "
+        "Or does the scan hold more than the part?",
+        factor(ratio), diagonals);
+  }
+  return fmt::format(
+      "the scan is 1/{} of the size of the model {}: are both in the same units (m, mm, in)?",
+      factor(1.0 / ratio), diagonals);
+}
+
+std::optional<std::string> alignment_failure(const icp::IcpResult& result, const IcpArgs& args,
+                                             const ScanSize& sizes) {
   using icp::IcpTermination;
   if (result.termination != IcpTermination::too_few_correspondences &&
       result.termination != IcpTermination::numerical_failure) {
@@ -207,10 +233,13 @@ std::optional<std::string> alignment_failure(const icp::IcpResult& result, const
   std::string reason =
       fmt::format("alignment failed after {} iterations: {} ({})", result.iterations,
                   icp::to_string(result.termination), result.message);
-  if (result.termination == IcpTermination::too_few_correspondences) {
+  // A scan with fewer points than a pose needs fails wherever it lies: no hint about its place.
+  const bool scan_too_small = result.points < icp_options(args).min_correspondences;
+  if (result.termination == IcpTermination::too_few_correspondences && !scan_too_small) {
     reason += "; is the scan near the model? Give a starting pose (--init)";
     if (std::isfinite(args.max_distance)) reason += " or a larger --max-distance";
   }
+  if (const auto note = sizes.failure_note()) reason += "; " + *note;
   return reason;
 }
 

@@ -52,6 +52,27 @@ ProjectFrameResult project_frame(engine::Projector& projector, const io::PointCl
                                  engine::ProjectionTarget target, const std::string& out,
                                  bool log_progress);
 
+// ---- scan against model ----------------------------------------------------------------------
+
+// The sizes (bounding-box diagonals) of a scan and of the model, to tell the user when they are
+// far apart: a scan in metres against a model in millimetres is 1/1000 of it, and ICP then
+// "aligns" it onto a small patch of the model with a tiny rms; a scan in inches is 1/25.4; a
+// scan of a whole scene is much larger than its part.
+struct ScanSize {
+  double scan = 0.0;
+  double model = 0.0;
+  std::string units;  // the model's
+
+  // One line when scan / model lies outside [smaller, larger]; nothing otherwise, or when either
+  // has no size (a single point).
+  std::optional<std::string> note(double smaller, double larger) const;
+  // The warning of every command: partial views of large models stay quiet down to 1/200.
+  std::optional<std::string> warning() const { return note(1.0 / 200.0, 8.0); }
+  // Added to a failed alignment's message, where a mismatch is the likelier cause: 1/10 and 4.
+  std::optional<std::string> failure_note() const { return note(0.1, 4.0); }
+};
+ScanSize scan_size(const io::PointCloud& cloud, const engine::PreparedModel& model);
+
 // ---- align ---------------------------------------------------------------------------------
 
 // The ICP options as the command line spells them (shared by align and batch).
@@ -100,7 +121,9 @@ AlignFrameResult align_frame(icp::ModelCorrespondenceFinder& finder, icp::IcpSol
 // --max-distance or beside the model's free edges) or whose normal equations broke down returns
 // whatever pose it had reached, which aligns nothing. A run that only ran out of iterations is
 // not a failure: its pose is reported (converged: false) with warn_if_unconverged's warning.
-std::optional<std::string> alignment_failure(const icp::IcpResult& result, const IcpArgs& args);
+// The sizes' failure_note, when there is one, ends the line.
+std::optional<std::string> alignment_failure(const icp::IcpResult& result, const IcpArgs& args,
+                                             const ScanSize& sizes);
 // The warning for a pose that ran out of iterations (IcpTermination::max_iterations), naming the
 // scan; nothing otherwise.
 void warn_if_unconverged(const std::string& scan, const icp::IcpResult& result,

@@ -43,8 +43,18 @@ void run_project(const ProjectArgs& args) {
   spdlog::info("{}: {} Bézier patches, {} curve pieces prepared in {:.3f} s", args.model,
                prepared.patch_count(), prepared.piece_count(), prepare.seconds());
 
+  if (const auto note = scan_size(cloud, prepared).warning()) {
+    spdlog::warn("{}: {}", args.points, *note);
+  }
+
   engine::Projector projector(prepared);
   const ProjectFrameResult r = project_frame(projector, cloud, target, args.out, true);
+  if (r.points == 0) {
+    // An empty table is written (a pipeline may expect the file), but no statistics of nothing.
+    spdlog::warn("{}: no finite points to project ({} skipped); wrote an empty table {}",
+                 args.points, r.skipped, args.out);
+    return;
+  }
   spdlog::info(
       "{} points projected, {} skipped; distance min {:.6g} mean {:.6g} max {:.6g}; {:.0f} "
       "points/s; wrote {} ({:.2f} s total)",

@@ -10,6 +10,7 @@
 #include <sstream>
 #include <vector>
 
+#include "nurbsreg/io/point_cloud.hpp"
 #include "nurbsreg/io/point_table.hpp"
 #include "nurbsreg/io/pose.hpp"
 #include "support/run_command.hpp"
@@ -245,6 +246,87 @@ TEST(Cli, AlignThatLosesItsCorrespondencesFails) {
   EXPECT_FALSE(report["converged"].get<bool>());
   EXPECT_EQ(report["inliers"].get<int>(), 0);
   EXPECT_EQ(report["termination"].get<std::string>().rfind("too_few_correspondences", 0), 0u);
+}
+
+// A synthetic panel scan with every coordinate multiplied by `scale` (another unit), as XYZ.
+std::string scaled_panel_scan(const ScratchDir& dir, const std::string& name, double scale) {
+  const io::PointCloud cloud =
+      io::read_point_cloud(synth_panel_scan(dir, name + ".mm.xyz", "--points 2000 --seed 7"));
+  const std::string scan = dir / name;
+  std::ofstream out(scan);
+  out.precision(17);
+  for (const engine::Vec3& p : cloud.points)
+    out << scale * p.x() << ' ' << scale * p.y() << ' ' << scale * p.z() << '\n';
+  return scan;
+}
+
+// A scan in metres against the panel in millimetres: ICP settles the small scan on some patch
+// (exit 0, a pose), so the command must say that the sizes differ by 1000.
+TEST(Cli, AlignOfAScanInOtherUnitsWarns) {
+  ScratchDir dir("align_metres");
+  const std::string scan = scaled_panel_scan(dir, "metres.xyz", 1e-3);
+  const CommandResult align = run_nurbsreg(
+      "align --model " + kPanel + " --scan " + scan + " --out-pose " + (dir / "pose.txt"),
+      dir.path());
+  EXPECT_EQ(align.status, 0) << align.err;
+  EXPECT_NE(align.err.find(scan + ": the scan is 1/"), std::string::npos) << align.err;
+  EXPECT_NE(align.err.find("of the size of the model"), std::string::npos) << align.err;
+  EXPECT_NE(align.err.find("are both in the same units"), std::string::npos) << align.err;
+  // project warns the same way; a scan of the panel's own size does not.
+  const CommandResult project = run_nurbsreg(
+      "project --model " + kPanel + " --points " + scan + " --out " + (dir / "r.csv"), dir.path());
+  EXPECT_EQ(project.status, 0) << project.err;
+  EXPECT_NE(project.err.find("are both in the same units"), std::string::npos) << project.err;
+  const CommandResult same = run_nurbsreg(
+      "project --model " + kPanel + " --points " + scan + ".mm.xyz --out " + (dir / "r2.csv"),
+      dir.path());
+  EXPECT_EQ(same.status, 0) << same.err;
+  EXPECT_EQ(same.err.find("same units"), std::string::npos) << same.err;
+}
+
+// A scan in inches (1/25.4 of the panel) loses its correspondences: the failure line names the
+// sizes as the likely cause.
+TEST(Cli, AlignFailureNamesTheSizeMismatch) {
+  ScratchDir dir("align_inches");
+  const std::string scan = scaled_panel_scan(dir, "inches.xyz", 1.0 / 25.4);
+  const CommandResult align =
+      run_nurbsreg("-q align --model " + kPanel + " --scan " + scan, dir.path());
+  EXPECT_EQ(align.status, 1) << align.err;
+  EXPECT_EQ(count_lines(align.err), 1) << align.err;
+  EXPECT_NE(align.err.find("alignment failed"), std::string::npos) << align.err;
+  // ~1/26: the model's size is its control points' box.
+  EXPECT_NE(align.err.find("the scan is 1/2"), std::string::npos) << align.err;
+  EXPECT_NE(align.err.find("are both in the same units"), std::string::npos) << align.err;
+}
+
+// A scan with fewer points than a pose needs fails for that reason alone: no hint about where it
+// lies.
+TEST(Cli, AlignOfTooFewPointsSaysSo) {
+  ScratchDir dir("align_few");
+  const std::string scan = dir / "three.xyz";
+  std::ofstream(scan) << "0 0 0\n10 0 0\n0 10 0\n";
+  const CommandResult align =
+      run_nurbsreg("-q align --model " + kPanel + " --scan " + scan, dir.path());
+  EXPECT_EQ(align.status, 1) << align.err;
+  EXPECT_NE(align.err.find("scan has 3 points, fewer than min_correspondences (6)"),
+            std::string::npos)
+      << align.err;
+  EXPECT_EQ(align.err.find("--init"), std::string::npos) << align.err;
+}
+
+// project of a file without finite points writes the table's header and says so, with no
+// statistics of nothing.
+TEST(Cli, ProjectOfNoPointsWritesAnEmptyTable) {
+  ScratchDir dir("project_empty");
+  const std::string points = dir / "nan.xyz";
+  std::ofstream(points) << "nan 0 0\n1 inf 2\n";
+  const std::string out = dir / "r.csv";
+  const CommandResult r = run_nurbsreg(
+      "project --model " + kPanel + " --points " + points + " --out " + out, dir.path());
+  EXPECT_EQ(r.status, 0) << r.err;
+  EXPECT_NE(r.err.find("no finite points to project (2 skipped)"), std::string::npos) << r.err;
+  EXPECT_EQ(r.err.find("distance min"), std::string::npos) << r.err;
+  EXPECT_EQ(count_lines(read_text(out)), 1);
 }
 
 }  // namespace
