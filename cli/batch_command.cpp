@@ -445,7 +445,7 @@ void run_batch(const BatchArgs& args) {
     throw UsageError(args.model + ": align needs a model with surfaces");
   }
   const engine::PreparedModel prepared(std::move(model));
-  if (!align) check_projection_target(prepared, target, args.model);
+  if (!align) check_projection_target(prepared.model(), target, args.model);
   spdlog::info("{}: {} Bézier patches prepared in {:.3f} s (shared by all frames)", args.model,
                prepared.patch_count(), prepare.seconds());
 

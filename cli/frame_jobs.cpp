@@ -58,12 +58,12 @@ engine::ProjectionTarget parse_projection_target(const std::string& target) {
   throw UsageError("--target: expected surfaces or curves, got \"" + target + "\"");
 }
 
-void check_projection_target(const engine::PreparedModel& model, engine::ProjectionTarget target,
+void check_projection_target(const engine::Model& model, engine::ProjectionTarget target,
                              const std::string& model_path) {
-  if (target == engine::ProjectionTarget::surfaces && model.model().surfaces.empty()) {
+  if (target == engine::ProjectionTarget::surfaces && model.surfaces.empty()) {
     throw UsageError(model_path + ": the model has no surfaces; use --target curves");
   }
-  if (target == engine::ProjectionTarget::curves && model.model().curves.empty()) {
+  if (target == engine::ProjectionTarget::curves && model.curves.empty()) {
     throw UsageError(model_path + ": the model has no curves; use --target surfaces");
   }
 }

@@ -42,7 +42,7 @@ struct ProjectFrameResult {
 // Parses --target; UsageError for anything but surfaces/curves.
 engine::ProjectionTarget parse_projection_target(const std::string& target);
 // UsageError naming `model_path` when the model has no entity of the target kind.
-void check_projection_target(const engine::PreparedModel& model, engine::ProjectionTarget target,
+void check_projection_target(const engine::Model& model, engine::ProjectionTarget target,
                              const std::string& model_path);
 
 // Projects every point of `cloud` and writes the contract's results table to `out` (.csv or

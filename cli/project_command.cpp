@@ -28,12 +28,7 @@ void run_project(const ProjectArgs& args) {
   const Stopwatch total;
   engine::Model model = load_model_file(args.model);
   const engine::ProjectionTarget target = parse_projection_target(args.target);
-  if (target == engine::ProjectionTarget::surfaces && model.surfaces.empty()) {
-    throw UsageError(args.model + ": the model has no surfaces; use --target curves");
-  }
-  if (target == engine::ProjectionTarget::curves && model.curves.empty()) {
-    throw UsageError(args.model + ": the model has no curves; use --target surfaces");
-  }
+  check_projection_target(model, target, args.model);
   const io::PointCloud cloud = io::read_point_cloud(args.points);
   spdlog::info("{}: {} points read, {} skipped (NaN or infinite)", args.points, cloud.size(),
                cloud.skipped_nonfinite);
