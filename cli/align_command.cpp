@@ -15,6 +15,7 @@
 #include "nurbsreg/io/errors.hpp"
 #include "nurbsreg/io/point_cloud.hpp"
 #include "nurbsreg/io/pose.hpp"
+#include "nurbsreg/io/projection_results.hpp"
 
 namespace nurbsreg::cli {
 namespace {
@@ -44,6 +45,10 @@ std::string pose_lines(const Eigen::Matrix4d& T) {
 
 void run_align(const AlignArgs& args) {
   const auto threads = limit_threads(args.threads);
+  // Before any work: a wrong name found after the alignment would waste it.
+  if (!args.aligned.empty() && !io::table_format_for(args.aligned)) {
+    throw UsageError("--aligned: " + args.aligned + ": expected a .pcd or .csv file name");
+  }
   const Stopwatch total;
   const icp::IcpOptions options = icp_options(args.icp);
   engine::Model model = load_model_file(args.model);
@@ -103,7 +108,8 @@ void add_align_command(CLI::App& app) {
   cmd->add_option("--init", args->init, "Initial pose T0 (4 lines of 4 numbers)");
   cmd->add_option("--out-pose", args->out_pose, "Write the pose T (model_point = T * scan_point)");
   cmd->add_option("--aligned", args->aligned,
-                  "Write the aligned scan (.pcd) with signed_distance, entity, u, v per point");
+                  "Write the aligned scan (.pcd or .csv) with signed_distance, entity, u, v per "
+                  "point");
   cmd->add_option("--report", args->report, "Write a JSON report");
   add_icp_options(*cmd, args->icp);
   cmd->add_option("--threads", args->threads, "Worker threads (0 = all hardware threads)")

@@ -58,6 +58,11 @@ TEST(Cli, UsageErrorsExitTwo) {
       "project --model " + kPanel + " --points x.xyz --out " + (dir / "r.txt"), dir.path());
   EXPECT_EQ(r.status, 2);
   EXPECT_NE(r.err.find("r.txt"), std::string::npos);
+  // align checks its output names before it reads anything (the scan here does not exist).
+  const CommandResult aligned = run_nurbsreg(
+      "align --model " + kPanel + " --scan missing.xyz --aligned " + (dir / "a.ply"), dir.path());
+  EXPECT_EQ(aligned.status, 2) << aligned.err;
+  EXPECT_NE(aligned.err.find("--aligned: " + (dir / "a.ply")), std::string::npos) << aligned.err;
 }
 
 TEST(Cli, BadInputExitsThreeWithOneLineNamingTheFile) {
