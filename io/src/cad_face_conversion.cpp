@@ -232,10 +232,11 @@ double edge_gap(const engine::TrimCurve& c, const engine::NurbsSurface& s) {
 // often much looser, tolerance) is replaced by S(uv(t)) itself, approximated within
 // `tolerance` in the uv curve's parameter. Counted in result.rebuilt_edges.
 // On a periodic surface a pcurve may run a whole number of periods away from the domain the
-// non-periodic surface has: translate it back (exact). Returns whether the curve still leaves
-// the domain (then S(uv) clamps there and cannot follow the file's edge).
-bool shift_into_domain(Geom2d_BSplineCurve& uv, const engine::NurbsSurface& s,
-                       const SurfaceGeometry& geometry) {
+// non-periodic surface has: translate it back (exact). Returns how far the curve still leaves
+// the domain, as a fraction of its width (0: not at all; then S(uv) clamps there and cannot
+// follow the file's edge).
+double shift_into_domain(Geom2d_BSplineCurve& uv, const engine::NurbsSurface& s,
+                         const SurfaceGeometry& geometry) {
   double lo[2] = {1e300, 1e300}, hi[2] = {-1e300, -1e300};
   for (int k = 0; k <= 32; ++k) {
     const gp_Pnt2d p =
@@ -245,7 +246,7 @@ bool shift_into_domain(Geom2d_BSplineCurve& uv, const engine::NurbsSurface& s,
   }
   const engine::ParamInterval domain[2] = {s.domain_u(), s.domain_v()};
   const double period[2] = {geometry.period_u, geometry.period_v};
-  bool outside = false;
+  double excursion = 0;
   for (int a = 0; a < 2; ++a) {
     const double slack = 1e-9 * std::max(1.0, domain[a].hi - domain[a].lo);
     if (period[a] > 0 && (lo[a] < domain[a].lo - slack || hi[a] > domain[a].hi + slack)) {
@@ -255,9 +256,13 @@ bool shift_into_domain(Geom2d_BSplineCurve& uv, const engine::NurbsSurface& s,
         lo[a] += shift, hi[a] += shift;
       }
     }
-    outside = outside || lo[a] < domain[a].lo - slack || hi[a] > domain[a].hi + slack;
+    if (lo[a] < domain[a].lo - slack || hi[a] > domain[a].hi + slack) {
+      const double width = domain[a].hi - domain[a].lo;
+      excursion =
+          std::max({excursion, (domain[a].lo - lo[a]) / width, (hi[a] - domain[a].hi) / width});
+    }
   }
-  return outside;
+  return excursion;
 }
 
 engine::TrimCurve trim_curve(const TopoDS_Edge& edge, const TopoDS_Face& face,
@@ -269,7 +274,10 @@ engine::TrimCurve trim_curve(const TopoDS_Edge& edge, const TopoDS_Face& face,
   engine::TrimCurve out;
   const Handle(Geom2d_BSplineCurve) uv =
       uv_bspline(pcurve, first, last, uv_tolerance, result.approximations);
-  if (shift_into_domain(*uv, s, geometry)) ++result.uv_outside_domain;
+  if (const double excursion = shift_into_domain(*uv, s, geometry); excursion > 0) {
+    ++result.uv_outside_domain;
+    result.uv_excursion = std::max(result.uv_excursion, excursion);
+  }
   out.uv = to_engine(*uv);
   const engine::ParamInterval domain = out.uv.domain();
   if (BRep_Tool::Degenerated(edge)) {
