@@ -3,6 +3,7 @@
 #include <Adaptor3d_CurveOnSurface.hxx>
 #include <BRepAdaptor_Surface.hxx>
 #include <BRepBuilderAPI_NurbsConvert.hxx>
+#include <BRepTools.hxx>
 #include <BRepTools_WireExplorer.hxx>
 #include <BRep_Tool.hxx>
 #include <Geom2dAdaptor_Curve.hxx>
@@ -30,8 +31,11 @@
 #include <TopoDS_Edge.hxx>
 #include <TopoDS_Wire.hxx>
 #include <algorithm>
+#include <cmath>
 #include <limits>
 #include <stdexcept>
+
+#include "nurbsreg/engine/decompose.hpp"
 
 namespace nurbsreg::io::cad_detail {
 namespace {
@@ -158,6 +162,9 @@ void reverse(engine::NurbsCurve& c) {
 // (0: not periodic).
 struct SurfaceGeometry {
   Handle(Geom_BSplineSurface) bspline;
+  // The surface before SetNotPeriodic when it was periodic (else null): S(uv) of a uv curve that
+  // runs beyond one period, where the non-periodic one would be extrapolated.
+  Handle(Geom_BSplineSurface) periodic;
   double period_u = 0;
   double period_v = 0;
 };
@@ -175,6 +182,9 @@ engine::NurbsSurface surface_of(const TopoDS_Face& converted, double tolerance, 
                         surface->DynamicType()->Name());
   }
   bspline = Handle(Geom_BSplineSurface)::DownCast(bspline->Copy());
+  if (bspline->IsUPeriodic() || bspline->IsVPeriodic()) {
+    geometry.periodic = Handle(Geom_BSplineSurface)::DownCast(bspline->Copy());
+  }
   if (bspline->IsUPeriodic()) {
     geometry.period_u = bspline->UPeriod();
     bspline->SetUNotPeriodic();
@@ -226,57 +236,184 @@ double edge_gap(const engine::TrimCurve& c, const engine::NurbsSurface& s) {
   return worst;
 }
 
+// One edge use of a wire with its uv curve (the edge's own direction; `reversed` when the wire
+// runs it backwards), before its 3-D curve is chosen.
+struct WireEdge {
+  TopoDS_Edge edge;
+  Handle(Geom2d_BSplineCurve) uv;
+  bool reversed = false;
+
+  gp_Pnt2d start() const { return reversed ? uv->EndPoint() : uv->StartPoint(); }
+  gp_Pnt2d end() const { return reversed ? uv->StartPoint() : uv->EndPoint(); }
+};
+
+WireEdge wire_edge(const TopoDS_Edge& edge, const TopoDS_Face& face, double uv_tolerance,
+                   FaceConversion& result) {
+  double first = 0, last = 0;
+  const Handle(Geom2d_Curve) pcurve = BRep_Tool::CurveOnSurface(edge, face, first, last);
+  if (pcurve.IsNull()) throw Unconvertible("an edge has no curve on the face (pcurve)");
+  return {edge, uv_bspline(pcurve, first, last, uv_tolerance, result.approximations),
+          edge.Orientation() == TopAbs_REVERSED};
+}
+
+// The range of coordinate `axis` (0: u, 1: v) over the curve (33 points: a rational curve's
+// control polygon overshoots it).
+std::pair<double, double> curve_range(const Geom2d_BSplineCurve& uv, int axis) {
+  double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+  for (int k = 0; k <= 32; ++k) {
+    const gp_Pnt2d p =
+        uv.Value(uv.FirstParameter() + (uv.LastParameter() - uv.FirstParameter()) * k / 32);
+    lo = std::min(lo, axis == 0 ? p.X() : p.Y());
+    hi = std::max(hi, axis == 0 ? p.X() : p.Y());
+  }
+  return {lo, hi};
+}
+
+void translate(Geom2d_BSplineCurve& uv, int axis, double shift) {
+  if (shift != 0) uv.Translate(axis == 0 ? gp_Vec2d(shift, 0) : gp_Vec2d(0, shift));
+}
+
+// `copies` periods of the surface along `axis` (0: u, 1: v) instead of one, when it is closed
+// there (clamped, its first and last rows of control points, and weights, agree within
+// `tolerance`): the copies joined at the seam (knot multiplicity = degree there), the same points
+// of space. Returns false, leaving the surface as it is, when it is not closed.
+bool repeat_periods(engine::NurbsSurface& surface, int axis, int copies, double tolerance) {
+  // OCCT's SetNotPeriodic may leave unclamped ends, whose end rows are not the seam's points.
+  engine::NurbsSurface s = engine::clamp(surface);
+  const int n = axis == 0 ? s.count_u : s.count_v;
+  const int other = axis == 0 ? s.count_v : s.count_u;
+  const int degree = axis == 0 ? s.degree_u : s.degree_v;
+  const auto at = [&](int k, int l) {  // index of control point k along axis, l across it
+    return static_cast<std::size_t>(axis == 0 ? k * s.count_v + l : l * s.count_v + k);
+  };
+  for (int l = 0; l < other; ++l) {
+    if ((s.control_points[at(0, l)] - s.control_points[at(n - 1, l)]).norm() > tolerance) {
+      return false;
+    }
+    if (!s.weights.empty() &&
+        std::abs(s.weights[at(0, l)] - s.weights[at(n - 1, l)]) > 1e-12 * s.weights[at(0, l)]) {
+      return false;
+    }
+  }
+  std::vector<double>& knots = axis == 0 ? s.knots_u : s.knots_v;
+  const double period = knots.back() - knots.front();
+  // knots = [lo] * (degree + 1), interior, [hi] * (degree + 1).
+  const std::vector<double> interior(knots.begin() + degree + 1, knots.end() - degree - 1);
+  std::vector<double> extended(knots.begin(), knots.begin() + degree + 1);
+  for (int c = 0; c < copies; ++c) {
+    for (double k : interior)
+      extended.push_back(k + c * period);
+    const double seam = knots.front() + (c + 1) * period;
+    extended.insert(extended.end(), c + 1 < copies ? degree : degree + 1, seam);
+  }
+  const int count = copies * n - (copies - 1);
+  std::vector<engine::Vec3> points(static_cast<std::size_t>(count) * other);
+  std::vector<double> weights(s.weights.empty() ? 0 : points.size());
+  const auto new_at = [&](int k, int l) {
+    return static_cast<std::size_t>(axis == 0 ? k * other + l : l * count + k);
+  };
+  for (int k = 0; k < count; ++k) {
+    const int source = k == 0 ? 0 : (k - 1) % (n - 1) + 1;  // copy c holds source 1 .. n - 1
+    for (int l = 0; l < other; ++l) {
+      points[new_at(k, l)] = s.control_points[at(source, l)];
+      if (!weights.empty()) weights[new_at(k, l)] = s.weights[at(source, l)];
+    }
+  }
+  knots = std::move(extended);
+  (axis == 0 ? s.count_u : s.count_v) = count;
+  s.control_points = std::move(points);
+  s.weights = std::move(weights);
+  // The geometry only: clamp() keeps nothing else (name, orientation, loops).
+  surface.knots_u = std::move(s.knots_u);
+  surface.knots_v = std::move(s.knots_v);
+  surface.count_u = s.count_u;
+  surface.count_v = s.count_v;
+  surface.control_points = std::move(s.control_points);
+  surface.weights = std::move(s.weights);
+  return true;
+}
+
+// On a periodic surface a face's uv curves may lie in any period, and a wire may jump by whole
+// periods from one edge to the next where it crosses the seam (NIST CTC 02: faces whose loop
+// runs once around a cylinder, so that half of the loop lies beyond the domain of the
+// non-periodic surface). Each wire is made continuous by translating its curves by whole
+// periods, then placed as a whole: the outer wire (index `outer`) from the domain's start, the
+// others from the outer one's. Where a wire then still runs beyond the domain, the surface is
+// repeated over as many periods as needed (repeat_periods), so that the whole face is in it.
+void place_periodic_wires(std::vector<std::vector<WireEdge>>& wires, std::size_t outer,
+                          engine::NurbsSurface& s, const SurfaceGeometry& geometry,
+                          double tolerance) {
+  const double period[2] = {geometry.period_u, geometry.period_v};
+  for (int axis = 0; axis < 2; ++axis) {
+    const double p = period[axis];
+    if (!(p > 0) || wires.empty()) continue;
+    const auto coordinate = [axis](const gp_Pnt2d& x) { return axis == 0 ? x.X() : x.Y(); };
+    const engine::ParamInterval domain = axis == 0 ? s.domain_u() : s.domain_v();
+    const double slack = 1e-9 * std::max(1.0, domain.width());
+    std::vector<double> lowest(wires.size()), highest(wires.size());
+    for (std::size_t w = 0; w < wires.size(); ++w) {
+      for (std::size_t e = 1; e < wires[w].size(); ++e) {
+        const double gap = coordinate(wires[w][e - 1].end()) - coordinate(wires[w][e].start());
+        translate(*wires[w][e].uv, axis, p * std::round(gap / p));
+      }
+      lowest[w] = std::numeric_limits<double>::infinity();
+      highest[w] = -lowest[w];
+      for (const WireEdge& e : wires[w]) {
+        const auto [lo, hi] = curve_range(*e.uv, axis);
+        lowest[w] = std::min(lowest[w], lo);
+        highest[w] = std::max(highest[w], hi);
+      }
+    }
+    // The outer wire from the domain's start, the others within the outer one's periods.
+    double top = -std::numeric_limits<double>::infinity();
+    const auto place = [&](std::size_t w, double from) {
+      const double shift = -p * std::floor((lowest[w] - from + slack) / p);
+      for (WireEdge& e : wires[w])
+        translate(*e.uv, axis, shift);
+      top = std::max(top, highest[w] + shift);
+      return lowest[w] + shift;
+    };
+    const double outer_start = place(outer, domain.lo);
+    for (std::size_t w = 0; w < wires.size(); ++w) {
+      if (w != outer) place(w, outer_start);
+    }
+    if (top > domain.hi + slack) {
+      const int copies = static_cast<int>(std::ceil((top - domain.lo - slack) / p));
+      repeat_periods(s, axis, copies, tolerance);
+    }
+  }
+}
+
+// How far the curve leaves the surface's domain, as a fraction of its width (0: not at all;
+// then S(uv) clamps there and cannot follow the file's edge).
+double excursion(const Geom2d_BSplineCurve& uv, const engine::NurbsSurface& s) {
+  double worst = 0;
+  const engine::ParamInterval domain[2] = {s.domain_u(), s.domain_v()};
+  for (int a = 0; a < 2; ++a) {
+    const auto [lo, hi] = curve_range(uv, a);
+    const double slack = 1e-9 * std::max(1.0, domain[a].width());
+    if (lo < domain[a].lo - slack || hi > domain[a].hi + slack) {
+      worst = std::max({worst, (domain[a].lo - lo) / domain[a].width(),
+                        (hi - domain[a].hi) / domain[a].width()});
+    }
+  }
+  return worst;
+}
+
 // One edge use of a wire: uv curve and 3-D edge on the same domain, oriented along the wire.
 // The engine reports (u, v) = uv(t) for a foot point edge(t), so the two must agree: a file's
 // 3-D curve farther than `tolerance` from S(uv(t)) (CAD edges are only within their own,
 // often much looser, tolerance) is replaced by S(uv(t)) itself, approximated within
 // `tolerance` in the uv curve's parameter. Counted in result.rebuilt_edges.
-// On a periodic surface a pcurve may run a whole number of periods away from the domain the
-// non-periodic surface has: translate it back (exact). Returns how far the curve still leaves
-// the domain, as a fraction of its width (0: not at all; then S(uv) clamps there and cannot
-// follow the file's edge).
-double shift_into_domain(Geom2d_BSplineCurve& uv, const engine::NurbsSurface& s,
-                         const SurfaceGeometry& geometry) {
-  double lo[2] = {1e300, 1e300}, hi[2] = {-1e300, -1e300};
-  for (int k = 0; k <= 32; ++k) {
-    const gp_Pnt2d p =
-        uv.Value(uv.FirstParameter() + (uv.LastParameter() - uv.FirstParameter()) * k / 32);
-    lo[0] = std::min(lo[0], p.X()), hi[0] = std::max(hi[0], p.X());
-    lo[1] = std::min(lo[1], p.Y()), hi[1] = std::max(hi[1], p.Y());
-  }
-  const engine::ParamInterval domain[2] = {s.domain_u(), s.domain_v()};
-  const double period[2] = {geometry.period_u, geometry.period_v};
-  double excursion = 0;
-  for (int a = 0; a < 2; ++a) {
-    const double slack = 1e-9 * std::max(1.0, domain[a].hi - domain[a].lo);
-    if (period[a] > 0 && (lo[a] < domain[a].lo - slack || hi[a] > domain[a].hi + slack)) {
-      const double shift = -period[a] * std::floor((lo[a] - domain[a].lo + slack) / period[a]);
-      if (shift != 0) {
-        uv.Translate(a == 0 ? gp_Vec2d(shift, 0) : gp_Vec2d(0, shift));
-        lo[a] += shift, hi[a] += shift;
-      }
-    }
-    if (lo[a] < domain[a].lo - slack || hi[a] > domain[a].hi + slack) {
-      const double width = domain[a].hi - domain[a].lo;
-      excursion =
-          std::max({excursion, (domain[a].lo - lo[a]) / width, (hi[a] - domain[a].hi) / width});
-    }
-  }
-  return excursion;
-}
-
-engine::TrimCurve trim_curve(const TopoDS_Edge& edge, const TopoDS_Face& face,
-                             const engine::NurbsSurface& s, const SurfaceGeometry& geometry,
-                             double tolerance, double uv_tolerance, FaceConversion& result) {
-  double first = 0, last = 0;
-  const Handle(Geom2d_Curve) pcurve = BRep_Tool::CurveOnSurface(edge, face, first, last);
-  if (pcurve.IsNull()) throw Unconvertible("an edge has no curve on the face (pcurve)");
+engine::TrimCurve trim_curve(const WireEdge& wire_edge, const engine::NurbsSurface& s,
+                             const SurfaceGeometry& geometry, double tolerance,
+                             FaceConversion& result) {
+  const TopoDS_Edge& edge = wire_edge.edge;
+  const Handle(Geom2d_BSplineCurve)& uv = wire_edge.uv;
   engine::TrimCurve out;
-  const Handle(Geom2d_BSplineCurve) uv =
-      uv_bspline(pcurve, first, last, uv_tolerance, result.approximations);
-  if (const double excursion = shift_into_domain(*uv, s, geometry); excursion > 0) {
+  if (const double beyond = excursion(*uv, s); beyond > 0) {
     ++result.uv_outside_domain;
-    result.uv_excursion = std::max(result.uv_excursion, excursion);
+    result.uv_excursion = std::max(result.uv_excursion, beyond);
   }
   out.uv = to_engine(*uv);
   const engine::ParamInterval domain = out.uv.domain();
@@ -298,7 +435,9 @@ engine::TrimCurve trim_curve(const TopoDS_Edge& edge, const TopoDS_Face& face,
     }
     if (curve.IsNull() || edge_gap(out, s) > tolerance) {
       const Handle(Adaptor3d_Curve) on_surface = new Adaptor3d_CurveOnSurface(
-          new Geom2dAdaptor_Curve(uv), new GeomAdaptor_Surface(geometry.bspline));
+          new Geom2dAdaptor_Curve(uv),
+          new GeomAdaptor_Surface(geometry.periodic.IsNull() ? geometry.bspline
+                                                             : geometry.periodic));
       // C1 first (fewer pieces); C0 where the uv curve itself has kinks. OCCT's own error
       // estimate is checked on our side (33 samples); the closest candidate is kept.
       double best = out.edge ? edge_gap(out, s) : std::numeric_limits<double>::infinity();
@@ -367,14 +506,25 @@ FaceConversion convert_face(const TopoDS_Face& face, const TopoDS_Face* nurbs_fa
     BRepAdaptor_Surface adaptor(converted, Standard_False);
     const double uv_tolerance =
         std::min(adaptor.UResolution(tolerance), adaptor.VResolution(tolerance));
-    for (TopExp_Explorer wires(converted, TopAbs_WIRE); wires.More(); wires.Next()) {
+    // The wires' uv curves first: on a periodic surface they are placed (and the surface
+    // repeated) before any 3-D edge is compared with S(uv).
+    const TopoDS_Wire outer_wire = BRepTools::OuterWire(converted);
+    std::vector<std::vector<WireEdge>> wires;
+    std::size_t outer = 0;
+    for (TopExp_Explorer w(converted, TopAbs_WIRE); w.More(); w.Next()) {
+      std::vector<WireEdge> edges;
+      for (BRepTools_WireExplorer e(TopoDS::Wire(w.Current()), converted); e.More(); e.Next())
+        edges.push_back(wire_edge(e.Current(), converted, uv_tolerance, result));
+      if (edges.empty()) continue;
+      if (w.Current().IsSame(outer_wire)) outer = wires.size();
+      wires.push_back(std::move(edges));
+    }
+    place_periodic_wires(wires, outer, s, geometry, tolerance);
+    for (const std::vector<WireEdge>& wire : wires) {
       engine::TrimLoop loop;
-      for (BRepTools_WireExplorer edges(TopoDS::Wire(wires.Current()), converted); edges.More();
-           edges.Next()) {
-        loop.curves.push_back(
-            trim_curve(edges.Current(), converted, s, geometry, tolerance, uv_tolerance, result));
-      }
-      if (!loop.curves.empty()) s.trim_loops.push_back(std::move(loop));
+      for (const WireEdge& e : wire)
+        loop.curves.push_back(trim_curve(e, s, geometry, tolerance, result));
+      s.trim_loops.push_back(std::move(loop));
     }
     if (auto error = s.validate()) throw Unconvertible(*error);
     result.surface = std::move(s);

@@ -5,9 +5,11 @@
 #include <gtest/gtest.h>
 
 #include <BRepBndLib.hxx>
+#include <BRepGProp.hxx>
 #include <BRepTools_WireExplorer.hxx>
 #include <BRep_Tool.hxx>
 #include <Bnd_Box.hxx>
+#include <GProp_GProps.hxx>
 #include <GeomAPI_ProjectPointOnSurf.hxx>
 #include <Geom_BSplineSurface.hxx>
 #include <Geom_RectangularTrimmedSurface.hxx>
@@ -28,6 +30,7 @@
 #include <fstream>
 #include <map>
 
+#include "nurbsreg/engine/sampling.hpp"
 #include "nurbsreg/io/cad_import.hpp"
 #include "nurbsreg/io/errors.hpp"
 #include "nurbsreg/io/model_file.hpp"
@@ -227,6 +230,31 @@ TEST_P(CadFiles, TrimCurvesRunOnTheSurfaceAndCloseTheirLoops) {
       "[ report   ] %s: edge vs S(uv) <= %.3g x tolerance, joints <= %.3g x tolerance, "
       "%zu uv curves leave their surface's domain (not checked)\n",
       GetParam(), worst_on_surface, worst_gap, outside);
+}
+
+// Every face is all there: its area in the model (the trim loops' region on our surface,
+// engine::surface_area) against OpenCASCADE's area of the file's face (BRepGProp). A part of a
+// face lost in the conversion shows here: on a periodic surface, loops that cross the seam
+// (NIST CTC 02 faces 49, 56, 279, 280 kept 0-9% of their area before their wires were made
+// continuous and the surface repeated over the periods they span). surface_area's quadrature is
+// within ~6% on the smallest faces (0.04 mm2 in linkrods.step), and a file's total within 0.2%.
+TEST_P(CadFiles, FaceAreasMatchOpenCascade) {
+  const Loaded& l = load(GetParam());
+  double ours_total = 0, theirs_total = 0;
+  for (const engine::NurbsSurface& s : l.model.surfaces) {
+    engine::Model one;
+    one.surfaces.push_back(s);
+    const double ours = engine::surface_area(one);
+    GProp_GProps props;
+    BRepGProp::SurfaceProperties(l.faces(face_index(s) + 1), props);
+    const double theirs = props.Mass();
+    ours_total += ours;
+    theirs_total += theirs;
+    EXPECT_NEAR(ours, theirs, 0.1 * theirs) << s.name;
+  }
+  EXPECT_NEAR(ours_total, theirs_total, 5e-3 * theirs_total);
+  std::printf("[ report   ] %s: area %.9g, OpenCASCADE's %.9g\n", GetParam(), ours_total,
+              theirs_total);
 }
 
 INSTANTIATE_TEST_SUITE_P(
