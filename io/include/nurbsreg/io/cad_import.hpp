@@ -8,11 +8,13 @@
 // loops: every wire of the face, each edge as its 2-D parameter-space curve ("uv") and its 3-D
 // curve ("edge", same parameter domain; a degenerated edge at a pole is a constant curve at
 // the pole; an edge farther than the tolerance below from S(uv(t)) is replaced by S(uv(t))
-// approximated within it, so that edge(t) and uv(t) agree). A face whose orientation is REVERSED
-// gets `reversed = true`. Geometry of degree above engine::kMaxDegree is approximated within 1e-9 x
-// the model's diagonal when OCCT can (counted in the report); a face that still cannot be converted
-// is recorded in Model::skipped_faces with its index and the reason, never dropped silently.
-// Surfaces are named "face <index>".
+// approximated within it, so that edge(t) and uv(t) agree). On a periodic surface the wires are
+// made continuous across the seam (curves translated by whole periods) and the surface is
+// repeated over the periods they span, so that the whole face is in its domain. A face whose
+// orientation is REVERSED gets `reversed = true`. Geometry of degree above engine::kMaxDegree is
+// approximated within 1e-9 x the model's diagonal when OCCT can (counted in the report); a face
+// that still cannot be converted is recorded in Model::skipped_faces with its index and the
+// reason, never dropped silently. Surfaces are named "face <index>".
 //
 // Units: OCCT converts lengths to millimetres, so Model::units is always "mm"; the file's own
 // length unit is reported in CadImportReport::file_units when the reader exposes it.
