@@ -54,6 +54,7 @@ const std::map<std::string, std::string> kFiles = {
     {"bearing", "occt/bearing.iges"},         {"hammer", "occt/hammer.iges"},
     {"iea15mw", "iea-15mw/IEA_15MW_CFD.stp"}, {"iea15mw_iges", "iea-15mw/IEA_15MW_CFD.igs"},
     {"bladex_lower", "bladex/lower.iges"},    {"wigley", "dealii/wigley.iges"},
+    {"linkrods", "occt/linkrods.step"},       {"nist", "nist/nist_ctc_02_asme1_ap242-1.stp"},
 };
 
 struct Options {
@@ -297,7 +298,7 @@ int main(int argc, char** argv) {
   CLI::App app{"Projection onto trimmed CAD models: nurbsreg vs OpenCASCADE"};
   app.add_option("--models", opt.models,
                  "bearing, hammer, iea15mw, iea15mw_iges, bladex_lower, "
-                 "wigley")
+                 "wigley, linkrods, nist")
       ->delimiter(',');
   app.add_option("--threads", opt.threads)->delimiter(',');
   app.add_option("--points", opt.points, "points projected by nurbsreg");
