@@ -403,7 +403,8 @@ void place_periodic_wires(std::vector<std::vector<WireEdge>>& wires, std::size_t
     for (std::size_t w = 0; w < wires.size(); ++w) {
       if (w != outer) place(w, outer_start);
     }
-    if (top > domain.hi + slack) {
+    // repeat_periods repeats the domain's width: only where that is the period.
+    if (top > domain.hi + slack && std::abs(p - domain.width()) <= slack) {
       const int copies = static_cast<int>(std::ceil((top - domain.lo - slack) / p));
       repeat_periods(s, axis, copies, tolerance);
     }
