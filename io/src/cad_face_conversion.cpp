@@ -411,20 +411,16 @@ void place_periodic_wires(std::vector<std::vector<WireEdge>>& wires, std::size_t
   }
 }
 
-// How far the curve leaves the surface's domain, as a fraction of its width (0: not at all;
-// then S(uv) clamps there and cannot follow the file's edge).
-double excursion(const Geom2d_BSplineCurve& uv, const engine::NurbsSurface& s) {
-  double worst = 0;
+// Does the curve leave the surface's domain (beyond rounding)? S(uv) clamps there and cannot
+// follow the file's edge.
+bool leaves_domain(const Geom2d_BSplineCurve& uv, const engine::NurbsSurface& s) {
   const engine::ParamInterval domain[2] = {s.domain_u(), s.domain_v()};
   for (int a = 0; a < 2; ++a) {
     const auto [lo, hi] = curve_range(uv, a);
     const double slack = 1e-9 * std::max(1.0, domain[a].width());
-    if (lo < domain[a].lo - slack || hi > domain[a].hi + slack) {
-      worst = std::max({worst, (domain[a].lo - lo) / domain[a].width(),
-                        (hi - domain[a].hi) / domain[a].width()});
-    }
+    if (lo < domain[a].lo - slack || hi > domain[a].hi + slack) return true;
   }
-  return worst;
+  return false;
 }
 
 // One edge use of a wire: uv curve and 3-D edge on the same domain, oriented along the wire.
@@ -438,10 +434,7 @@ engine::TrimCurve trim_curve(const WireEdge& wire_edge, const engine::NurbsSurfa
   const TopoDS_Edge& edge = wire_edge.edge;
   const Handle(Geom2d_BSplineCurve)& uv = wire_edge.uv;
   engine::TrimCurve out;
-  if (const double beyond = excursion(*uv, s); beyond > 0) {
-    ++result.uv_outside_domain;
-    result.uv_excursion = std::max(result.uv_excursion, beyond);
-  }
+  if (leaves_domain(*uv, s)) ++result.uv_outside_domain;
   out.uv = to_engine(*uv);
   const engine::ParamInterval domain = out.uv.domain();
   if (BRep_Tool::Degenerated(edge)) {

@@ -19,8 +19,6 @@ struct FaceConversion {
   int rebuilt_edges = 0;       // 3-D edges replaced by S(uv(t)) (the file's was off the face)
   int inconsistent_edges = 0;  // kept off by more than the tolerance (no approximation found)
   int uv_outside_domain = 0;   // uv curves leaving the surface's domain (S clamps there)
-  // How far the farthest of them leaves it, as a fraction of the domain's width (0: none).
-  double uv_excursion = 0;
 };
 
 // Converts `face` (as found in the shape, with its location and orientation). `nurbs_face`,

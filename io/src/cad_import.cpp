@@ -148,7 +148,6 @@ engine::Model convert_shape(const std::string& path, const TopoDS_Shape& shape,
     report.rebuilt_edges += static_cast<std::size_t>(c.rebuilt_edges);
     report.inconsistent_edges += static_cast<std::size_t>(c.inconsistent_edges);
     report.uv_outside_domain += static_cast<std::size_t>(c.uv_outside_domain);
-    if (c.uv_outside_domain > 0) report.faces_beyond_domain.push_back({index, c.uv_excursion});
     report.surface_faces.push_back(index);
     model.surfaces.push_back(std::move(*c.surface));
   }

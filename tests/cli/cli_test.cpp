@@ -319,6 +319,32 @@ TEST(Cli, AlignOfTooFewPointsSaysSo) {
   EXPECT_EQ(align.err.find("--init"), std::string::npos) << align.err;
 }
 
+// A JSON face whose trim loop runs half a domain beyond its surface: the part beyond is not in
+// the model, and every command that loads it says so, naming the face.
+TEST(Cli, AFaceBeyondItsSurfaceIsNamed) {
+  ScratchDir dir("face_beyond");
+  const std::string model = dir / "plate.json";
+  const auto side = [](double u0, double v0, double u1, double v1) {
+    return "{\"uv\": {\"degree\": 1, \"knots\": [0, 0, 1, 1], \"control_points\": [[" +
+           std::to_string(u0) + ", " + std::to_string(v0) + "], [" + std::to_string(u1) + ", " +
+           std::to_string(v1) + "]]}}";
+  };
+  std::ofstream(model) << R"({"nurbsreg_model": 1, "surfaces": [{"name": "plate", "degree": [1, 1],
+    "knots_u": [0, 0, 1, 1], "knots_v": [0, 0, 1, 1],
+    "control_points": [[[0, 0, 0], [0, 10, 0]], [[10, 0, 0], [10, 10, 0]]],
+    "trim_loops": [{"curves": [)"
+                       << side(0.5, 0.2, 1.5, 0.2) << ", " << side(1.5, 0.2, 1.5, 0.8) << ", "
+                       << side(1.5, 0.8, 0.5, 0.8) << ", " << side(0.5, 0.8, 0.5, 0.2) << "]}]}]}";
+  const CommandResult r = run_nurbsreg("info --model " + model, dir.path());
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_NE(r.err.find("the trim loops of 1 faces leave their surface's parameter domain (plate "
+                       "by 50% of its width)"),
+            std::string::npos)
+      << r.err;
+  EXPECT_EQ(run_nurbsreg("info --model " + kPanel, dir.path()).err.find("warning"),
+            std::string::npos);
+}
+
 // project of a file without finite points writes the table's header and says so, with no
 // statistics of nothing.
 TEST(Cli, ProjectOfNoPointsWritesAnEmptyTable) {

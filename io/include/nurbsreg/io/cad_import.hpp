@@ -48,14 +48,6 @@ struct CadImportReport {
   // uv curves that leave their surface's parameter domain (OCCT extrapolates the surface there,
   // the engine clamps), after periodic ones are shifted back by whole periods.
   std::size_t uv_outside_domain = 0;
-  // The faces with such uv curves (file face index) and how far the farthest leaves the domain,
-  // as a fraction of its width. The engine's face is the trim loops' region within the domain:
-  // the part of the face beyond it is missing (e.g. a periodic face whose loop crosses the seam).
-  struct FaceBeyondDomain {
-    int face = 0;
-    double excursion = 0;
-  };
-  std::vector<FaceBeyondDomain> faces_beyond_domain;
   std::map<std::string, std::size_t> surface_types;  // OCCT surface type of each face -> count
   // Model::surfaces[k] is face surface_faces[k] of the file.
   std::vector<int> surface_faces;

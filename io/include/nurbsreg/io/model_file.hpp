@@ -8,11 +8,9 @@
 #include <string>
 
 #include "nurbsreg/engine/model.hpp"
-#include "nurbsreg/io/cad_import.hpp"
 
 namespace nurbsreg::io {
 
-// `cad_report`, when given, receives the import report of a CAD file (untouched for JSON).
-engine::Model read_model_file(const std::string& path, CadImportReport* cad_report = nullptr);
+engine::Model read_model_file(const std::string& path);
 
 }  // namespace nurbsreg::io
