@@ -162,10 +162,6 @@ void find_correspondences(CorrespondenceFinder& finder, double max_distance, boo
   finder.find(query, b.matches);
 }
 
-// Step 3, reject: valid, d_i <= max distance, foot not beyond a free boundary (if asked), then
-// Trimmed ICP (Chetverikov et al. 2002): keep the
-// ceil(keep_fraction * m) smallest distances (all ties of the cut value, so the set depends
-// on the values only).
 // Why a correspondence is rejected before trimming and weighting: no foot within the maximum
 // distance, or a foot beyond a free edge of the model (reject_boundary); none: it may be an inlier.
 // The one rule for reject_outliers and for rejection_summary's counts.
@@ -177,6 +173,10 @@ Cut cut_of(const IcpOptions& o, const Correspondence& c) {
   return o.reject_boundary && c.on_boundary ? Cut::beyond_edge : Cut::none;
 }
 
+// Step 3, reject: valid, d_i <= max distance, foot not beyond a free boundary (if asked), then
+// Trimmed ICP (Chetverikov et al. 2002): keep the
+// ceil(keep_fraction * m) smallest distances (all ties of the cut value, so the set depends
+// on the values only).
 void reject_outliers(const IcpOptions& o, Buffers& b) {
   const double keep_fraction = o.keep_fraction;
   const std::size_t n = b.ids.size();

@@ -269,6 +269,13 @@ std::pair<double, double> curve_range(const Geom2d_BSplineCurve& uv, int axis) {
   return {lo, hi};
 }
 
+// Does the curve leave `domain` (the surface's along `axis`) by more than rounding?
+bool leaves_along(const Geom2d_BSplineCurve& uv, int axis, const engine::ParamInterval& domain) {
+  const auto [lo, hi] = curve_range(uv, axis);
+  const double slack = 1e-9 * std::max(1.0, domain.width());
+  return lo < domain.lo - slack || hi > domain.hi + slack;
+}
+
 void translate(Geom2d_BSplineCurve& uv, int axis, double shift) {
   if (shift != 0) uv.Translate(axis == 0 ? gp_Vec2d(shift, 0) : gp_Vec2d(0, shift));
 }
@@ -278,11 +285,10 @@ std::size_t control_index(const engine::NurbsSurface& s, int axis, int k, int l)
   return static_cast<std::size_t>(axis == 0 ? k * s.count_v + l : l * s.count_v + k);
 }
 
-// Is the surface closed along `axis`: with clamped ends (`clamped`: engine::clamp's; OCCT's
+// Is the surface closed along `axis`: with clamped ends (`s` is engine::clamp's; OCCT's
 // SetNotPeriodic may leave unclamped ends, whose end rows are not the seam's points), do its
 // first and last rows of control points, and weights, agree within `tolerance`?
-bool closed_along(const engine::NurbsSurface& clamped, int axis, double tolerance) {
-  const engine::NurbsSurface& s = clamped;
+bool closed_along(const engine::NurbsSurface& s, int axis, double tolerance) {
   const int n = axis == 0 ? s.count_u : s.count_v;
   const int other = axis == 0 ? s.count_v : s.count_u;
   for (int l = 0; l < other; ++l) {
@@ -368,10 +374,8 @@ void place_periodic_wires(std::vector<std::vector<WireEdge>>& wires, std::size_t
     if (!(p > 0)) {
       bool leaves = false;
       for (const std::vector<WireEdge>& wire : wires) {
-        for (const WireEdge& e : wire) {
-          const auto [lo, hi] = curve_range(*e.uv, axis);
-          leaves = leaves || lo < domain.lo - slack || hi > domain.hi + slack;
-        }
+        for (const WireEdge& e : wire)
+          leaves = leaves || leaves_along(*e.uv, axis, domain);
       }
       if (!leaves || !closed_along(engine::clamp(s), axis, tolerance)) continue;
       p = domain.width();
@@ -414,13 +418,7 @@ void place_periodic_wires(std::vector<std::vector<WireEdge>>& wires, std::size_t
 // Does the curve leave the surface's domain (beyond rounding)? S(uv) clamps there and cannot
 // follow the file's edge.
 bool leaves_domain(const Geom2d_BSplineCurve& uv, const engine::NurbsSurface& s) {
-  const engine::ParamInterval domain[2] = {s.domain_u(), s.domain_v()};
-  for (int a = 0; a < 2; ++a) {
-    const auto [lo, hi] = curve_range(uv, a);
-    const double slack = 1e-9 * std::max(1.0, domain[a].width());
-    if (lo < domain[a].lo - slack || hi > domain[a].hi + slack) return true;
-  }
-  return false;
+  return leaves_along(uv, 0, s.domain_u()) || leaves_along(uv, 1, s.domain_v());
 }
 
 // One edge use of a wire: uv curve and 3-D edge on the same domain, oriented along the wire.

@@ -35,6 +35,16 @@ std::string synth_panel_scan(const ScratchDir& dir, const std::string& name,
   return scan;
 }
 
+// `nurbsreg project` of the panel for `text` written as dir / name, into dir / "r.csv" (`out`).
+CommandResult project_text_points(const ScratchDir& dir, const std::string& name,
+                                  const std::string& text, std::string& out) {
+  const std::string points = dir / name;
+  std::ofstream(points) << text;
+  out = dir / "r.csv";
+  return run_nurbsreg("project --model " + kPanel + " --points " + points + " --out " + out,
+                      dir.path());
+}
+
 TEST(Cli, HelpForEverySubcommand) {
   ScratchDir dir("help");
   for (const char* sub : {"", "info", "project", "synth", "align"}) {
@@ -101,11 +111,9 @@ TEST(Cli, InfoReportsTheExamplePanel) {
 
 TEST(Cli, ProjectWritesTheContractColumnsAndSkipsNaN) {
   ScratchDir dir("project");
-  const std::string points = dir / "points.xyz";
-  std::ofstream(points) << "# x y z\n10 20 30\nnan 1 2\n50,50,-10\n0 0 0\n";
-  const std::string out = dir / "r.csv";
-  const CommandResult r = run_nurbsreg(
-      "project --model " + kPanel + " --points " + points + " --out " + out, dir.path());
+  std::string out;
+  const CommandResult r =
+      project_text_points(dir, "points.xyz", "# x y z\n10 20 30\nnan 1 2\n50,50,-10\n0 0 0\n", out);
   ASSERT_EQ(r.status, 0) << r.err;
   const std::string csv = read_text(out);
   EXPECT_EQ(csv.rfind("index,x,y,z,foot_x,foot_y,foot_z,distance,entity,u,v", 0), 0u);
@@ -349,11 +357,8 @@ TEST(Cli, AFaceBeyondItsSurfaceIsNamed) {
 // statistics of nothing.
 TEST(Cli, ProjectOfNoPointsWritesAnEmptyTable) {
   ScratchDir dir("project_empty");
-  const std::string points = dir / "nan.xyz";
-  std::ofstream(points) << "nan 0 0\n1 inf 2\n";
-  const std::string out = dir / "r.csv";
-  const CommandResult r = run_nurbsreg(
-      "project --model " + kPanel + " --points " + points + " --out " + out, dir.path());
+  std::string out;
+  const CommandResult r = project_text_points(dir, "nan.xyz", "nan 0 0\n1 inf 2\n", out);
   EXPECT_EQ(r.status, 0) << r.err;
   EXPECT_NE(r.err.find("no finite points to project (2 skipped)"), std::string::npos) << r.err;
   EXPECT_EQ(r.err.find("distance min"), std::string::npos) << r.err;
