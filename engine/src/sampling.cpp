@@ -19,7 +19,10 @@
 namespace nurbsreg::engine {
 namespace {
 
-constexpr int kCells = 16;  // cells per Bézier patch along each direction
+// Cells per Bézier patch along each direction: for surface_area's quadrature, and for the
+// sampler's rejection (whose density is exact on any cell; smaller cells only reject less).
+constexpr int kAreaCells = 16;
+constexpr int kSampleCells = 8;
 
 struct Cell {
   int surface;
@@ -37,7 +40,8 @@ struct Cells {
   std::vector<TrimRegion> regions;
   std::vector<BezierPatch> patches;
   std::vector<Cell> cells;
-  std::vector<double> areas;  // per cell, 2 x 2 Gauss-Legendre, the region not counted
+  // Per cell, 2 x 2 Gauss-Legendre, the region not counted; surface_area's cells only.
+  std::vector<double> areas;
 };
 
 struct AreaElement {
@@ -83,18 +87,28 @@ double gauss_area(const BezierPatch& patch, const Cell& cell) {
   return 0.25 * area * cell.size * cell.size;
 }
 
+// Simpson's rule on the cell's 3 x 3 grid: the cell's area, as far as its rejection needs it.
+double simpson_area(const AreaElement (&grid)[3][3], double size) {
+  constexpr double kWeight[3] = {1.0, 4.0, 1.0};
+  double sum = 0.0;
+  for (int i = 0; i < 3; ++i) {
+    for (int j = 0; j < 3; ++j)
+      sum += kWeight[i] * kWeight[j] * grid[i][j].value;
+  }
+  return sum / 36.0 * size * size;
+}
+
 // Keeps `cell` with its density bound, or, where the bound is far above the cell's mean area
 // element (a rational patch whose weights squeeze its area into a corner of the cell), its four
 // quarters: draws there would mostly be rejected, and the bound's estimate is more reliable on
 // smaller cells.
 void add_bounded_cell(const BezierPatch& patch, Cell cell, const AreaElement (&grid)[3][3],
-                      double area, int depth, std::vector<Cell>& cells,
-                      std::vector<double>& areas) {
-  constexpr int kMaxDepth = 5;  // quarters down to 1/512 of the patch
+                      int depth, std::vector<Cell>& cells) {
+  constexpr int kMaxDepth = 6;  // quarters down to 1/512 of the patch
   cell.density_bound = density_bound(grid, cell.size);
-  if (depth == kMaxDepth || cell.density_bound * cell.size * cell.size <= 4.0 * area) {
+  if (depth == kMaxDepth ||
+      cell.density_bound * cell.size * cell.size <= 4.0 * simpson_area(grid, cell.size)) {
     cells.push_back(cell);
-    areas.push_back(area);
     return;
   }
   const double half = 0.5 * cell.size;
@@ -107,27 +121,29 @@ void add_bounded_cell(const BezierPatch& patch, Cell cell, const AreaElement (&g
       AreaElement local[3][3];
       for (int i = 0; i < 3; ++i) {
         for (int j = 0; j < 3; ++j) {
-          // The quarter's corners are points of the parent's grid.
+          // The quarter's corners and centre are points of the parent's grid.
           local[i][j] = i % 2 == 0 && j % 2 == 0 ? grid[a + i / 2][b + j / 2]
                                                  : area_element(patch, quarter.s0 + 0.5 * half * i,
                                                                 quarter.t0 + 0.5 * half * j);
         }
       }
-      add_bounded_cell(patch, quarter, local, gauss_area(patch, quarter), depth + 1, cells, areas);
+      add_bounded_cell(patch, quarter, local, depth + 1, cells);
     }
   }
 }
 
-// The cells of one patch: their areas and, with `bounds`, their density bounds. The 3 x 3 grids
-// of neighbouring cells share their edge values, so the patch is evaluated on one
-// (2 kCells + 1)^2 grid, and only when some cell of it belongs to the face.
+// The cells of one patch: with `bounds` (the sampler), kSampleCells^2 cells with their density
+// bounds, else kAreaCells^2 cells with their areas. The 3 x 3 grids of neighbouring cells share
+// their edge values, so the patch is evaluated on one (2 n + 1)^2 grid; nothing is evaluated
+// when no cell belongs to the face.
 void patch_cells(const BezierPatch& patch, int surface, int patch_index, const TrimRegion* region,
                  bool bounds, std::vector<Cell>& cells, std::vector<double>& areas) {
-  const double h = 1.0 / kCells;
-  RegionClass in_face[kCells][kCells];
+  const int n = bounds ? kSampleCells : kAreaCells;
+  const double h = 1.0 / n;
+  RegionClass in_face[kAreaCells][kAreaCells];
   bool any = false;
-  for (int a = 0; a < kCells; ++a) {
-    for (int b = 0; b < kCells; ++b) {
+  for (int a = 0; a < n; ++a) {
+    for (int b = 0; b < n; ++b) {
       in_face[a][b] = region == nullptr ? RegionClass::inside
                                         : region->classify(patch.param_u.to_parent(a * h),
                                                            patch.param_u.to_parent((a + 1) * h),
@@ -137,14 +153,14 @@ void patch_cells(const BezierPatch& patch, int surface, int patch_index, const T
     }
   }
   if (!any) return;
-  constexpr int kGrid = 2 * kCells + 1;
-  std::vector<AreaElement> grid(bounds ? kGrid * kGrid : 0);
-  for (int i = 0; bounds && i < kGrid; ++i) {
-    for (int j = 0; j < kGrid; ++j)
-      grid[i * kGrid + j] = area_element(patch, 0.5 * h * i, 0.5 * h * j);
+  const int g = 2 * n + 1;
+  std::vector<AreaElement> grid(bounds ? g * g : 0);
+  for (int i = 0; bounds && i < g; ++i) {
+    for (int j = 0; j < g; ++j)
+      grid[i * g + j] = area_element(patch, 0.5 * h * i, 0.5 * h * j);
   }
-  for (int a = 0; a < kCells; ++a) {
-    for (int b = 0; b < kCells; ++b) {
+  for (int a = 0; a < n; ++a) {
+    for (int b = 0; b < n; ++b) {
       if (in_face[a][b] == RegionClass::outside) continue;
       const Cell cell{surface,
                       patch_index,
@@ -153,18 +169,17 @@ void patch_cells(const BezierPatch& patch, int surface, int patch_index, const T
                       h,
                       0.0,
                       in_face[a][b] == RegionClass::boundary ? region : nullptr};
-      const double area = gauss_area(patch, cell);
       if (!bounds) {
         cells.push_back(cell);
-        areas.push_back(area);
+        areas.push_back(gauss_area(patch, cell));
         continue;
       }
       AreaElement local[3][3];
       for (int i = 0; i < 3; ++i) {
         for (int j = 0; j < 3; ++j)
-          local[i][j] = grid[(2 * a + i) * kGrid + 2 * b + j];
+          local[i][j] = grid[(2 * a + i) * g + 2 * b + j];
       }
-      add_bounded_cell(patch, cell, local, area, 0, cells, areas);
+      add_bounded_cell(patch, cell, local, 0, cells);
     }
   }
 }

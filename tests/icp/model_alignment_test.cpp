@@ -182,8 +182,11 @@ TEST_P(ModelAlignmentRobust, Converges) {
     EXPECT_LT(std::abs(xi(j)), 10.0 * std::sqrt(cov(j, j))) << "component " << j;
   }
   if (c.outliers == 0.0) {
-    // Without outliers every on-model point is an inlier (a 30% view: all inside the panel).
-    EXPECT_EQ(r.inliers, scan.points.size());
+    // Without outliers the on-model points are inliers, but for those sampled within the pose's
+    // error (about sigma) of the panel's free edge: their feet land on the edge and they count as
+    // beyond it. That is about perimeter x sigma / area of the view, some 0.05% of the points
+    // (6 of 20,000 on this sample set).
+    EXPECT_GE(r.inliers, scan.points.size() - scan.points.size() / 1000);
   } else {
     // Most outliers are rejected (beyond the distance, trimmed or weighted to 0).
     std::size_t on_model = 0;

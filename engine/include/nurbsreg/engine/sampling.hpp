@@ -25,8 +25,8 @@ Vec3 surface_normal(const NurbsSurface& surface, double u, double v);
 
 // `count` samples distributed uniformly by area over all surfaces of the model, deterministic
 // for a given seed and count (the same for any number of threads: drawn in parallel, in fixed
-// chunks with their own random streams). Rejection sampling: a cell of a 16 x 16 grid per Bézier
-// patch (quartered where a rational patch's area element varies strongly) is proposed in
+// chunks with their own random streams). Rejection sampling: a cell of a grid per Bézier
+// patch (8 x 8, quartered where a rational patch's area element varies strongly) is proposed in
 // proportion to a bound of the area element |Su x Sv| over it, a point uniformly in the cell,
 // and the point is kept with probability |Su x Sv| / bound. The bound is estimated from the
 // element and its gradient on a 3 x 3 grid of the cell; should a sample ever exceed it, a
@@ -38,8 +38,8 @@ Vec3 surface_normal(const NurbsSurface& surface, double u, double v);
 std::vector<SurfaceSample> sample_surfaces(const Model& model, std::size_t count,
                                            std::uint64_t seed);
 
-// Total surface area of the model (same quadrature as sample_surfaces, 4-point Gauss per cell);
-// of a trimmed surface, the face's: a cell a trim loop may cross counts with the fraction of an
+// Total surface area of the model (16 x 16 cells per Bézier patch, 4-point Gauss per cell); of a
+// trimmed surface, the face's: a cell a trim loop may cross counts with the fraction of an
 // 8 x 8 grid of its points inside the region.
 double surface_area(const Model& model);
 
