@@ -59,10 +59,11 @@ AreaElement area_element(const BezierPatch& patch, double s, double t) {
 }
 
 // An upper bound of the area element over a cell of local width h, from a 3 x 3 grid of values
-// and gradient norms: every point of the cell lies within h sqrt(2) / 4 of a grid point, and the
-// element changes by at most |grad| times that distance. The gradient is known at the grid
-// points only, so it is taken 1.5 times its largest value there: the bound is an estimate for
-// what happens between them, which on 1/16 of a polynomial patch is smooth.
+// and gradient norms: every point of the cell lies within h / 4 of a grid point in s and in t,
+// so the element exceeds that point's value by at most (|d/ds| + |d/dt|) h / 4 (h sqrt(2) / 4
+// is taken). The gradient is known at the grid points only, so it is taken 1.5 times its
+// largest value there: the bound is an estimate for what happens between them, which on an
+// eighth of a patch (or a quarter of that, add_bounded_cell) is smooth.
 double density_bound(const AreaElement (&grid)[3][3], double h) {
   double value = 0.0;
   double gradient = 0.0;
