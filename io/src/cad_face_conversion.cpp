@@ -494,7 +494,16 @@ std::string surface_type(const TopoDS_Face& face) {
   return surface->DynamicType()->Name();
 }
 
+bool analytic_type(const std::string& type) {
+  return type != "Geom_BSplineSurface" && type != "Geom_BezierSurface";
+}
+
 }  // namespace
+
+bool is_analytic(const TopoDS_Face& face) {
+  const std::string type = surface_type(face);
+  return type != "none" && analytic_type(type);
+}
 
 FaceConversion convert_face(const TopoDS_Face& face, const TopoDS_Face* nurbs_face,
                             double tolerance) {
@@ -502,8 +511,7 @@ FaceConversion convert_face(const TopoDS_Face& face, const TopoDS_Face* nurbs_fa
   try {
     result.surface_type = surface_type(face);
     if (result.surface_type == "none") throw Unconvertible("the face has no surface");
-    result.analytic =
-        result.surface_type != "Geom_BSplineSurface" && result.surface_type != "Geom_BezierSurface";
+    result.analytic = analytic_type(result.surface_type);
     // NurbsConvert makes the surface a B-spline (infinite ones bounded by the face) and
     // recomputes the pcurves in the new parameterisation. The face is explored FORWARD: the
     // engine's even-odd rule ignores loop direction, and `reversed` carries the orientation.

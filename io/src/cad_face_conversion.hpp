@@ -21,8 +21,12 @@ struct FaceConversion {
   int uv_outside_domain = 0;   // uv curves leaving the surface's domain (S clamps there)
 };
 
+// Whether the face's surface is analytic (a plane, cylinder, ..., anything but a B-spline or
+// Bézier surface): such faces need OCCT's NURBS conversion. False for a face without surface.
+bool is_analytic(const TopoDS_Face& face);
+
 // Converts `face` (as found in the shape, with its location and orientation). `nurbs_face`,
-// when given, is the face after BRepBuilderAPI_NurbsConvert of the whole shape (used for
+// when given, is the face after BRepBuilderAPI_NurbsConvert of a shape that holds it (used for
 // analytic faces; without it they are converted one by one). `tolerance` is the absolute 3-D
 // error allowed for approximations. Never throws.
 FaceConversion convert_face(const TopoDS_Face& face, const TopoDS_Face* nurbs_face,
