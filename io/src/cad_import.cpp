@@ -151,8 +151,9 @@ engine::Model convert_shape(const std::string& path, const TopoDS_Shape& shape,
   const double tolerance = 1e-9 * std::max(report.diagonal, 1.0);
 
   // Analytic faces become B-splines by OCCT's NurbsConvert of a compound of them all: an edge
-  // shared by two faces is converted once (face by face would do it twice, and costs 7 ms a face
-  // on the NIST part). Where OCCT fails on the compound, its halves are converted, and so on
+  // shared by two faces is converted once (face by face would do it twice). B-spline faces stay
+  // out of it: they are used as they are, and one of them made the conversion of the whole NIST
+  // part fail. Where OCCT fails on the compound, its halves are converted, and so on
   // (nurbs_faces), so that only the failing faces are converted one by one (and skipped if that
   // fails too).
   const auto convert_start = std::chrono::steady_clock::now();
