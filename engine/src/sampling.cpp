@@ -122,7 +122,7 @@ void add_bounded_cell(const BezierPatch& patch, Cell cell, const AreaElement (&g
       AreaElement local[3][3];
       for (int i = 0; i < 3; ++i) {
         for (int j = 0; j < 3; ++j) {
-          // The quarter's corners and centre are points of the parent's grid.
+          // The quarter's corners are points of the parent's grid (one of them its centre).
           local[i][j] = i % 2 == 0 && j % 2 == 0 ? grid[a + i / 2][b + j / 2]
                                                  : area_element(patch, quarter.s0 + 0.5 * half * i,
                                                                 quarter.t0 + 0.5 * half * j);
