@@ -41,6 +41,23 @@ void oriented_axes(const BezierPatch& bp, Vec3 axis[3]) {
 
 namespace {
 std::atomic<std::uint32_t> next_serial{1};
+
+// No knot strictly inside the domain repeats `degree` times or more (a B-spline is C^(p - m) at a
+// knot of multiplicity m), in u and in v.
+bool c1_across_spans(const NurbsSurface& s) {
+  const auto c1 = [](const std::vector<double>& knots, int degree, int count) {
+    const double lo = knots[static_cast<std::size_t>(degree)];
+    const double hi = knots[static_cast<std::size_t>(count)];
+    int run = 0;
+    for (std::size_t k = 0; k < knots.size(); ++k) {
+      run = k > 0 && knots[k] == knots[k - 1] ? run + 1 : 1;
+      if (knots[k] > lo && knots[k] < hi && run >= degree) return false;
+    }
+    return true;
+  };
+  return c1(s.knots_u, s.degree_u, s.count_u) && c1(s.knots_v, s.degree_v, s.count_v);
+}
+
 }  // namespace
 
 PreparedModel::PreparedModel(Model model) : model_(std::move(model)), serial_(next_serial++) {
@@ -89,6 +106,11 @@ PreparedModel::PreparedModel(Model model) : model_(std::move(model)), serial_(ne
       throw std::logic_error("PreparedModel: surface '" + model_.surfaces[s].name +
                              "': Bézier patches are not in span order");
     }
+    for (std::size_t k = 0; k < pieces.size(); ++k) {
+      patch_span_.push_back(
+          {static_cast<int>(k) / layout.spans_v, static_cast<int>(k) % layout.spans_v});
+    }
+    surface_c1_.push_back(c1_across_spans(surface) ? 1 : 0);
     surface_patches_.push_back(std::move(layout));
   }
   // Classify the trimmed surfaces' patches (regions_ is complete: pointers into it are stable).

@@ -4,6 +4,7 @@
 #include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <stdexcept>
@@ -72,35 +73,57 @@ constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 // so far) and clips each item it visits against that threshold, so every item ends up either
 // with its exact minimum recorded or proven at least (d_final + margin)^2 away (pruned, or
 // clipped without a point below the threshold, which never falls below the final one). Kept:
-// the two smallest minima of distinct items (patch index, or -1 - edge piece), enough for "the
-// nearest item other than the answer's".
+// the kSlots smallest minima of distinct items (patch index, or -1 - edge piece), enough for "the
+// nearest item other than those of a certificate's box N" (N spans up to 3 x 3 patches).
 struct Projector::OtherItems {
   static constexpr std::int64_t kNone = std::numeric_limits<std::int64_t>::min();
+  static constexpr int kSlots = 12;
   double margin = 0.0;
-  std::int64_t item[2] = {kNone, kNone};
-  double minimum[2] = {std::numeric_limits<double>::infinity(),
-                       std::numeric_limits<double>::infinity()};
+  // Ascending by minimum; unused slots at the end (kNone, infinity).
+  std::int64_t item[kSlots];
+  double minimum[kSlots];
 
+  OtherItems() {
+    std::fill(std::begin(item), std::end(item), kNone);
+    std::fill(std::begin(minimum), std::end(minimum), std::numeric_limits<double>::infinity());
+  }
   double threshold(double best_sq) const {
     const double d = std::sqrt(best_sq) + margin;
     return d * d;
   }
   void add(std::int64_t id, double value) {
-    if (id == item[0]) {
-      minimum[0] = std::min(minimum[0], value);
-    } else if (id == item[1]) {
-      minimum[1] = std::min(minimum[1], value);
-    } else if (value < minimum[1]) {
-      item[1] = id;
-      minimum[1] = value;
+    int k = 0;
+    while (k < kSlots && item[k] != id && item[k] != kNone)
+      ++k;
+    if (k < kSlots && item[k] == id) {
+      if (!(value < minimum[k])) return;
+    } else {
+      // A new item: it takes the last slot if it beats what is there (an item pushed out had a
+      // minimum at least the last slot's, which only decreases: the last slot's minimum stays a
+      // lower bound for every item not kept).
+      k = kSlots - 1;
+      if (!(value < minimum[k])) return;
+      item[k] = id;
     }
-    if (minimum[1] < minimum[0]) {
-      std::swap(item[0], item[1]);
-      std::swap(minimum[0], minimum[1]);
+    minimum[k] = value;
+    for (; k > 0 && minimum[k] < minimum[k - 1]; --k) {
+      std::swap(item[k], item[k - 1]);
+      std::swap(minimum[k], minimum[k - 1]);
     }
   }
-  // The smallest recorded minimum of an item other than `id` (infinity: none below threshold).
-  double excluding(std::int64_t id) const { return item[0] == id ? minimum[1] : minimum[0]; }
+  // A lower bound of the minimum of every item for which `excluded(id)` is false: the smallest
+  // recorded minimum of such an item, or the last slot's when every slot is excluded (infinity:
+  // none below the threshold).
+  template <typename Excluded>
+  double excluding(Excluded&& excluded) const {
+    for (int k = 0; k < kSlots; ++k) {
+      if (item[k] == kNone || !excluded(item[k])) return minimum[k];
+    }
+    return minimum[kSlots - 1];
+  }
+  double excluding(std::int64_t id) const {
+    return excluding([id](std::int64_t x) { return x == id; });
+  }
 };
 
 namespace {
@@ -263,14 +286,42 @@ WarmCertificate Projector::make_certificate(const Vec3& p, const SurfaceHit& bes
   const double radius_cap = 0.5 * others.margin;
   const PatchCertificate local =
       certify_patch(model_.patch(k), p, best.s, best.t, d, radius_cap, state.surface_scratch);
-  if (!(local.radius > 0.0)) return tried;
   // The rest of the model: the nearest other item the search met, or the bound over the rest of
   // the patch, or d + 2 radius, whichever is least. It bounds the distance from p to everything
   // outside N from below.
-  const double reach = (d + 2.0 * local.radius) * (d + 2.0 * local.radius);
-  const double other_sq = std::min({reach, local.outside_sq, others.excluding(patch)});
-  const double clearance = std::sqrt(other_sq);
-  if (!(clearance > d)) return tried;
+  double radius = local.radius, clearance = 0.0;
+  float box[4] = {local.s0, local.s1, local.t0, local.t1};
+  if (radius > 0.0) {
+    const double reach = (d + 2.0 * radius) * (d + 2.0 * radius);
+    clearance = std::sqrt(std::min({reach, local.outside_sq, others.excluding(patch)}));
+  }
+  // A query that moved by m <= radius is proven when its distance (at most d + m) plus m stays
+  // within the clearance: the certificate serves moves up to min(radius, (clearance - d) / 2).
+  const auto serves = [d](double r, double c) { return std::min(r, 0.5 * (c - d)); };
+  // Short of the cap, the neighbours of the foot's patch may be what limits it (a foot near a
+  // patch edge; far points on small patches): N reaching into them (certify_span) may serve more.
+  if (serves(radius, clearance) < radius_cap && model_.surface_c1(model_.patch_surface(k))) {
+    for (const double half_width : {1.0, 0.5, 0.25}) {
+      const SpanCertificate span = certify_span(model_, k, p, best.s, best.t, d, radius_cap,
+                                                half_width, state.surface_scratch);
+      if (!(span.radius > 0.0)) continue;
+      const double reach = (d + 2.0 * span.radius) * (d + 2.0 * span.radius);
+      const double others_sq = others.excluding([&span](std::int64_t id) {
+        return std::find(span.patches, span.patches + span.count, id) != span.patches + span.count;
+      });
+      const double span_clearance = std::sqrt(std::min({reach, span.outside_sq, others_sq}));
+      if (serves(span.radius, span_clearance) > serves(radius, clearance)) {
+        radius = span.radius;
+        clearance = span_clearance;
+        box[0] = span.s0;
+        box[1] = span.s1;
+        box[2] = span.t0;
+        box[3] = span.t1;
+      }
+      break;
+    }
+  }
+  if (!(radius > 0.0) || !(clearance > d)) return tried;
   // Stored in single precision (WarmCertificate): the rounded anchor is e away from p, so the
   // ball of radius r - e about it lies in the proven one, and everything outside N is at least
   // clearance - e from it; both then rounded down.
@@ -282,16 +333,16 @@ WarmCertificate Projector::make_certificate(const Vec3& p, const SurfaceHit& bes
     if (static_cast<double>(f) > x) f = std::nextafter(f, 0.0f);
     return f;
   };
-  c.radius = down(local.radius - e);
+  c.radius = down(radius - e);
   c.clearance = down(clearance - e);
   if (!(c.radius > 0.0f) || !(static_cast<double>(c.clearance) > d)) return tried;
   ++state.counters.certificates_made;
   c.patch = static_cast<std::int32_t>(patch);
   c.model = model_.serial();
-  c.s0 = local.s0;
-  c.s1 = local.s1;
-  c.t0 = local.t0;
-  c.t1 = local.t1;
+  c.s0 = box[0];
+  c.s1 = box[1];
+  c.t0 = box[2];
+  c.t1 = box[3];
   return c;
 }
 
@@ -358,9 +409,12 @@ void Projector::project_range(PointView points, const ProjectionOptions& options
         hint_patch =
             holds_uv(certified_patch) ? certified_patch : model_.locate_patch(hint->entity, u, v);
         if (hint_patch >= 0) {
-          const BezierPatch& bp = model_.patch(static_cast<std::size_t>(hint_patch)).patch;
-          hint_s = std::clamp(bp.param_u.to_local(u), 0.0, 1.0);
-          hint_t = std::clamp(bp.param_v.to_local(v), 0.0, 1.0);
+          // The hinted patch; a certificate's Newton may end on a neighbouring one of its box N.
+          const BezierPatch* patch_of_hint =
+              &model_.patch(static_cast<std::size_t>(hint_patch)).patch;
+          const BezierPatch& hinted = *patch_of_hint;
+          hint_s = std::clamp(hinted.param_u.to_local(u), 0.0, 1.0);
+          hint_t = std::clamp(hinted.param_v.to_local(v), 0.0, 1.0);
           double s_loc = hint_s, t_loc = hint_t;
           bool stationary = false;
           // The Newton ran on the certificate's box N only and proved nothing (p near the
@@ -373,19 +427,26 @@ void Projector::project_range(PointView points, const ProjectionOptions& options
           // Cheapest: the hint's WarmCertificate covers p. One Newton on its box N proves the
           // answer (see WarmCertificate); otherwise the usual warm start below.
           const WarmCertificate& c = hint->certificate;
-          if (c.radius > 0.0 && c.patch == hint_patch && c.model == model_.serial()) {
+          if (c.radius > 0.0 && c.model == model_.serial() && c.patch >= 0 &&
+              static_cast<std::size_t>(c.patch) < model_.patch_count()) {
             const double moved = c.distance_to_anchor(p);
             if (moved <= c.radius) {
-              s_loc = std::clamp(hint_s, double(c.s0), double(c.s1));
-              t_loc = std::clamp(hint_t, double(c.t0), double(c.t1));
-              best.distance_sq =
-                  newton_in_certified_box(bp, p, c.s0, c.s1, c.t0, c.t1, s_loc, t_loc, best.foot,
-                                          &best.normal, &stationary);
-              proven = stationary && best.distance_sq < limit_sq &&
-                       std::sqrt(best.distance_sq) + moved <= c.clearance;
-              in_box = !proven;
+              // Infinity when the hinted patch is not in N (then the usual warm start below).
+              std::int64_t piece_patch = hint_patch;
+              const double f =
+                  newton_on_certificate_box(model_, c.patch, c.s0, c.s1, c.t0, c.t1, p, piece_patch,
+                                            s_loc, t_loc, best.foot, best.normal, stationary);
+              if (f < std::numeric_limits<double>::infinity()) {
+                best.distance_sq = f;
+                hint_patch = piece_patch;
+                patch_of_hint = &model_.patch(static_cast<std::size_t>(hint_patch)).patch;
+                proven = stationary && best.distance_sq < limit_sq &&
+                         std::sqrt(best.distance_sq) + moved <= c.clearance;
+                in_box = !proven;
+              }
             }
           }
+          const BezierPatch& bp = *patch_of_hint;
           if (!proven && !in_box) {
             s_loc = hint_s;
             t_loc = hint_t;

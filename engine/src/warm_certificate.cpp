@@ -177,14 +177,16 @@ double edge_radius(const double* n, int rows, int cols, int s_edge, int t_edge, 
   return radius;
 }
 
-// The float box [center - h, center + h] clipped to [0, 1], rounded outward so it holds center.
-void float_range(double center, double h, float& lo, float& hi) {
-  lo = static_cast<float>(std::max(0.0, center - h));
-  hi = static_cast<float>(std::min(1.0, center + h));
-  if (static_cast<double>(lo) > center) lo = std::nextafter(lo, 0.0f);
-  if (static_cast<double>(hi) < center) hi = std::nextafter(hi, 1.0f);
-  lo = std::max(lo, 0.0f);
-  hi = std::min(hi, 1.0f);
+// The float box [center - h, center + h] clipped to [lo_limit, hi_limit] (integers), rounded
+// outward so it holds center.
+void float_range(double center, double h, float& lo, float& hi, double lo_limit = 0.0,
+                 double hi_limit = 1.0) {
+  lo = static_cast<float>(std::max(lo_limit, center - h));
+  hi = static_cast<float>(std::min(hi_limit, center + h));
+  if (static_cast<double>(lo) > center) lo = std::nextafter(lo, static_cast<float>(lo_limit));
+  if (static_cast<double>(hi) < center) hi = std::nextafter(hi, static_cast<float>(hi_limit));
+  lo = std::max(lo, static_cast<float>(lo_limit));
+  hi = std::min(hi, static_cast<float>(hi_limit));
 }
 
 }  // namespace
@@ -234,6 +236,164 @@ PatchCertificate certify_patch(const PreparedPatch& pp, const Vec3& a, double s,
     }
   }
   c = PatchCertificate{};
+  return c;
+}
+
+double newton_on_certificate_box(const PreparedModel& model, std::int64_t anchor_patch, float s0,
+                                 float s1, float t0, float t1, const Vec3& p, std::int64_t& patch,
+                                 double& s, double& t, Vec3& foot, Vec3& normal, bool& stationary) {
+  stationary = false;
+  const int surface = model.patch_surface(static_cast<std::size_t>(anchor_patch));
+  const PreparedModel::SpanCell anchor = model.patch_span(static_cast<std::size_t>(anchor_patch));
+  const PreparedModel::SpanCell here = model.patch_span(static_cast<std::size_t>(patch));
+  int i = here.a - anchor.a, j = here.b - anchor.b;
+  LocalBox box;
+  if (model.patch_surface(static_cast<std::size_t>(patch)) != surface ||
+      !span_piece(s0, s1, t0, t1, i, j, box.s0, box.s1, box.t0, box.t1)) {
+    return std::numeric_limits<double>::infinity();
+  }
+  bool settled = false;
+  double f = newton_in_certified_box(model.patch(static_cast<std::size_t>(patch)).patch, p, box.s0,
+                                     box.s1, box.t0, box.t1, s, t, foot, &normal, &settled);
+  if (!settled) return f;
+  // A side counts as touched within 1e-9 of the piece (Newton settles to ~1e-10 of it).
+  constexpr double kTouch = 1e-9;
+  for (int moves = 0; moves < 8; ++moves) {
+    // The neighbouring pieces that touch the point: across a side N continues over.
+    int di = 0, dj = 0;
+    LocalBox unused;
+    if (s <= box.s0 + kTouch && box.s0 == 0.0 &&
+        span_piece(s0, s1, t0, t1, i - 1, j, unused.s0, unused.s1, unused.t0, unused.t1)) {
+      di = -1;
+    } else if (s >= box.s1 - kTouch && box.s1 == 1.0 &&
+               span_piece(s0, s1, t0, t1, i + 1, j, unused.s0, unused.s1, unused.t0, unused.t1)) {
+      di = 1;
+    }
+    if (t <= box.t0 + kTouch && box.t0 == 0.0 &&
+        span_piece(s0, s1, t0, t1, i, j - 1, unused.s0, unused.s1, unused.t0, unused.t1)) {
+      dj = -1;
+    } else if (t >= box.t1 - kTouch && box.t1 == 1.0 &&
+               span_piece(s0, s1, t0, t1, i, j + 1, unused.s0, unused.s1, unused.t0, unused.t1)) {
+      dj = 1;
+    }
+    if (di == 0 && dj == 0) {
+      stationary = true;
+      return f;
+    }
+    bool improved = false;
+    // Across one side, or at a corner across either side or diagonally.
+    const int steps[3][2] = {{di, dj}, {di, 0}, {0, dj}};
+    const int count = di != 0 && dj != 0 ? 3 : 1;
+    for (int m = 0; m < count; ++m) {
+      const int* step = steps[m];
+      LocalBox next;
+      if (!span_piece(s0, s1, t0, t1, i + step[0], j + step[1], next.s0, next.s1, next.t0,
+                      next.t1)) {
+        continue;  // a corner piece outside N (N's corner is there)
+      }
+      const std::int64_t k =
+          model.patch_at(surface, anchor.a + i + step[0], anchor.b + j + step[1]);
+      // The same point from the neighbour's side: local 1 becomes 0 across a side, and so on.
+      double ns = step[0] < 0 ? 1.0 : (step[0] > 0 ? 0.0 : s);
+      double nt = step[1] < 0 ? 1.0 : (step[1] > 0 ? 0.0 : t);
+      Vec3 nfoot, nnormal;
+      bool ok = false;
+      const double nf =
+          newton_in_certified_box(model.patch(static_cast<std::size_t>(k)).patch, p, next.s0,
+                                  next.s1, next.t0, next.t1, ns, nt, nfoot, &nnormal, &ok);
+      if (!ok) return f;
+      if (nf < f) {
+        f = nf;
+        s = ns;
+        t = nt;
+        foot = nfoot;
+        normal = nnormal;
+        patch = k;
+        i += step[0];
+        j += step[1];
+        box = next;
+        improved = true;
+        break;
+      }
+    }
+    if (!improved) {
+      stationary = true;
+      return f;
+    }
+  }
+  return f;
+}
+
+SpanCertificate certify_span(const PreparedModel& model, std::size_t patch, const Vec3& a, double s,
+                             double t, double d, double r_max, double half_width,
+                             SurfaceScratch& scratch) {
+  SpanCertificate c;
+  const int surface = model.patch_surface(patch);
+  if (!a.allFinite() || !(r_max > 0.0) || !model.surface_c1(surface)) return c;
+  const PreparedModel::SpanCell at = model.patch_span(patch);
+  // N's limits: the surface's grid, and at most one patch beyond P on every side.
+  const auto exists = [&](int i, int j) {
+    return model.patch_at(surface, at.a + i, at.b + j) >= 0;
+  };
+  const double s_lo = exists(-1, 0) ? -1.0 : 0.0, s_hi = exists(1, 0) ? 2.0 : 1.0;
+  const double t_lo = exists(0, -1) ? -1.0 : 0.0, t_hi = exists(0, 1) ? 2.0 : 1.0;
+  float_range(s, half_width, c.s0, c.s1, s_lo, s_hi);
+  float_range(t, half_width, c.t0, c.t1, t_lo, t_hi);
+  // A foot on the surface's own edge or corner (a patch edge shared with a neighbour is inside N).
+  const int s_edge = s <= 0.0 && s_lo == 0.0 ? 1 : (s >= 1.0 && s_hi == 1.0 ? -1 : 0);
+  const int t_edge = t <= 0.0 && t_lo == 0.0 ? 1 : (t >= 1.0 && t_hi == 1.0 ? -1 : 0);
+  double* full = scratch.grids.data();
+  double* grid = full + SurfaceScratch::kGridCapacity;
+  double* strip = grid + SurfaceScratch::kGridCapacity;
+  double* work = strip + SurfaceScratch::kGridCapacity;
+  struct Piece {
+    const PreparedPatch* pp;
+    LocalBox box;
+  };
+  Piece pieces[SpanCertificate::kMaxPatches];
+  for (int i = -1; i <= 1; ++i) {
+    for (int j = -1; j <= 1; ++j) {
+      LocalBox box;
+      if (!span_piece(c.s0, c.s1, c.t0, c.t1, i, j, box.s0, box.s1, box.t0, box.t1)) continue;
+      const std::int64_t k = model.patch_at(surface, at.a + i, at.b + j);
+      if (k < 0 || model.patch(static_cast<std::size_t>(k)).rational) return SpanCertificate{};
+      pieces[c.count] = {&model.patch(static_cast<std::size_t>(k)), box};
+      c.patches[c.count++] = k;
+    }
+  }
+  // Every piece strictly convex, or (an edge foot) every piece increasing away from the edge: the
+  // same kind of proof on all of them, so that they add up to one on N.
+  const auto radius_over_pieces = [&](bool edge) {
+    double radius = r_max;
+    for (int k = 0; k < c.count && radius > 0.0; ++k) {
+      const PreparedPatch& pp = *pieces[k].pp;
+      const LocalBox& b = pieces[k].box;
+      const double ws = b.s1 - b.s0, wt = b.t1 - b.t0;
+      pp.numerator(a, full);
+      restrict_grid(full, grid, work, strip, pp.rows, pp.cols, b);
+      radius = edge ? edge_radius(grid, pp.rows, pp.cols, s_edge, t_edge, pp.e_s * ws, pp.e_t * wt,
+                                  pp.e_ss * ws * ws, pp.e_tt * wt * wt, radius)
+                    : grid_convexity_radius(grid, pp.rows, pp.cols, pp.e_ss * ws * ws,
+                                            pp.e_tt * wt * wt, pp.e_st * ws * wt, radius);
+    }
+    return radius;
+  };
+  c.radius = radius_over_pieces(false);
+  if (!(c.radius > 0.0) && (s_edge != 0 || t_edge != 0)) c.radius = radius_over_pieces(true);
+  if (!(c.radius > 0.0)) return SpanCertificate{};
+  // The overlapped patches outside N: their tiles around the piece, as certify_patch bounds P's.
+  const double target = (d + 2.0 * c.radius) * (d + 2.0 * c.radius);
+  c.outside_sq = target;
+  for (int k = 0; k < c.count; ++k) {
+    const PreparedPatch& pp = *pieces[k].pp;
+    const LocalBox& b = pieces[k].box;
+    if (b.s0 == 0.0 && b.s1 == 1.0 && b.t0 == 0.0 && b.t1 == 1.0) continue;  // all inside N
+    const double reach = pp.sphere.radius + (a - pp.origin).norm();
+    pp.numerator(a, full);
+    c.outside_sq =
+        std::min(c.outside_sq, outside_lower_bound(full, strip, work, grid, pp.rows, pp.cols, b,
+                                                   target, 1e-14 * reach * reach));
+  }
   return c;
 }
 

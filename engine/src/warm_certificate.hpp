@@ -4,6 +4,10 @@
 // (s, t) on which F_q = |S - q|^2 is strictly convex for every q within `radius` of a, and a lower
 // bound of F_a over the rest of P. The projector adds the rest of the model (its own search).
 
+#include <algorithm>
+#include <cstdint>
+
+#include "nurbsreg/engine/prepared_model.hpp"
 #include "nurbsreg/engine/surface_projection.hpp"
 
 namespace nurbsreg::engine {
@@ -39,5 +43,54 @@ struct PatchCertificate {
 // otherwise). Uses the scratch's first four grids; no heap allocation.
 PatchCertificate certify_patch(const PreparedPatch& pp, const Vec3& a, double s, double t, double d,
                                double r_max, SurfaceScratch& scratch);
+
+// A box N that reaches into the neighbours of the anchor's foot patch P (same surface, which
+// must be surface_c1): N is given in P's grid coordinates, where the patch i spans after P in u
+// and j in v covers [i, i + 1] x [j, j + 1] (P itself [0, 1]^2). Its part of that patch, in the
+// patch's local parameters ("piece"): [max(0, s0 - i), min(1, s1 - i)] x (the same in t), false
+// when N does not overlap the patch's interior. Computed in double from N's floats (exact), the
+// same way where a certificate is made and where it is used.
+inline bool span_piece(float s0, float s1, float t0, float t1, int i, int j, double& ps0,
+                       double& ps1, double& pt0, double& pt1) {
+  if (!(double(s0) < i + 1.0 && double(s1) > i && double(t0) < j + 1.0 && double(t1) > j)) {
+    return false;
+  }
+  ps0 = std::max(0.0, double(s0) - i);
+  ps1 = std::min(1.0, double(s1) - i);
+  pt0 = std::max(0.0, double(t0) - j);
+  pt1 = std::min(1.0, double(t1) - j);
+  return true;
+}
+
+struct SpanCertificate {
+  static constexpr int kMaxPatches = 9;
+  float s0 = 0.0f, s1 = 1.0f, t0 = 0.0f, t1 = 1.0f;  // N in P's grid coordinates
+  double radius = 0.0;                               // 0: no certificate
+  // Lower bound of F_a on the overlapped patches outside N, at most (d + 2 radius)^2.
+  double outside_sq = 0.0;
+  int count = 0;  // the patches N overlaps (their clipping minima are not the clearance's)
+  std::int64_t patches[kMaxPatches] = {};
+};
+
+// certify_patch's proof on a box N of half-width `half_width` (in P's local units, at most 1)
+// around the foot (s, t), clipped to the surface's grid: F_q strictly convex on every piece of N
+// for every q within the radius of a (then on N: the surface is C1), or, for a foot on the
+// surface's own edge or corner, F_q increasing away from it on every piece and convex along it.
+// Polynomial patches only. Uses the scratch's first four grids; no heap allocation.
+SpanCertificate certify_span(const PreparedModel& model, std::size_t patch, const Vec3& a, double s,
+                             double t, double d, double r_max, double half_width,
+                             SurfaceScratch& scratch);
+
+// The minimum of F_p over a certificate's box N (WarmCertificate: anchor patch `anchor_patch`,
+// N = [s0, s1] x [t0, t1] in its grid coordinates), by Newton piece by piece: from (s, t) on the
+// piece of `patch`, then, while the piece's minimum lies on a side that N continues across, on
+// the neighbouring pieces that touch it, moving to one with a smaller minimum. With F convex on
+// N (or increasing away from the surface's edge and convex along it), a piece's minimum that no
+// touching piece improves is N's minimum. On return patch, s, t, foot and normal are that
+// minimum's; `stationary` is false when a Newton did not settle or the moves ran out (then the
+// point is only an upper bound). Returns the squared distance.
+double newton_on_certificate_box(const PreparedModel& model, std::int64_t anchor_patch, float s0,
+                                 float s1, float t0, float t1, const Vec3& p, std::int64_t& patch,
+                                 double& s, double& t, Vec3& foot, Vec3& normal, bool& stationary);
 
 }  // namespace nurbsreg::engine

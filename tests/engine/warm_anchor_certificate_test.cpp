@@ -82,6 +82,34 @@ NurbsSurface folded_patch(double gap) {
   return s;
 }
 
+// A wavy bicubic sheet of n x n control points with uniform interior knots, each `multiplicity`
+// times (1: C2, 2: C1; either way its certificates' boxes may span patches), over patches about a
+// unit wide, with waves of about two patches.
+NurbsSurface wavy_sheet(int n, int multiplicity) {
+  NurbsSurface s;
+  s.name = "wavy sheet";
+  s.degree_u = 3;
+  s.degree_v = 3;
+  std::vector<double> knots(4, 0.0);
+  const int spans = (n - 4) / multiplicity + 1;
+  for (int k = 1; k < spans; ++k) {
+    for (int m = 0; m < multiplicity; ++m)
+      knots.push_back(static_cast<double>(k) / spans);
+  }
+  knots.insert(knots.end(), 4, 1.0);
+  s.count_u = n;
+  s.count_v = n;
+  s.knots_u = knots;
+  s.knots_v = knots;
+  for (int i = 0; i < n; ++i) {
+    for (int j = 0; j < n; ++j) {
+      s.control_points.emplace_back(
+          i, 1.1 * j, 0.6 * std::sin(0.9 * i + 0.3 * j) * std::cos(0.7 * j - 0.2 * i));
+    }
+  }
+  return s;
+}
+
 Model model_of(std::vector<NurbsSurface> surfaces) {
   Model m;
   m.surfaces = std::move(surfaces);
@@ -98,6 +126,8 @@ std::vector<Model> test_models() {
   for (Vec3& c : upper.control_points)
     c.z() += 0.6;
   models.push_back(model_of({lower, upper}));
+  models.push_back(model_of({wavy_sheet(14, 1)}));
+  models.push_back(model_of({wavy_sheet(12, 2)}));
   return models;
 }
 
@@ -127,9 +157,59 @@ Vec3 random_direction(std::mt19937_64& rng) {
   return d.normalized();
 }
 
-// x0 + (x1 - x0) w in double, exact at w = 0 and w = 1.
-double lerp(float x0, float x1, double w) {
-  return w >= 1.0 ? double(x1) : double(x0) + (double(x1) - double(x0)) * w;
+// A patch's part of a certificate's box N, in its local parameters: patch (a + i, b + j) of the
+// anchor patch (a, b)'s surface covers [i, i + 1] x [j, j + 1] of N's grid coordinates.
+struct Piece {
+  const PreparedPatch* pp;
+  int i, j;
+  double s0, s1, t0, t1;
+};
+
+std::vector<Piece> pieces_of(const PreparedModel& pm, const WarmCertificate& c) {
+  std::vector<Piece> pieces;
+  const int surface = pm.patch_surface(static_cast<std::size_t>(c.patch));
+  const auto at = pm.patch_span(static_cast<std::size_t>(c.patch));
+  for (int i = -2; i <= 2; ++i) {
+    for (int j = -2; j <= 2; ++j) {
+      const double s0 = std::max(0.0, double(c.s0) - i), s1 = std::min(1.0, double(c.s1) - i);
+      const double t0 = std::max(0.0, double(c.t0) - j), t1 = std::min(1.0, double(c.t1) - j);
+      if (!(s0 < s1) || !(t0 < t1)) continue;
+      const std::int64_t k = pm.patch_at(surface, at.a + i, at.b + j);
+      EXPECT_GE(k, 0) << "N leaves the surface";
+      if (k >= 0) pieces.push_back({&pm.patch(static_cast<std::size_t>(k)), i, j, s0, s1, t0, t1});
+    }
+  }
+  return pieces;
+}
+
+// Is (u, v) of `surface` in one of the pieces (of surface `pieces_surface`)?
+bool in_pieces(const std::vector<Piece>& pieces, int pieces_surface, int surface, double u,
+               double v) {
+  if (surface != pieces_surface) return false;
+  for (const Piece& piece : pieces) {
+    const BezierPatch& patch = piece.pp->patch;
+    if (u < patch.param_u.lo || u > patch.param_u.hi || v < patch.param_v.lo ||
+        v > patch.param_v.hi) {
+      continue;
+    }
+    const double s = patch.param_u.to_local(u), t = patch.param_v.to_local(v);
+    if (s >= piece.s0 && s <= piece.s1 && t >= piece.t0 && t <= piece.t1) return true;
+  }
+  return false;
+}
+
+// The piece whose patch box holds (u, v) (ends included), the first such.
+const Piece& piece_holding(const std::vector<Piece>& pieces, double u, double v) {
+  for (const Piece& piece : pieces) {
+    const BezierPatch& patch = piece.pp->patch;
+    const double s = patch.param_u.to_local(u), t = patch.param_v.to_local(v);
+    if (s >= piece.s0 - 1e-12 && s <= piece.s1 + 1e-12 && t >= piece.t0 - 1e-12 &&
+        t <= piece.t1 + 1e-12) {
+      return piece;
+    }
+  }
+  ADD_FAILURE() << "the foot is in none of N's pieces";
+  return pieces.front();
 }
 
 class WarmAnchorClaims : public ::testing::TestWithParam<double> {};
@@ -138,7 +218,7 @@ class WarmAnchorClaims : public ::testing::TestWithParam<double> {};
 // wide cap the radius is set by the convexity test itself, so the ball's sphere is where the
 // Hessian is closest to losing definiteness.
 TEST_P(WarmAnchorClaims, ConvexityAndClearanceHoldAgainstSampling) {
-  int checked = 0, edge_feet = 0;
+  int checked = 0, edge_feet = 0, spanning = 0;
   for (const Model& model : test_models()) {
     const PreparedModel pm{Model(model)};
     Projector projector(pm);
@@ -176,50 +256,64 @@ TEST_P(WarmAnchorClaims, ConvexityAndClearanceHoldAgainstSampling) {
       EXPECT_EQ(c.anchor, points[i].cast<float>());
       const Vec3 anchor = c.anchor.cast<double>();
       EXPECT_GT(c.clearance, results.distance[i]);
-      const PreparedPatch& pp = pm.patch(static_cast<std::size_t>(c.patch));
       EXPECT_EQ(pm.patch_surface(static_cast<std::size_t>(c.patch)), results.entity[i]);
-      // The foot in the patch's local parameters: inside, or on the patch's edge or corner.
-      const double foot_s = pp.patch.param_u.to_local(results.u[i]);
-      const double foot_t = pp.patch.param_v.to_local(results.v[i]);
-      const int s_edge = foot_s <= 0.0 ? 1 : (foot_s >= 1.0 ? -1 : 0);
-      const int t_edge = foot_t <= 0.0 ? 1 : (foot_t >= 1.0 ? -1 : 0);
+      // N's pieces: N is given in the anchor patch's grid coordinates (the patch i spans after it
+      // in u and j in v covers [i, i + 1] x [j, j + 1]), and may reach into its neighbours.
+      const std::vector<Piece> pieces = pieces_of(pm, c);
+      ASSERT_FALSE(pieces.empty());
+      spanning += pieces.size() > 1;
+      // The foot in grid coordinates: inside N, or on N's side (an edge foot's proof).
+      const Piece& foot_piece = piece_holding(pieces, results.u[i], results.v[i]);
+      const double foot_s = foot_piece.i + foot_piece.pp->patch.param_u.to_local(results.u[i]);
+      const double foot_t = foot_piece.j + foot_piece.pp->patch.param_v.to_local(results.v[i]);
+      const int s_edge = foot_s <= c.s0 ? 1 : (foot_s >= c.s1 ? -1 : 0);
+      const int t_edge = foot_t <= c.t0 ? 1 : (foot_t >= c.t1 ? -1 : 0);
       edge_feet += s_edge != 0 || t_edge != 0;
       // For points in the ball, its sphere included: an inner foot's N has F convex; an edge
       // foot's N has F increasing away from the edge (or convex); and in every case no point of a
-      // dense grid over N is below the Newton minimum on N.
+      // dense grid over N is below the smallest Newton minimum over N's pieces.
       for (int k = 0; k < 6; ++k) {
         const double reach = k == 0 ? 0.0 : (k < 4 ? c.radius : uniform(rng, 0, c.radius));
         const Vec3 q = anchor + reach * random_direction(rng);
-        double s_min = 0.5 * (c.s0 + c.s1), t_min = 0.5 * (c.t0 + c.t1);
-        Vec3 foot;
-        bool stationary = false;
-        const double minimum = newton_on_patch(pp.patch, q, c.s0, c.s1, c.t0, c.t1, s_min, t_min,
-                                               foot, nullptr, nullptr, &stationary);
-        ASSERT_TRUE(stationary);
-        for (int a = 0; a <= 24; ++a) {
-          for (int b = 0; b <= 24; ++b) {
-            // In double: the box's float ends times a / 24 in float could land just outside N.
-            const double s = lerp(c.s0, c.s1, a / 24.0), t = lerp(c.t0, c.t1, b / 24.0);
-            const double f = (pp.patch.evaluate(s, t) - q).squaredNorm();
-            ASSERT_GE(f, minimum - 1e-12 * diagonal * diagonal)
-                << "point " << i << ": F below the Newton minimum on N by " << minimum - f
-                << " at (" << s << ", " << t << ") of patch " << c.patch << ", |q - a| = " << reach;
-            if (a % 3 != 0 || b % 3 != 0) continue;
-            const bool convex = hessian_positive_definite(pp.patch, q, s, t);
-            if (s_edge == 0 && t_edge == 0) {
-              ASSERT_TRUE(convex) << "point " << i << ": not convex at (" << s << ", " << t
-                                  << ") of patch " << c.patch << ", |q - a| = " << reach;
-            } else if (!convex) {
-              Vec3 d[6];
-              pp.patch.derivatives(s, t, d);
-              const Vec3 r = d[0] - q;
-              if (s_edge != 0) {
-                ASSERT_GT(s_edge * r.dot(d[1]), 0.0)
-                    << "point " << i << ": F not increasing away from its edge";
-              }
-              if (t_edge != 0) {
-                ASSERT_GT(t_edge * r.dot(d[2]), 0.0)
-                    << "point " << i << ": F not increasing away from its edge";
+        double minimum = std::numeric_limits<double>::infinity();
+        for (const Piece& piece : pieces) {
+          double s_min = 0.5 * (piece.s0 + piece.s1), t_min = 0.5 * (piece.t0 + piece.t1);
+          Vec3 foot;
+          bool stationary = false;
+          minimum = std::min(
+              minimum, newton_on_patch(piece.pp->patch, q, piece.s0, piece.s1, piece.t0, piece.t1,
+                                       s_min, t_min, foot, nullptr, nullptr, &stationary));
+          ASSERT_TRUE(stationary);
+        }
+        for (const Piece& piece : pieces) {
+          const BezierPatch& patch = piece.pp->patch;
+          for (int a = 0; a <= 24; ++a) {
+            for (int b = 0; b <= 24; ++b) {
+              const double s = piece.s0 + (piece.s1 - piece.s0) * (a / 24.0);
+              const double t = piece.t0 + (piece.t1 - piece.t0) * (b / 24.0);
+              const double f = (patch.evaluate(s, t) - q).squaredNorm();
+              ASSERT_GE(f, minimum - 1e-12 * diagonal * diagonal)
+                  << "point " << i << ": F below the Newton minimum on N by " << minimum - f
+                  << " at (" << s << ", " << t << ") of piece (" << piece.i << ", " << piece.j
+                  << "), |q - a| = " << reach;
+              if (a % 3 != 0 || b % 3 != 0) continue;
+              const bool convex = hessian_positive_definite(patch, q, s, t);
+              if (s_edge == 0 && t_edge == 0) {
+                ASSERT_TRUE(convex)
+                    << "point " << i << ": not convex at (" << s << ", " << t << ") of piece ("
+                    << piece.i << ", " << piece.j << "), |q - a| = " << reach;
+              } else if (!convex) {
+                Vec3 d[6];
+                patch.derivatives(s, t, d);
+                const Vec3 r = d[0] - q;
+                if (s_edge != 0) {
+                  ASSERT_GT(s_edge * r.dot(d[1]), 0.0)
+                      << "point " << i << ": F not increasing away from its edge";
+                }
+                if (t_edge != 0) {
+                  ASSERT_GT(t_edge * r.dot(d[2]), 0.0)
+                      << "point " << i << ": F not increasing away from its edge";
+                }
               }
             }
           }
@@ -227,12 +321,7 @@ TEST_P(WarmAnchorClaims, ConvexityAndClearanceHoldAgainstSampling) {
       }
       // Clearance: every model sample outside N is at least that far from the anchor.
       for (const Sample& sample : samples) {
-        const std::int64_t patch = pm.locate_patch(sample.surface, sample.u, sample.v);
-        if (patch == c.patch) {
-          const double s = pp.patch.param_u.to_local(sample.u);
-          const double t = pp.patch.param_v.to_local(sample.v);
-          if (s >= c.s0 && s <= c.s1 && t >= c.t0 && t <= c.t1) continue;
-        }
+        if (in_pieces(pieces, results.entity[i], sample.surface, sample.u, sample.v)) continue;
         ASSERT_GE((sample.point - anchor).norm(), c.clearance - 1e-12 * diagonal)
             << "point " << i << ": a sample outside N of patch " << c.patch
             << " is closer than the clearance";
@@ -241,8 +330,11 @@ TEST_P(WarmAnchorClaims, ConvexityAndClearanceHoldAgainstSampling) {
   }
   EXPECT_GT(checked, 100) << "too few certificates to check";
   EXPECT_GT(edge_feet, 10) << "too few certificates for feet on an edge";
-  std::printf("[ report ] %d certificates checked, %d with the foot on a patch edge\n", checked,
-              edge_feet);
+  EXPECT_GT(spanning, 20) << "too few certificates whose box spans patches";
+  std::printf(
+      "[ report ] %d certificates checked, %d with the foot on N's side, %d spanning "
+      "patches\n",
+      checked, edge_feet, spanning);
 }
 
 INSTANTIATE_TEST_SUITE_P(RadiusCaps, WarmAnchorClaims, ::testing::Values(0.0, 0.2));
@@ -483,6 +575,67 @@ TEST(WarmAnchorCertificate, MaxDistanceStillApplies) {
       EXPECT_NEAR(second.distance[i], first.distance[i], 1e-12 * pm.bounds().diagonal());
     } else {
       EXPECT_EQ(second.status[i], ProjectionStatus::beyond_max_distance) << "point " << i;
+    }
+  }
+}
+
+}  // namespace
+}  // namespace nurbsreg::engine
+
+namespace nurbsreg::engine {
+namespace {
+
+// A bicubic V: two planar flanks z = 1.5 |x| meeting in a crease at x = 0 (u = 1/2, a knot of
+// full multiplicity: C0 there), so F is convex on each flank but not across the crease.
+NurbsSurface crease_v() {
+  NurbsSurface s;
+  s.name = "V";
+  s.degree_u = 3;
+  s.degree_v = 3;
+  s.count_u = 7;
+  s.count_v = 4;
+  s.knots_u = {0, 0, 0, 0, 0.5, 0.5, 0.5, 1, 1, 1, 1};
+  s.knots_v = {0, 0, 0, 0, 1, 1, 1, 1};
+  for (int i = 0; i < s.count_u; ++i) {
+    for (int j = 0; j < s.count_v; ++j) {
+      const double x = i - 3.0;
+      s.control_points.emplace_back(x, j, 1.5 * std::abs(x));
+    }
+  }
+  return s;
+}
+
+// Above the crease, just right of it: the right flank is nearer, the left one nearly as near.
+// A certificate whose box spanned both flanks (both convex, so each piece's test holds) would
+// call the right flank's Newton minimum the answer for a point moved just left of the crease,
+// where the left flank is nearer. The crease must stop the box (PreparedModel::surface_c1).
+TEST(WarmAnchorCertificate, BoxesDoNotSpanACrease) {
+  const NurbsSurface surface = crease_v();
+  const PreparedModel pm{model_of({surface})};
+  ASSERT_FALSE(pm.surface_c1(0));
+  ASSERT_EQ(pm.patch_count(), 2u);
+  const test::SurfaceReference reference(surface);
+  Projector projector(pm);
+  ProjectionOptions options;
+  options.certify = true;
+  options.certificate_radius = 1.0;
+  for (const double y : {0.5, 1.5, 2.5}) {
+    for (const double z : {1.0, 2.0, 3.0}) {
+      const std::vector<Vec3> anchor{Vec3(0.01, y, z)};
+      ProjectionResults made;
+      projector.project(PointView::of(anchor), options, made);
+      ASSERT_GT(made.u[0], 0.5);  // the right flank
+      const std::vector<Vec3> query{Vec3(-0.05, y, z)};
+      const std::vector<ProjectionHint> hint{made.hint(0)};
+      ProjectionResults warm;
+      projector.project(PointView::of(query), ProjectionOptions{}, warm, hint);
+      const test::ReferenceHit exact = reference.closest(query[0]);
+      ASSERT_EQ(warm.status[0], ProjectionStatus::ok);
+      EXPECT_NEAR(warm.distance[0], std::sqrt(exact.distance_sq), 1e-9) << "z = " << z;
+      EXPECT_LT(warm.u[0], 0.5) << "z = " << z;
+      // The right flank's plane (1.5 x - z = 0) is farther than the answer: the case decides.
+      const double right_flank = std::abs(1.5 * query[0].x() - query[0].z()) / std::sqrt(3.25);
+      EXPECT_GT(right_flank - std::sqrt(exact.distance_sq), 0.05);
     }
   }
 }

@@ -61,6 +61,23 @@ class PreparedModel {
   }
   bool any_certifiable() const { return any_certifiable_; }
 
+  // Where patch i sits in its surface's grid of Bézier patches: u span a, v span b.
+  struct SpanCell {
+    int a = 0, b = 0;
+  };
+  SpanCell patch_span(std::size_t i) const { return patch_span_[i]; }
+  // The patch of surface s at span cell (a, b); -1 outside the surface's grid.
+  std::int64_t patch_at(int surface, int a, int b) const {
+    const SurfacePatches& layout = surface_patches_[static_cast<std::size_t>(surface)];
+    if (a < 0 || b < 0 || a >= layout.spans_u || b >= layout.spans_v) return -1;
+    return static_cast<std::int64_t>(layout.first) + static_cast<std::int64_t>(a) * layout.spans_v +
+           b;
+  }
+  // Surface s is C1 in (u, v) across every patch edge (no interior knot of multiplicity >= its
+  // degree): F_q = |S - q|^2 is then C1 across them, so F_q strictly convex on every patch's part
+  // of a parameter box makes it strictly convex on the box (a WarmCertificate may span patches).
+  bool surface_c1(int s) const { return surface_c1_[static_cast<std::size_t>(s)] != 0; }
+
   // The surfaces' hierarchy. Its primitives ("items") are the patches that are not trimmed away,
   // k < hierarchy_patch_items(), with item_patch(k) their patch index, then the trim-edge pieces,
   // edge piece k - hierarchy_patch_items(). For a model without trimmed surfaces the items are
@@ -124,6 +141,8 @@ class PreparedModel {
     std::vector<double> breaks_u, breaks_v;
   };
   std::vector<SurfacePatches> surface_patches_;
+  std::vector<SpanCell> patch_span_;      // per patch
+  std::vector<std::uint8_t> surface_c1_;  // per surface (surface_c1)
   std::vector<RegionClass> patch_class_;
   std::vector<TrimRegion> regions_;
   std::vector<int> surface_region_;                // per surface: index into regions_, -1 untrimmed
