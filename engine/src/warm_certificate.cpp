@@ -325,8 +325,8 @@ double newton_on_certificate_box(const PreparedModel& model, std::int64_t anchor
 }
 
 SpanCertificate certify_span(const PreparedModel& model, std::size_t patch, const Vec3& a, double s,
-                             double t, double d, double r_max, double half_width,
-                             SurfaceScratch& scratch) {
+                             double t, double d, double r_max, double half_s, double half_t,
+                             double floor, SurfaceScratch& scratch) {
   SpanCertificate c;
   const int surface = model.patch_surface(patch);
   if (!a.allFinite() || !(r_max > 0.0) || !model.surface_c1(surface)) return c;
@@ -337,8 +337,8 @@ SpanCertificate certify_span(const PreparedModel& model, std::size_t patch, cons
   };
   const double s_lo = exists(-1, 0) ? -1.0 : 0.0, s_hi = exists(1, 0) ? 2.0 : 1.0;
   const double t_lo = exists(0, -1) ? -1.0 : 0.0, t_hi = exists(0, 1) ? 2.0 : 1.0;
-  float_range(s, half_width, c.s0, c.s1, s_lo, s_hi);
-  float_range(t, half_width, c.t0, c.t1, t_lo, t_hi);
+  float_range(s, half_s, c.s0, c.s1, s_lo, s_hi);
+  float_range(t, half_t, c.t0, c.t1, t_lo, t_hi);
   // A foot on the surface's own edge or corner (a patch edge shared with a neighbour is inside N).
   const int s_edge = s <= 0.0 && s_lo == 0.0 ? 1 : (s >= 1.0 && s_hi == 1.0 ? -1 : 0);
   const int t_edge = t <= 0.0 && t_lo == 0.0 ? 1 : (t >= 1.0 && t_hi == 1.0 ? -1 : 0);
@@ -365,7 +365,7 @@ SpanCertificate certify_span(const PreparedModel& model, std::size_t patch, cons
   // same kind of proof on all of them, so that they add up to one on N.
   const auto radius_over_pieces = [&](bool edge) {
     double radius = r_max;
-    for (int k = 0; k < c.count && radius > 0.0; ++k) {
+    for (int k = 0; k < c.count && radius > floor; ++k) {
       const PreparedPatch& pp = *pieces[k].pp;
       const LocalBox& b = pieces[k].box;
       const double ws = b.s1 - b.s0, wt = b.t1 - b.t0;
@@ -380,7 +380,7 @@ SpanCertificate certify_span(const PreparedModel& model, std::size_t patch, cons
   };
   c.radius = radius_over_pieces(false);
   if (!(c.radius > 0.0) && (s_edge != 0 || t_edge != 0)) c.radius = radius_over_pieces(true);
-  if (!(c.radius > 0.0)) return SpanCertificate{};
+  if (!(c.radius > floor)) return SpanCertificate{};
   // The overlapped patches outside N: their tiles around the piece, as certify_patch bounds P's.
   const double target = (d + 2.0 * c.radius) * (d + 2.0 * c.radius);
   c.outside_sq = target;
@@ -393,6 +393,7 @@ SpanCertificate certify_span(const PreparedModel& model, std::size_t patch, cons
     c.outside_sq =
         std::min(c.outside_sq, outside_lower_bound(full, strip, work, grid, pp.rows, pp.cols, b,
                                                    target, 1e-14 * reach * reach));
+    if (!(c.outside_sq > (d + 2.0 * floor) * (d + 2.0 * floor))) return SpanCertificate{};
   }
   return c;
 }

@@ -72,14 +72,16 @@ struct SpanCertificate {
   std::int64_t patches[kMaxPatches] = {};
 };
 
-// certify_patch's proof on a box N of half-width `half_width` (in P's local units, at most 1)
+// certify_patch's proof on a box N of half-widths half_s, half_t (in P's local units, at most 1)
 // around the foot (s, t), clipped to the surface's grid: F_q strictly convex on every piece of N
 // for every q within the radius of a (then on N: the surface is C1), or, for a foot on the
 // surface's own edge or corner, F_q increasing away from it on every piece and convex along it.
-// Polynomial patches only. Uses the scratch's first four grids; no heap allocation.
+// Gives up (radius 0) as soon as it cannot serve moves beyond `floor`: radius <= floor, or the
+// overlapped patches within d + 2 floor of a. Polynomial patches only. Uses the scratch's first
+// four grids; no heap allocation.
 SpanCertificate certify_span(const PreparedModel& model, std::size_t patch, const Vec3& a, double s,
-                             double t, double d, double r_max, double half_width,
-                             SurfaceScratch& scratch);
+                             double t, double d, double r_max, double half_s, double half_t,
+                             double floor, SurfaceScratch& scratch);
 
 // The minimum of F_p over a certificate's box N (WarmCertificate: anchor patch `anchor_patch`,
 // N = [s0, s1] x [t0, t1] in its grid coordinates), by Newton piece by piece: from (s, t) on the
