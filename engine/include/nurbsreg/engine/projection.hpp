@@ -39,7 +39,9 @@ enum class ProjectionStatus : std::uint8_t {
 
 // A proof, made while projecting an anchor point a, that lets later queries q near a skip the
 // search (ProjectionOptions::certify). With P the patch of a's closest point and N a box of P's
-// local parameters around it (all of P when possible):
+// local parameters around it (all of P when possible), or, on a surface that is C1 across its
+// patch edges (PreparedModel::surface_c1), a box that reaches into P's neighbours (convexity is
+// then proven on each patch's part of N, which C1 makes convexity on N):
 //   - F_q = |S - q|^2 is strictly convex on N for every q with |q - a| <= radius (the clipping's
 //     convexity test on F_a's Bézier coefficients over N, widened by the most the coefficients'
 //     second differences can move when the point moves by `radius`), so Newton's KKT point on N
@@ -47,7 +49,7 @@ enum class ProjectionStatus : std::uint8_t {
 //     surface's boundary), F_q strictly increasing away from that edge on N and convex along it
 //     serves instead;
 //   - everything of the model outside N is at least `clearance` away from a: Bézier bounds over
-//     the rest of P, and an exact best-first search over the rest of the model against
+//     the rest of N's patches, and an exact best-first search over the rest of the model against
 //     alpha = (d_a + 2 radius)^2.
 // The projector trusts a certificate only for the PreparedModel that made it (`model`).
 // For a query q with |q - a| <= radius whose Newton minimum on N has distance d, everything else
@@ -63,8 +65,10 @@ struct WarmCertificate {
   Eigen::Vector3f anchor = Eigen::Vector3f::Zero();
   float radius = 0.0f;
   float clearance = 0.0f;
-  std::int32_t patch = -1;                           // PreparedModel patch index
-  float s0 = 0.0f, s1 = 1.0f, t0 = 0.0f, t1 = 1.0f;  // N, in the patch's local [0, 1]^2
+  std::int32_t patch = -1;  // PreparedModel patch index
+  // N in P's grid coordinates: P is [0, 1]^2, the patch i spans after it in u and j in v
+  // [i, i + 1] x [j, j + 1] (i, j in -1 .. 1).
+  float s0 = 0.0f, s1 = 1.0f, t0 = 0.0f, t1 = 1.0f;
   std::uint32_t model = 0;  // PreparedModel::serial() of the model that made it
 
   double distance_to_anchor(const Vec3& p) const { return (p - anchor.cast<double>()).norm(); }
