@@ -316,8 +316,7 @@ WarmCertificate Projector::make_certificate(const Vec3& p, const SurfaceHit& bes
   // sqrt((d + 2 cap)^2 - d^2); N is half as wide again, in the patch's local units (|S_s| and
   // |S_t| at the foot). A smaller N (convexity may fail on the first) is tried once.
   const bool spans = model_.surface_c1(model_.patch_surface(k));
-  double half_s = 1.0, half_t = 1.0;
-  if (spans) {
+  const auto try_span = [&] {
     Vec3 der[6];
     model_.patch(k).patch.derivatives(best.s, best.t, der);
     const double disc = 1.5 * std::sqrt(4.0 * radius_cap * (d + radius_cap));
@@ -325,10 +324,7 @@ WarmCertificate Projector::make_certificate(const Vec3& p, const SurfaceHit& bes
       const double length = tangent.norm();
       return length > 0.0 ? std::clamp(disc / length, 0.05, 1.0) : 1.0;
     };
-    half_s = half(der[1]);
-    half_t = half(der[2]);
-  }
-  const auto try_span = [&] {
+    const double half_s = half(der[1]), half_t = half(der[2]);
     for (const double shrink : {1.0, 0.5}) {
       const SpanCertificate span = certify_span(
           model_, k, p, best.s, best.t, d, radius_cap, shrink * half_s, shrink * half_t,

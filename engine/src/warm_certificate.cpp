@@ -261,19 +261,18 @@ double newton_on_certificate_box(const PreparedModel& model, std::int64_t anchor
   for (int moves = 0; moves < 8; ++moves) {
     // The neighbouring pieces that touch the point: across a side N continues over.
     int di = 0, dj = 0;
-    LocalBox unused;
-    if (s <= box.s0 + kTouch && box.s0 == 0.0 &&
-        span_piece(s0, s1, t0, t1, i - 1, j, unused.s0, unused.s1, unused.t0, unused.t1)) {
+    const auto overlaps = [&](int pi, int pj) {
+      LocalBox unused;
+      return span_piece(s0, s1, t0, t1, pi, pj, unused.s0, unused.s1, unused.t0, unused.t1);
+    };
+    if (s <= box.s0 + kTouch && box.s0 == 0.0 && overlaps(i - 1, j)) {
       di = -1;
-    } else if (s >= box.s1 - kTouch && box.s1 == 1.0 &&
-               span_piece(s0, s1, t0, t1, i + 1, j, unused.s0, unused.s1, unused.t0, unused.t1)) {
+    } else if (s >= box.s1 - kTouch && box.s1 == 1.0 && overlaps(i + 1, j)) {
       di = 1;
     }
-    if (t <= box.t0 + kTouch && box.t0 == 0.0 &&
-        span_piece(s0, s1, t0, t1, i, j - 1, unused.s0, unused.s1, unused.t0, unused.t1)) {
+    if (t <= box.t0 + kTouch && box.t0 == 0.0 && overlaps(i, j - 1)) {
       dj = -1;
-    } else if (t >= box.t1 - kTouch && box.t1 == 1.0 &&
-               span_piece(s0, s1, t0, t1, i, j + 1, unused.s0, unused.s1, unused.t0, unused.t1)) {
+    } else if (t >= box.t1 - kTouch && box.t1 == 1.0 && overlaps(i, j + 1)) {
       dj = 1;
     }
     if (di == 0 && dj == 0) {
