@@ -7,6 +7,7 @@
 #include <stdexcept>
 
 #include "nurbsreg/engine/decompose.hpp"
+#include "reach_bounds.hpp"
 
 namespace nurbsreg::engine {
 namespace {
@@ -216,6 +217,11 @@ PreparedModel::PreparedModel(Model model) : model_(std::move(model)), serial_(ne
     }
   }
   piece_bvh_ = Bvh(piece_boxes_, 2);
+  // Last: the reach bounds read the patches, the surface grids and the hierarchy.
+  ReachTable reach = build_reach_table(*this);
+  reach_first_ = std::move(reach.first);
+  reach_cells_ = std::move(reach.cells);
+  reach_k_ = reach.cells_per_side;
 }
 
 std::int64_t PreparedModel::locate_patch(int surface, double u, double v) const {

@@ -179,6 +179,38 @@ bool valid_hint(const ProjectionHint* hint, std::size_t entities) {
          std::isfinite(hint->v);
 }
 
+// The model's reach bounds (PreparedModel::ReachCell) prove that `foot`, a KKT point of
+// newton_on_patch over all of `patch` at local (s, t), is the model's closest point to p: p lies
+// closer to it than the cut distance of its cell, along the normal (an orthogonal foot) or in the
+// normal cone of the surface's edge or corner. A foot on a patch edge inside the surface's domain
+// proves nothing: the patch's box may have stopped Newton there (the minimum lies beyond).
+bool reach_proves(const PreparedModel& model, std::int64_t patch, double s, double t,
+                  const Vec3& p, const Vec3& foot, const Vec3& normal, double distance_sq) {
+  const PreparedModel::ReachCell* cell =
+      model.reach_cell(static_cast<std::size_t>(patch), s, t);
+  if (cell == nullptr) return false;
+  const BezierPatch& bp = model.patch(static_cast<std::size_t>(patch)).patch;
+  const NurbsSurface& surface = model.model().surfaces[static_cast<std::size_t>(
+      model.patch_surface(static_cast<std::size_t>(patch)))];
+  const bool s_edge = s <= 0.0 || s >= 1.0, t_edge = t <= 0.0 || t >= 1.0;
+  if (s_edge && !((s <= 0.0 && bp.param_u.lo <= surface.domain_u().lo) ||
+                  (s >= 1.0 && bp.param_u.hi >= surface.domain_u().hi))) {
+    return false;
+  }
+  if (t_edge && !((t <= 0.0 && bp.param_v.lo <= surface.domain_v().lo) ||
+                  (t >= 1.0 && bp.param_v.hi >= surface.domain_v().hi))) {
+    return false;
+  }
+  double rho;
+  if (s_edge || t_edge) {
+    rho = cell->boundary;
+  } else {
+    if (normal.isZero(0.0)) return false;
+    rho = (p - foot).dot(normal) >= 0.0 ? cell->plus : cell->minus;
+  }
+  return distance_sq < rho * rho;
+}
+
 }  // namespace
 
 Projector::Projector(const PreparedModel& model) : model_(model), impl_(std::make_unique<Impl>()) {}
@@ -416,6 +448,7 @@ void Projector::project_range(PointView points, const ProjectionOptions& options
       double hint_s = kNaN, hint_t = kNaN;
       bool hint_certified = false;  // the hinted patch's minimum is already `best`
       bool proven = false;          // `best` is the answer: the hint's certificate proves it
+      bool reach_proven = false;    // ... or the model's reach bounds do (then proven too)
       const double limit_sq = options.max_distance * options.max_distance;
       if (valid_hint(hint, entities)) {
         const NurbsSurface& s = model.surfaces[hint->entity];
@@ -478,6 +511,10 @@ void Projector::project_range(PointView points, const ProjectionOptions& options
             t_loc = hint_t;
             best.distance_sq = newton_on_patch(bp, p, 0.0, 1.0, 0.0, 1.0, s_loc, t_loc, best.foot,
                                                nullptr, &best.normal, &stationary);
+            reach_proven = stationary && best.distance_sq < limit_sq &&
+                           reach_proves(model_, hint_patch, s_loc, t_loc, p, best.foot,
+                                        best.normal, best.distance_sq);
+            proven = reach_proven;
           }
           best.s = s_loc;
           best.t = t_loc;
@@ -552,11 +589,34 @@ void Projector::project_range(PointView points, const ProjectionOptions& options
         if (best_surface < 0 &&
             model_.seed_from_grid(p, limit_sq, best, best_surface, best_patch)) {
           seed_sq = best.distance_sq;
+          if (model_.reach_cell(static_cast<std::size_t>(best_patch), best.s, best.t) !=
+              nullptr) {
+            // A patch with reach bounds: Newton from the seed over the patch, whose KKT point
+            // the bounds may prove (no search at all); if not, it is a closer alpha for the
+            // search and where the patch's clipping starts.
+            const BezierPatch& bp = model_.patch(static_cast<std::size_t>(best_patch)).patch;
+            double s_loc = best.s, t_loc = best.t;
+            bool stationary = false;
+            best.distance_sq = newton_on_patch(bp, p, 0.0, 1.0, 0.0, 1.0, s_loc, t_loc, best.foot,
+                                               nullptr, &best.normal, &stationary);
+            best.s = s_loc;
+            best.t = t_loc;
+            best.u = bp.param_u.to_parent(s_loc);
+            best.v = bp.param_v.to_parent(t_loc);
+            seed_sq = -1.0;  // polished already
+            hint_patch = best_patch;
+            hint_s = s_loc;
+            hint_t = t_loc;
+            reach_proven = stationary && reach_proves(model_, best_patch, s_loc, t_loc, p,
+                                                      best.foot, best.normal, best.distance_sq);
+          }
         }
         SurfaceSearch search{best,      best_surface, best_patch,
                              best_edge, best_edge_t,  certifying ? &others : nullptr};
-        search_surfaces(p, search, hint_certified ? hint_patch : -1, hint_patch, hint_s, hint_t,
-                        state);
+        if (!reach_proven) {
+          search_surfaces(p, search, hint_certified ? hint_patch : -1, hint_patch, hint_s,
+                          hint_t, state);
+        }
         if (best_edge < 0 && best.distance_sq == seed_sq) {
           // The seed point is the answer (every improvement is strict: nothing was found closer
           // by more than the clipping's accepted 1e-11 R). Polished on its patch as the clipping
@@ -577,7 +637,15 @@ void Projector::project_range(PointView points, const ProjectionOptions& options
         clear_certificate(out, i);
         continue;
       }
-      if (proven) {
+      if (reach_proven) {
+        ++state.counters.reach_proven;
+        // No new certificate (the bounds will prove a nearby point again); a hint's still stands.
+        if (options.certify && hint != nullptr && hint->certificate.radius > 0.0) {
+          out.certificate[i] = hint->certificate;
+        } else {
+          clear_certificate(out, i);
+        }
+      } else if (proven) {
         ++state.counters.certified;
         out.certificate[i] = hint->certificate;
       } else if (options.certify) {
@@ -714,6 +782,7 @@ void Projector::project(PointView points, const ProjectionOptions& options, Proj
                                 static_cast<std::uint64_t>(s.curve_stats.subdivisions);
       counters->newton_iterations += static_cast<std::uint64_t>(s.surface_stats.newton_iterations);
       counters->certified += s.counters.certified;
+      counters->reach_proven += s.counters.reach_proven;
       counters->certificates_made += s.counters.certificates_made;
     }
   }

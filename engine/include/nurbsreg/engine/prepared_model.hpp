@@ -78,6 +78,33 @@ class PreparedModel {
   // of a parameter box makes it strictly convex on the box (a WarmCertificate may span patches).
   bool surface_c1(int s) const { return surface_c1_[static_cast<std::size_t>(s)] != 0; }
 
+  // Reach bounds (reach_bounds.cpp): for a foot f on an untrimmed polynomial surface, a lower
+  // bound rho of how far a point may lie from f along a direction of f's normal cone and still
+  // have f as its closest point on the whole model (the cut distance of Federer's reach: the
+  // open ball of radius rho touching the model at f on that side holds no model point). A
+  // query q whose KKT point f on the surface has |q - f| < rho is then answered without any
+  // search. One ReachCell per cell of a k x k grid (reach_cells_per_side) of each such patch's
+  // local (s, t) square; each bound holds for every foot of its (closed) cell:
+  //   plus / minus: q on the side of n = S_u x S_v / minus n (an orthogonal foot);
+  //   boundary: any direction of the normal cone at a foot on the surface's own edge or corner
+  //   (cos th n + sin th m, th in [0, pi], m in the outward tangential cone; 0 for a cell that
+  //   does not touch the surface's edge).
+  // Floats rounded down. 0 where nothing is proven (a cell touching another part of the
+  // model, a seam, a pole, a crease).
+  struct ReachCell {
+    float plus = 0.0f, minus = 0.0f, boundary = 0.0f;
+  };
+  // Cells per patch side: 4, 2 or 1 (fewer on models of many patches: construction time).
+  int reach_cells_per_side() const { return reach_k_; }
+  // Patch i's cell holding local (s, t) in [0, 1]^2; null when the patch has no reach bounds.
+  const ReachCell* reach_cell(std::size_t i, double s, double t) const {
+    const std::uint32_t first = reach_first_[i];
+    if (first == kNoReach) return nullptr;
+    const int a = std::clamp(static_cast<int>(s * reach_k_), 0, reach_k_ - 1);
+    const int b = std::clamp(static_cast<int>(t * reach_k_), 0, reach_k_ - 1);
+    return &reach_cells_[first + static_cast<std::uint32_t>(a * reach_k_ + b)];
+  }
+
   // The surfaces' hierarchy. Its primitives ("items") are the patches that are not trimmed away,
   // k < hierarchy_patch_items(), with item_patch(k) their patch index, then the trim-edge pieces,
   // edge piece k - hierarchy_patch_items(). For a model without trimmed surfaces the items are
@@ -149,6 +176,10 @@ class PreparedModel {
   std::vector<std::uint8_t> surface_certifiable_;  // per surface (surface_certifiable)
   bool any_certifiable_ = false;
   std::vector<std::uint32_t> item_patch_;
+  static constexpr std::uint32_t kNoReach = 0xffffffffu;
+  std::vector<std::uint32_t> reach_first_;  // per patch: its first ReachCell, or kNoReach
+  std::vector<ReachCell> reach_cells_;
+  int reach_k_ = 1;
   std::vector<Aabb> item_boxes_;  // per hierarchy item (patches, then edge pieces)
   std::vector<BoundingSphere> item_spheres_;
   // A box in the patch's own frame (two tangent directions and the normal of its control net),

@@ -172,6 +172,9 @@ struct ProjectionCounters {
   std::uint64_t subdivisions = 0;
   std::uint64_t newton_iterations = 0;  // of the per-patch box-constrained Newton (surfaces)
   std::uint64_t certified = 0;          // answers proven by the hint's WarmCertificate
+  // Answers proven by the model's reach bounds (PreparedModel::ReachCell) after one Newton from
+  // the hint or the cold seed: no search.
+  std::uint64_t reach_proven = 0;
   std::uint64_t certificates_made = 0;  // new WarmCertificates (ProjectionOptions::certify)
 };
 

@@ -1,0 +1,745 @@
+#include "reach_bounds.hpp"
+
+// Reach bounds. For a foot f of the model M and a unit direction v of M's normal cone at f, the
+// point q = f + d v has f as its closest point on M exactly when the open ball B(f + d v, d)
+// holds no point of M, and that holds for every d up to the cut distance
+//   t_cut(f, v) = inf over x in M with v.(x - f) > 0 of |x - f|^2 / (2 v.(x - f))
+// (|x - (f + d v)|^2 - d^2 = |x - f|^2 - 2 d v.(x - f)). A lower bound of t_cut over every foot
+// of a cell of a patch and every v of one kind (the normal's two sides, the boundary's cone) is
+// what a cell stores. It is made of two parts:
+//
+//  - x near f: N, the cell grown by one cell's width on every side (within the surface's domain,
+//    and within the patch unless the surface is C1 across patch edges). For f = S(b) and
+//    x = S(a) in N, with Delta = a - b:
+//      |x - f| >= (sigma - E) |Delta|, sigma the smallest singular value of the Jacobian J0 at
+//      the cell's centre and E >= |J - J0| over N (Bézier hodograph bounds), since
+//      x - f = integral of J along the segment times Delta;
+//      v.(x - f) <= K |Delta|^2 / 2, K >= |S''| over N, since v.J(b) Delta <= 0 for every v of
+//      the normal cone at f and every Delta pointing into the domain (Taylor with integral
+//      remainder; S is C1 and piecewise polynomial along the segment).
+//    So t_cut >= (sigma - E)^2 / K for those x.
+//  - everything else of the model (every surface's patches, trimmed ones whole: more points only
+//    lower the bound): a best-first branch and bound over pairs (a piece of the cell, a box of
+//    the model), the model's hierarchy first, then Bézier sub-patches. A pair's bound is
+//    min |w|^2 / (2 max v.w) over w = x - f in the difference of the two boxes (both in the
+//    cell piece's own frame: tangent, tangent, normal); v.w is a convex function of w for the
+//    cone's directions, so its maximum over the box is at a corner. The cone of a piece is known
+//    up to eps: |v - v0| <= eps for a nominal direction v0 (Bézier bounds on S_u, S_v and
+//    |a / |a| - b / |b|| <= 2 |a - b| / |b|).
+// The search stops at the local part's bound: a cell's bound is the smaller of the two.
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <limits>
+#include <queue>
+#include <cstdio>
+#include <cstdlib>
+
+namespace nurbsreg::engine {
+namespace {
+
+constexpr double kInf = std::numeric_limits<double>::infinity();
+// Halvings of a piece along one parameter before the search stops refining it.
+constexpr int kMaxLevel = 7;
+// Pairs taken from the queue per cell and side before the search settles for its current
+// bound (build time: a few hundred microseconds per cell).
+constexpr int kBudget = 200;
+constexpr std::size_t kCellBudget = 2048;
+// N reaches this fraction of a cell beyond it on every side.
+constexpr double kMargin = 0.5;
+constexpr int kMaxPoints = (kMaxDegree + 1) * (kMaxDegree + 1);
+
+struct Rect {
+  double s0 = 0.0, s1 = 1.0, t0 = 0.0, t1 = 1.0;
+};
+
+// A copy of a patch's homogeneous control points, (p + 1) x (q + 1), row-major in u.
+struct Grid {
+  int p = 0, q = 0;
+  std::array<Vec4, kMaxPoints> cw;
+  const Vec4& at(int i, int j) const { return cw[static_cast<std::size_t>(i * (q + 1) + j)]; }
+  Vec4& at(int i, int j) { return cw[static_cast<std::size_t>(i * (q + 1) + j)]; }
+  Vec3 point(int i, int j) const { return at(i, j).head<3>() / at(i, j)[3]; }
+};
+
+// de Casteljau on every line of the grid along u (dir 0) or v (dir 1) at tau: the part before
+// tau (low) or after it.
+Grid split(const Grid& g, int dir, double tau, bool keep_low) {
+  Grid out = g;
+  const int n = dir == 0 ? g.p : g.q;
+  const int lines = dir == 0 ? g.q + 1 : g.p + 1;
+  std::array<Vec4, kMaxDegree + 1> tmp;
+  for (int l = 0; l < lines; ++l) {
+    auto ref = [&](Grid& grid, int k) -> Vec4& { return dir == 0 ? grid.at(k, l) : grid.at(l, k); };
+    for (int k = 0; k <= n; ++k)
+      tmp[static_cast<std::size_t>(k)] = dir == 0 ? g.at(k, l) : g.at(l, k);
+    if (keep_low) ref(out, 0) = tmp[0];
+    else ref(out, n) = tmp[static_cast<std::size_t>(n)];
+    for (int k = 1; k <= n; ++k) {
+      for (int i = 0; i <= n - k; ++i)
+        tmp[static_cast<std::size_t>(i)] = (1.0 - tau) * tmp[static_cast<std::size_t>(i)] +
+                                           tau * tmp[static_cast<std::size_t>(i + 1)];
+      if (keep_low) ref(out, k) = tmp[0];
+      else ref(out, n - k) = tmp[static_cast<std::size_t>(n - k)];
+    }
+  }
+  return out;
+}
+
+Grid restrict_to(const BezierPatch& bp, const Rect& r) {
+  Grid g;
+  g.p = bp.degree_u;
+  g.q = bp.degree_v;
+  for (int i = 0; i <= g.p; ++i)
+    for (int j = 0; j <= g.q; ++j)
+      g.at(i, j) = bp.at(i, j);
+  if (r.s1 < 1.0) g = split(g, 0, r.s1, true);
+  if (r.s0 > 0.0) g = split(g, 0, r.s0 / r.s1, false);
+  if (r.t1 < 1.0) g = split(g, 1, r.t1, true);
+  if (r.t0 > 0.0) g = split(g, 1, r.t0 / r.t1, false);
+  return g;
+}
+
+// Orthonormal frame: to(x) gives x's coordinates (tangent, tangent, normal).
+struct Frame {
+  Vec3 e[3] = {Vec3::UnitX(), Vec3::UnitY(), Vec3::UnitZ()};
+  Vec3 to(const Vec3& x) const { return {e[0].dot(x), e[1].dot(x), e[2].dot(x)}; }
+};
+
+Aabb points_box(const Vec4* cw, int count, const Frame& f) {
+  Aabb box;
+  for (int k = 0; k < count; ++k)
+    box.extend(f.to(cw[k].head<3>() / cw[k][3]));
+  return box;
+}
+
+Aabb grid_box(const Grid& g, const Frame& f) {
+  return points_box(g.cw.data(), (g.p + 1) * (g.q + 1), f);
+}
+
+// The normal cone's boundary part at feet on the surface's own edge (m1 only) or corner (the
+// tangential directions t with t.g1 >= 0 and t.g2 >= 0, whose extreme rays are m1 and m2), in
+// the piece's frame: v = cos th nrm + sin th t, th in [0, pi]. eps bounds |v - v0| for the
+// nominal v0 over the piece's feet (a corner is one point: its cone is evaluated there).
+struct Cone {
+  bool corner = false;
+  Vec3 nrm = Vec3::UnitZ();
+  Vec3 m1 = Vec3::Zero(), m2 = Vec3::Zero(), g1 = Vec3::Zero(), g2 = Vec3::Zero();
+  double eps = 2.0;
+};
+
+// A piece of the cell (feet f), with what its pairs' bounds need.
+struct FootPiece {
+  Rect rect;
+  int level_s = 0, level_t = 0;
+  Frame frame;
+  Aabb box;          // in frame
+  double eps_n = 2;  // |n(f) - n0| over the piece
+  int cones = 0;
+  Cone cone[8];
+  double len_s = 0, len_t = 0;
+};
+
+// A piece of the model outside N (points x); its control points are in Search::pool.
+struct ModelPiece {
+  Rect rect;
+  int level_s = 0, level_t = 0;
+  int p = 0, q = 0;
+  std::size_t offset = 0;
+  double len_s = 0, len_t = 0;
+};
+
+void lengths(const Grid& g, double& len_s, double& len_t) {
+  len_s = (g.point(g.p, 0) - g.point(0, 0)).norm() + (g.point(g.p, g.q) - g.point(0, g.q)).norm();
+  len_t = (g.point(0, g.q) - g.point(0, 0)).norm() + (g.point(g.p, g.q) - g.point(g.p, 0)).norm();
+}
+
+// Which edges of the surface's domain the rect of patch bp touches: [u lo, u hi, v lo, v hi].
+struct DomainEdges {
+  bool at[4] = {false, false, false, false};
+};
+
+DomainEdges touched_edges(const BezierPatch& bp, const Rect& r, const NurbsSurface& s) {
+  DomainEdges e;
+  e.at[0] = r.s0 == 0.0 && bp.param_u.lo <= s.domain_u().lo;
+  e.at[1] = r.s1 == 1.0 && bp.param_u.hi >= s.domain_u().hi;
+  e.at[2] = r.t0 == 0.0 && bp.param_v.lo <= s.domain_v().lo;
+  e.at[3] = r.t1 == 1.0 && bp.param_v.hi >= s.domain_v().hi;
+  return e;
+}
+
+// Binomial coefficients up to 2 kMaxDegree (Bézier products).
+struct Binomials {
+  double c[2 * kMaxDegree + 1][2 * kMaxDegree + 1] = {};
+  Binomials() {
+    for (int n = 0; n <= 2 * kMaxDegree; ++n) {
+      c[n][0] = 1.0;
+      for (int k = 1; k <= n; ++k)
+        c[n][k] = c[n - 1][k - 1] + (k <= n - 1 ? c[n - 1][k] : 0.0);
+    }
+  }
+};
+const Binomials kBinomials;
+
+// Bound of |x / |x| - x0| over the convex hull of the vectors `c` (a Bézier vector function's
+// control points), x0 unit: |x_perp| <= max |c_perp| and x . x0 >= min c . x0, so the angle is
+// at most atan(max perp / min parallel) <= max perp / min parallel; 2 (no bound) when the
+// parallel part is not positive.
+double direction_spread(const Vec3* c, int count, const Vec3& x0) {
+  double perp = 0.0, par = std::numeric_limits<double>::infinity();
+  for (int k = 0; k < count; ++k) {
+    const double along = c[k].dot(x0);
+    par = std::min(par, along);
+    perp = std::max(perp, (c[k] - along * x0).norm());
+  }
+  return par > 0.0 ? std::min(2.0, perp / par) : 2.0;
+}
+
+// Control points (2p - 1, 2q - 1) of N = S_s x S_t for the polynomial grid g (Bézier product:
+// the coefficient of B_k B_l gathers C(p-1, i1) C(p, i2) / C(2p-1, k) (the same in t) times
+// S_s's (i1, j1) x S_t's (i2, j2) over i1 + i2 = k, j1 + j2 = l).
+int normal_control_points(const Grid& g, Vec3* out) {
+  const int p = g.p, q = g.q;
+  const int nu = 2 * p - 1, nv = 2 * q - 1;
+  const auto& c = kBinomials.c;
+  std::array<Vec3, kMaxPoints> pts, su, sv;
+  for (int i = 0; i <= p; ++i)
+    for (int j = 0; j <= q; ++j)
+      pts[static_cast<std::size_t>(i * (q + 1) + j)] = g.point(i, j);
+  const auto at = [&](int i, int j) -> const Vec3& { return pts[static_cast<std::size_t>(i * (q + 1) + j)]; };
+  for (int i = 0; i < p; ++i)  // S_s: (p - 1, q), binomial weights folded in
+    for (int j = 0; j <= q; ++j)
+      su[static_cast<std::size_t>(i * (q + 1) + j)] = (p * c[p - 1][i] * c[q][j]) * (at(i + 1, j) - at(i, j));
+  for (int i = 0; i <= p; ++i)  // S_t: (p, q - 1)
+    for (int j = 0; j < q; ++j)
+      sv[static_cast<std::size_t>(i * q + j)] = (q * c[p][i] * c[q - 1][j]) * (at(i, j + 1) - at(i, j));
+  for (int k = 0; k <= nu; ++k)
+    for (int l = 0; l <= nv; ++l)
+      out[k * (nv + 1) + l] = Vec3::Zero();
+  for (int i1 = 0; i1 < p; ++i1)
+    for (int j1 = 0; j1 <= q; ++j1)
+      for (int i2 = 0; i2 <= p; ++i2)
+        for (int j2 = 0; j2 < q; ++j2)
+          out[(i1 + i2) * (nv + 1) + j1 + j2] +=
+              su[static_cast<std::size_t>(i1 * (q + 1) + j1)].cross(sv[static_cast<std::size_t>(i2 * q + j2)]);
+  for (int k = 0; k <= nu; ++k)
+    for (int l = 0; l <= nv; ++l)
+      out[k * (nv + 1) + l] /= c[nu][k] * c[nv][l];
+  return (nu + 1) * (nv + 1);
+}
+
+FootPiece make_foot_piece(const BezierPatch& bp, const Rect& r, int level_s, int level_t,
+                          const DomainEdges& edges) {
+  FootPiece f;
+  f.rect = r;
+  f.level_s = level_s;
+  f.level_t = level_t;
+  const Grid g = restrict_to(bp, r);
+  lengths(g, f.len_s, f.len_t);
+  BezierPatch sub;  // the piece in its own parameters [0, 1]^2 (directions only)
+  sub.degree_u = g.p;
+  sub.degree_v = g.q;
+  sub.cw.assign(g.cw.begin(), g.cw.begin() + (g.p + 1) * (g.q + 1));
+  sub.param_u = {0.0, 1.0};
+  sub.param_v = {0.0, 1.0};
+  Vec3 d[6];
+  sub.derivatives(0.5, 0.5, d);
+  const Vec3 n_raw = d[1].cross(d[2]);
+  if (!(n_raw.norm() > 0.0) || !n_raw.allFinite()) {
+    f.box = grid_box(g, f.frame);  // eps_n 2: any unit vector is within 2 of any other
+    return f;
+  }
+  const Vec3 n0 = n_raw.normalized();
+  Vec3 t1 = d[1] - d[1].dot(n0) * n0;
+  t1 = t1.norm() > 0.0 ? t1.normalized() : n0.unitOrthogonal();
+  f.frame.e[0] = t1;
+  f.frame.e[1] = n0.cross(t1);
+  f.frame.e[2] = n0;
+  f.box = grid_box(g, f.frame);
+  std::array<Vec3, (2 * kMaxDegree) * (2 * kMaxDegree)> normals;
+  const int count = normal_control_points(g, normals.data());
+  f.eps_n = direction_spread(normals.data(), count, n0);
+  // Edge feet: m = +-(tau x n), tau the edge's unit tangent; |m - m0| <= |tau - tau0| +
+  // |n - n0| + (1 - |tau0 x n0|) for m0 = +-(tau0 x n0) / |tau0 x n0|.
+  for (int k = 0; k < 4; ++k) {
+    if (!edges.at[k]) continue;
+    const bool u_edge = k < 2;
+    const double sign = (k == 0 || k == 2) ? -1.0 : 1.0;
+    std::array<Vec3, kMaxDegree> tangent;
+    int m = 0;
+    if (u_edge) {
+      const int i = k == 0 ? 0 : g.p;
+      for (int j = 0; j < g.q; ++j)
+        tangent[static_cast<std::size_t>(m++)] = g.point(i, j + 1) - g.point(i, j);
+    } else {
+      const int j = k == 2 ? 0 : g.q;
+      for (int i = 0; i < g.p; ++i)
+        tangent[static_cast<std::size_t>(m++)] = g.point(i + 1, j) - g.point(i, j);
+    }
+    Vec3 e[6];
+    sub.derivatives(u_edge ? (k == 0 ? 0.0 : 1.0) : 0.5, u_edge ? 0.5 : (k == 2 ? 0.0 : 1.0), e);
+    const Vec3 tau0 = (u_edge ? e[2] : e[1]).normalized();
+    // m_u = +-(S_t x N) ~ tau x n; m_v = +-(N x S_s) ~ n x tau.
+    const Vec3 raw = u_edge ? tau0.cross(n0) : n0.cross(tau0);
+    if (!tau0.allFinite() || !(raw.norm() > 0.0)) continue;
+    Cone& c = f.cone[f.cones++];
+    c.nrm = f.frame.to(n0);
+    c.m1 = f.frame.to(sign * raw.normalized());
+    c.eps = std::min(2.0, f.eps_n + direction_spread(tangent.data(), m, tau0) + f.eps_n +
+                              (1.0 - raw.norm()));
+  }
+  // Corner feet: one point each, its cone evaluated there (eps: rounding only).
+  for (int a = 0; a < 2; ++a) {
+    for (int b = 2; b < 4; ++b) {
+      if (!edges.at[a] || !edges.at[b]) continue;
+      Vec3 e[6];
+      sub.derivatives(a == 0 ? 0.0 : 1.0, b == 2 ? 0.0 : 1.0, e);
+      const Vec3 nc = e[1].cross(e[2]);
+      if (!(nc.norm() > 0.0) || !nc.allFinite()) continue;
+      const double su_sign = a == 0 ? -1.0 : 1.0, sv_sign = b == 2 ? -1.0 : 1.0;
+      Cone& c = f.cone[f.cones++];
+      c.corner = true;
+      c.nrm = f.frame.to(nc.normalized());
+      c.m1 = f.frame.to(su_sign * e[2].cross(nc).normalized());
+      c.m2 = f.frame.to(sv_sign * nc.cross(e[1]).normalized());
+      c.g1 = f.frame.to(su_sign * e[1]);
+      c.g2 = f.frame.to(sv_sign * e[2]);
+      c.eps = 1e-12;
+    }
+  }
+  return f;
+}
+
+enum Side { kPlus = 0, kMinus = 1, kBoundary = 2 };
+
+// The largest v.w over the piece's directions of `side` (nominal), plus eps |w|.
+double support(const FootPiece& f, int side, const Vec3& w) {
+  if (side == kPlus) return w.z() + f.eps_n * w.norm();
+  if (side == kMinus) return -w.z() + f.eps_n * w.norm();
+  double best = -kInf;
+  for (int k = 0; k < f.cones; ++k) {
+    const Cone& c = f.cone[k];
+    const double a = c.nrm.dot(w);
+    double b;
+    if (!c.corner) {
+      b = c.m1.dot(w);
+    } else {
+      const Vec3 wt = w - a * c.nrm;
+      b = wt.dot(c.g1) >= 0.0 && wt.dot(c.g2) >= 0.0 ? wt.norm()
+                                                     : std::max(c.m1.dot(w), c.m2.dot(w));
+    }
+    const double bp = std::max(b, 0.0);
+    best = std::max(best, std::sqrt(a * a + bp * bp) + c.eps * w.norm());
+  }
+  return best;
+}
+
+// Lower bound of |w|^2 / (2 v.w) over w = x - f, x in the box `x` (the piece's frame), f in the
+// piece, v of `side` with v.w > 0; infinity when no such v.w is positive.
+double pair_bound(const FootPiece& f, const Aabb& x, int side) {
+  if (side == kBoundary && f.cones == 0) return kInf;
+  const Vec3 lo = x.lo - f.box.hi, hi = x.hi - f.box.lo;
+  const double d2 = lo.cwiseMax(0.0).cwiseMax(-hi).squaredNorm();
+  if (!(d2 > 0.0)) return 0.0;
+  double den = -kInf;
+  for (int c = 0; c < 8; ++c) {
+    const Vec3 w((c & 1) ? hi.x() : lo.x(), (c & 2) ? hi.y() : lo.y(), (c & 4) ? hi.z() : lo.z());
+    den = std::max(den, support(f, side, w));
+  }
+  if (!(den > 0.0)) return kInf;
+  return d2 / (2.0 * den);
+}
+
+Aabb node_box_in(const Aabb& box, const Frame& frame) {
+  Aabb out;
+  for (int c = 0; c < 8; ++c)
+    out.extend(frame.to(Vec3((c & 1) ? box.hi.x() : box.lo.x(), (c & 2) ? box.hi.y() : box.lo.y(),
+                             (c & 4) ? box.hi.z() : box.lo.z())));
+  return out;
+}
+
+// The local part over N (global parameters of the surface), for interior feet (v = +-n(f), f
+// in the cell, |n(f) - n0| <= eps_n) and for boundary feet (any unit v):
+// (sigma - E)^2 / K with K bounding v.S''[Delta, Delta] / |Delta|^2. 0 when N holds a rational
+// patch or the Jacobian bounds fail; infinity for an affine N.
+struct LocalBound {
+  double interior = 0.0, boundary = 0.0;
+};
+
+LocalBound local_bound(const PreparedModel& model, int surface, const Rect& n, const Vec3& ju0,
+                       const Vec3& jv0, const Frame& frame, double eps_n) {
+  LocalBound out;
+  // sigma, two ways: the smallest singular value of J0 less |J - J0| over N; and, with the
+  // columns' tangential parts (a, b) in the convex hulls of the hodographs' (the mean Jacobian
+  // along a segment is in them), min det(a, b) / sqrt(max |a|^2 + max |b|^2).
+  const double a = ju0.squaredNorm(), b = ju0.dot(jv0), c = jv0.squaredNorm();
+  const double root = std::sqrt(0.25 * (a - c) * (a - c) + b * b);
+  const double lambda_max = 0.5 * (a + c) + root;
+  const double lambda_min = lambda_max > 0.0 ? std::max(0.0, a * c - b * b) / lambda_max : 0.0;
+  const double sigma0 = std::sqrt(lambda_min);
+  double e_u = 0.0, e_v = 0.0;
+  double k_uu = 0.0, k_uv = 0.0, k_vv = 0.0;     // |S''| components
+  double n_uu = 0.0, n_uv = 0.0, n_vv = 0.0;     // |n0 . S''| components
+  std::vector<Vec2> hu, hv;                      // tangential parts of the hodographs
+  const std::int64_t lo = model.locate_patch(surface, n.s0, n.t0);
+  const std::int64_t hi = model.locate_patch(surface, n.s1, n.t1);
+  if (lo < 0 || hi < 0) return out;
+  const auto span_lo = model.patch_span(static_cast<std::size_t>(lo));
+  const auto span_hi = model.patch_span(static_cast<std::size_t>(hi));
+  const Vec3 n0 = frame.e[2];
+  for (int ia = span_lo.a; ia <= span_hi.a; ++ia) {
+    for (int ib = span_lo.b; ib <= span_hi.b; ++ib) {
+      const std::int64_t k = model.patch_at(surface, ia, ib);
+      if (k < 0) continue;
+      const PreparedPatch& pp = model.patch(static_cast<std::size_t>(k));
+      if (pp.rational) return out;
+      const BezierPatch& bp = pp.patch;
+      const double pu0 = std::max(n.s0, bp.param_u.lo), pu1 = std::min(n.s1, bp.param_u.hi);
+      const double pv0 = std::max(n.t0, bp.param_v.lo), pv1 = std::min(n.t1, bp.param_v.hi);
+      if (!(pu1 > pu0 && pv1 > pv0)) continue;
+      const Rect r{bp.param_u.to_local(pu0), bp.param_u.to_local(pu1), bp.param_v.to_local(pv0),
+                   bp.param_v.to_local(pv1)};
+      const Grid g = restrict_to(bp, r);
+      const double wu = pu1 - pu0, wv = pv1 - pv0;  // global widths of the part
+      const int p = g.p, q = g.q;
+      const auto track = [](double& k_all, double& k_n, const Vec3& x, const Vec3& nrm) {
+        k_all = std::max(k_all, x.norm());
+        k_n = std::max(k_n, std::abs(x.dot(nrm)));
+      };
+      for (int i = 0; i <= p; ++i) {
+        for (int j = 0; j <= q; ++j) {
+          const Vec3 pij = g.point(i, j);
+          if (i < p) {
+            const Vec3 su = p * (g.point(i + 1, j) - pij) / wu;
+            e_u = std::max(e_u, (su - ju0).norm());
+            hu.emplace_back(frame.e[0].dot(su), frame.e[1].dot(su));
+          }
+          if (j < q) {
+            const Vec3 sv = q * (g.point(i, j + 1) - pij) / wv;
+            e_v = std::max(e_v, (sv - jv0).norm());
+            hv.emplace_back(frame.e[0].dot(sv), frame.e[1].dot(sv));
+          }
+          if (i + 1 < p) {
+            track(k_uu, n_uu,
+                  p * (p - 1) * (g.point(i + 2, j) - 2.0 * g.point(i + 1, j) + pij) / (wu * wu), n0);
+          }
+          if (j + 1 < q) {
+            track(k_vv, n_vv,
+                  q * (q - 1) * (g.point(i, j + 2) - 2.0 * g.point(i, j + 1) + pij) / (wv * wv), n0);
+          }
+          if (i < p && j < q) {
+            track(k_uv, n_uv,
+                  p * q * (g.point(i + 1, j + 1) - g.point(i + 1, j) - g.point(i, j + 1) + pij) /
+                      (wu * wv),
+                  n0);
+          }
+        }
+      }
+    }
+  }
+  const double sigma_a = sigma0 - std::sqrt(e_u * e_u + e_v * e_v);
+  double det_min = std::numeric_limits<double>::infinity(), max_a = 0.0, max_b = 0.0;
+  for (const Vec2& x : hu) max_a = std::max(max_a, x.squaredNorm());
+  for (const Vec2& y : hv) max_b = std::max(max_b, y.squaredNorm());
+  for (const Vec2& x : hu)
+    for (const Vec2& y : hv)
+      det_min = std::min(det_min, x.x() * y.y() - x.y() * y.x());
+  const double sigma_b = det_min > 0.0 ? det_min / std::sqrt(max_a + max_b) : 0.0;
+  const double sigma = std::max(sigma_a, sigma_b);
+  if (!(sigma > 0.0)) return out;
+  // |Delta^T S'' Delta| <= [|du| |dv|] [[k_uu, k_uv], [k_uv, k_vv]] [|du| |dv|]^T.
+  const auto lambda = [](double uu, double uv, double vv) {
+    return 0.5 * (uu + vv) + std::sqrt(0.25 * (uu - vv) * (uu - vv) + uv * uv);
+  };
+  const double k_all = lambda(k_uu, k_uv, k_vv);
+  const double k_int = std::min(k_all, lambda(n_uu, n_uv, n_vv) + eps_n * k_all);
+  out.interior = k_int > 0.0 ? sigma * sigma / k_int : kInf;
+  out.boundary = k_all > 0.0 ? sigma * sigma / k_all : kInf;
+  return out;
+}
+
+// Per-thread working memory of the search.
+struct Search {
+  std::vector<FootPiece> feet;
+  std::vector<ModelPiece> pieces;
+  std::vector<Vec4> pool;
+  struct Entry {
+    double bound;
+    std::int32_t foot;
+    std::int64_t x;  // >= 0: pieces[x]; < 0: hierarchy node ~x
+    bool operator>(const Entry& o) const { return bound > o.bound; }
+  };
+  std::vector<Entry> heap;
+};
+
+class CellBounds {
+ public:
+  CellBounds(const PreparedModel& model, Search& search) : model_(model), s_(search) {}
+
+  // The far part's bound for `side`, refined up to `target`.
+  double far_bound(const FootPiece& cell, int surface, const Rect& n_global, int side,
+                   double target) {
+    s_.feet.clear();
+    s_.pieces.clear();
+    s_.heap.clear();
+    s_.pool.clear();
+    s_.feet.push_back(cell);
+    surface_ = surface;
+    n_ = n_global;
+    side_ = side;
+    target_ = target;
+    const auto& nodes = model_.patch_hierarchy().nodes();
+    if (nodes.empty()) return target;
+    push_node(0, 0);
+    int pops = 0;
+    while (!s_.heap.empty()) {
+      std::pop_heap(s_.heap.begin(), s_.heap.end(), std::greater<>());
+      const Search::Entry e = s_.heap.back();
+      s_.heap.pop_back();
+      if (e.bound >= target_) return target_;
+      if (++pops > kBudget) return e.bound;
+      if (e.x < 0) {
+        expand_node(e.foot, static_cast<std::uint32_t>(~e.x));
+        continue;
+      }
+      // Split the larger of the two pieces (by box diagonal in the foot piece's frame).
+      const FootPiece& f = s_.feet[static_cast<std::size_t>(e.foot)];
+      const ModelPiece& x = s_.pieces[static_cast<std::size_t>(e.x)];
+      const bool f_can = f.level_s < kMaxLevel || f.level_t < kMaxLevel;
+      const bool x_can = x.level_s < kMaxLevel || x.level_t < kMaxLevel;
+      if (!f_can && !x_can) return e.bound;
+      const double f_diag = f.box.diagonal();
+      const double x_diag = piece_box(x, f.frame).diagonal();
+      if (f_can && (!x_can || f_diag >= x_diag)) {
+        split_foot(e.foot, e.x);
+      } else {
+        split_piece(e.foot, e.x);
+      }
+    }
+    return target_;
+  }
+
+ private:
+  void push(std::int32_t foot, std::int64_t x, double bound) {
+    if (!(bound < target_)) return;  // never needed: the search stops before reaching it
+    s_.heap.push_back({bound, foot, x});
+    std::push_heap(s_.heap.begin(), s_.heap.end(), std::greater<>());
+  }
+
+  void push_node(std::int32_t foot, std::uint32_t node) {
+    const FootPiece& f = s_.feet[static_cast<std::size_t>(foot)];
+    const Aabb& box = model_.patch_hierarchy().nodes()[node].box;
+    push(foot, ~static_cast<std::int64_t>(node), pair_bound(f, node_box_in(box, f.frame), side_));
+  }
+
+  void push_piece(std::int32_t foot, std::int64_t x) {
+    const FootPiece& f = s_.feet[static_cast<std::size_t>(foot)];
+    const ModelPiece& m = s_.pieces[static_cast<std::size_t>(x)];
+    push(foot, x, pair_bound(f, piece_box(m, f.frame), side_));
+  }
+
+  Aabb piece_box(const ModelPiece& m, const Frame& frame) const {
+    return points_box(s_.pool.data() + m.offset, (m.p + 1) * (m.q + 1), frame);
+  }
+
+  Grid piece_grid(const ModelPiece& m) const {
+    Grid g;
+    g.p = m.p;
+    g.q = m.q;
+    std::copy_n(s_.pool.begin() + static_cast<std::ptrdiff_t>(m.offset), (m.p + 1) * (m.q + 1),
+                g.cw.begin());
+    return g;
+  }
+
+  std::int64_t add_piece(const Rect& r, int level_s, int level_t, const Grid& grid) {
+    ModelPiece m;
+    m.rect = r;
+    m.level_s = level_s;
+    m.level_t = level_t;
+    m.p = grid.p;
+    m.q = grid.q;
+    m.offset = s_.pool.size();
+    s_.pool.insert(s_.pool.end(), grid.cw.begin(), grid.cw.begin() + (grid.p + 1) * (grid.q + 1));
+    lengths(grid, m.len_s, m.len_t);
+    s_.pieces.push_back(m);
+    return static_cast<std::int64_t>(s_.pieces.size() - 1);
+  }
+
+  void expand_node(std::int32_t foot, std::uint32_t node_index) {
+    const Bvh& bvh = model_.patch_hierarchy();
+    const Bvh::Node& node = bvh.nodes()[node_index];
+    if (node.count == 0) {
+      push_node(foot, node.first);
+      push_node(foot, node.first + 1);
+      return;
+    }
+    for (std::uint32_t k = node.first; k < node.first + node.count; ++k) {
+      const std::uint32_t item = bvh.order()[k];
+      // Trim-edge pieces lie on their faces' patches, which are items too.
+      if (item >= model_.hierarchy_patch_items()) continue;
+      const std::uint32_t patch = model_.item_patch(item);
+      const BezierPatch& bp = model_.patch(patch).patch;
+      Rect inside{0.0, 0.0, 0.0, 0.0};
+      bool overlaps = false;
+      if (model_.patch_surface(patch) == surface_) {
+        const double u0 = std::max(n_.s0, bp.param_u.lo), u1 = std::min(n_.s1, bp.param_u.hi);
+        const double v0 = std::max(n_.t0, bp.param_v.lo), v1 = std::min(n_.t1, bp.param_v.hi);
+        if (u1 > u0 && v1 > v0) {
+          overlaps = true;
+          inside = {bp.param_u.to_local(u0), bp.param_u.to_local(u1), bp.param_v.to_local(v0),
+                    bp.param_v.to_local(v1)};
+        }
+      }
+      if (!overlaps) {
+        push_piece(foot, add_piece(Rect{}, 0, 0, restrict_to(bp, Rect{})));
+        continue;
+      }
+      // The patch outside N: up to four rectangles around N's part.
+      Rect parts[4];
+      int count = 0;
+      if (inside.s0 > 0.0) parts[count++] = {0.0, inside.s0, 0.0, 1.0};
+      if (inside.s1 < 1.0) parts[count++] = {inside.s1, 1.0, 0.0, 1.0};
+      if (inside.t0 > 0.0) parts[count++] = {inside.s0, inside.s1, 0.0, inside.t0};
+      if (inside.t1 < 1.0) parts[count++] = {inside.s0, inside.s1, inside.t1, 1.0};
+      for (int c = 0; c < count; ++c)
+        push_piece(foot, add_piece(parts[c], 0, 0, restrict_to(bp, parts[c])));
+    }
+  }
+
+  void split_foot(std::int32_t foot, std::int64_t x) {
+    const FootPiece f = s_.feet[static_cast<std::size_t>(foot)];
+    const bool along_s =
+        f.level_t >= kMaxLevel || (f.level_s < kMaxLevel && f.len_s >= f.len_t);
+    const BezierPatch& bp = model_.patch(cell_patch_).patch;
+    const NurbsSurface& surface = model_.model().surfaces[static_cast<std::size_t>(surface_)];
+    for (int half = 0; half < 2; ++half) {
+      Rect r = f.rect;
+      if (along_s) {
+        const double mid = 0.5 * (r.s0 + r.s1);
+        (half == 0 ? r.s1 : r.s0) = mid;
+      } else {
+        const double mid = 0.5 * (r.t0 + r.t1);
+        (half == 0 ? r.t1 : r.t0) = mid;
+      }
+      s_.feet.push_back(make_foot_piece(bp, r, f.level_s + (along_s ? 1 : 0),
+                                        f.level_t + (along_s ? 0 : 1),
+                                        touched_edges(bp, r, surface)));
+      const auto child = static_cast<std::int32_t>(s_.feet.size() - 1);
+      if (x < 0) push_node(child, static_cast<std::uint32_t>(~x));
+      else push_piece(child, x);
+    }
+  }
+
+  void split_piece(std::int32_t foot, std::int64_t x) {
+    const ModelPiece m = s_.pieces[static_cast<std::size_t>(x)];
+    const Grid whole = piece_grid(m);
+    const bool along_s =
+        m.level_t >= kMaxLevel || (m.level_s < kMaxLevel && m.len_s >= m.len_t);
+    for (int half = 0; half < 2; ++half) {
+      Rect r = m.rect;
+      double& lo = along_s ? r.s0 : r.t0;
+      double& hi = along_s ? r.s1 : r.t1;
+      const double mid = 0.5 * (lo + hi);
+      (half == 0 ? hi : lo) = mid;
+      const Grid g = split(whole, along_s ? 0 : 1, 0.5, half == 0);
+      push_piece(foot, add_piece(r, m.level_s + (along_s ? 1 : 0), m.level_t + (along_s ? 0 : 1), g));
+    }
+  }
+
+ public:
+  std::uint32_t cell_patch_ = 0;
+
+ private:
+  const PreparedModel& model_;
+  Search& s_;
+  int surface_ = -1;
+  Rect n_;  // N in the surface's global parameters (s = u, t = v)
+  int side_ = kPlus;
+  double target_ = 0.0;
+};
+
+// Rounded down to a float, with room for the double arithmetic's rounding.
+float round_down(double x) {
+  if (!(x > 0.0)) return 0.0f;
+  x *= 1.0 - 1e-9;
+  if (x >= double(std::numeric_limits<float>::max())) return std::numeric_limits<float>::max();
+  float f = static_cast<float>(x);
+  if (double(f) > x) f = std::nextafter(f, 0.0f);
+  return f;
+}
+
+}  // namespace
+
+ReachTable build_reach_table(const PreparedModel& model) {
+  ReachTable table;
+  table.first.assign(model.patch_count(), ReachTable::kNone);
+  std::vector<std::uint32_t> with_cells;
+  for (std::size_t i = 0; i < model.patch_count(); ++i) {
+    const int s = model.patch_surface(i);
+    if (!model.surface_certifiable(s) || model.patch(i).rational) continue;
+    with_cells.push_back(static_cast<std::uint32_t>(i));
+  }
+  // Smaller cells give tighter bounds (the normal varies less over them); about kCellBudget
+  // cells in all keeps construction near a tenth of a second per thousand cells.
+  const std::size_t patches = with_cells.size();
+  const int K = patches * 16 <= kCellBudget ? 4 : patches * 4 <= kCellBudget ? 2 : 1;
+  table.cells_per_side = K;
+  for (std::size_t w = 0; w < patches; ++w)
+    table.first[with_cells[w]] = static_cast<std::uint32_t>(w * K * K);
+  table.cells.resize(with_cells.size() * K * K);
+  // Bounds beyond a few model sizes prove nothing more in practice; the cap ends the search.
+  const double cap = 4.0 * std::max(model.bounds().diagonal(), 1e-300);
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, with_cells.size(), 4), [&](const auto& range) {
+    Search search;
+    CellBounds bounds(model, search);
+    for (std::size_t w = range.begin(); w != range.end(); ++w) {
+      const std::uint32_t patch = with_cells[w];
+      const int surface = model.patch_surface(patch);
+      const NurbsSurface& s = model.model().surfaces[static_cast<std::size_t>(surface)];
+      const BezierPatch& bp = model.patch(patch).patch;
+      const bool c1 = model.surface_c1(surface);
+      bounds.cell_patch_ = patch;
+      for (int ci = 0; ci < K; ++ci) {
+        for (int cj = 0; cj < K; ++cj) {
+          const Rect cell{double(ci) / K, double(ci + 1) / K, double(cj) / K, double(cj + 1) / K};
+          // N: the cell grown by its own width (global parameters), within the domain, and
+          // within the patch unless the surface is C1 across patch edges.
+          const double wu = bp.param_u.hi - bp.param_u.lo, wv = bp.param_v.hi - bp.param_v.lo;
+          const double lo_u = c1 ? s.domain_u().lo : bp.param_u.lo;
+          const double hi_u = c1 ? s.domain_u().hi : bp.param_u.hi;
+          const double lo_v = c1 ? s.domain_v().lo : bp.param_v.lo;
+          const double hi_v = c1 ? s.domain_v().hi : bp.param_v.hi;
+          const Rect n{std::max(lo_u, bp.param_u.to_parent(cell.s0) - kMargin * wu / K),
+                       std::min(hi_u, bp.param_u.to_parent(cell.s1) + kMargin * wu / K),
+                       std::max(lo_v, bp.param_v.to_parent(cell.t0) - kMargin * wv / K),
+                       std::min(hi_v, bp.param_v.to_parent(cell.t1) + kMargin * wv / K)};
+          Vec3 d[6];
+          bp.derivatives(0.5 * (cell.s0 + cell.s1), 0.5 * (cell.t0 + cell.t1), d);
+          const DomainEdges edges = touched_edges(bp, cell, s);
+          const FootPiece foot = make_foot_piece(bp, cell, 0, 0, edges);
+          const LocalBound local =
+              local_bound(model, surface, n, d[1] / wu, d[2] / wv, foot.frame, foot.eps_n);
+          PreparedModel::ReachCell& out =
+              table.cells[table.first[patch] + static_cast<std::uint32_t>(ci * K + cj)];
+          const double target = std::min(local.interior, cap);
+          const double target_b = std::min(local.boundary, cap);
+          if (std::getenv("REACH_DEBUG")) std::fprintf(stderr, "patch %u cell %d %d: local %g %g eps_n %g far plus %g minus %g\n", patch, ci, cj, local.interior, local.boundary, foot.eps_n, bounds.far_bound(foot, surface, n, kPlus, cap), bounds.far_bound(foot, surface, n, kMinus, cap));
+          if (target > 0.0) {
+            out.plus = round_down(bounds.far_bound(foot, surface, n, kPlus, target));
+            out.minus = round_down(bounds.far_bound(foot, surface, n, kMinus, target));
+          }
+          if (foot.cones > 0 && target_b > 0.0) {
+            out.boundary = round_down(bounds.far_bound(foot, surface, n, kBoundary, target_b));
+          }
+        }
+      }
+    }
+  });
+  return table;
+}
+
+}  // namespace nurbsreg::engine
