@@ -217,11 +217,16 @@ PreparedModel::PreparedModel(Model model) : model_(std::move(model)), serial_(ne
     }
   }
   piece_bvh_ = Bvh(piece_boxes_, 2);
-  // Last: the reach bounds read the patches, the surface grids and the hierarchy.
-  ReachTable reach = build_reach_table(*this);
-  reach_first_ = std::move(reach.first);
-  reach_cells_ = std::move(reach.cells);
-  reach_k_ = reach.cells_per_side;
+}
+
+void PreparedModel::prepare_reach_bounds() const {
+  std::call_once(reach_->once, [this] {
+    ReachTable table = build_reach_table(*this);
+    reach_->first = std::move(table.first);
+    reach_->cells = std::move(table.cells);
+    reach_->k = table.cells_per_side;
+    reach_->ready.store(true, std::memory_order_release);
+  });
 }
 
 std::int64_t PreparedModel::locate_patch(int surface, double u, double v) const {

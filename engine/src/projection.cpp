@@ -184,14 +184,14 @@ bool valid_hint(const ProjectionHint* hint, std::size_t entities) {
 // closer to it than the cut distance of its cell, along the normal (an orthogonal foot) or in the
 // normal cone of the surface's edge or corner. A foot on a patch edge inside the surface's domain
 // proves nothing: the patch's box may have stopped Newton there (the minimum lies beyond).
-bool reach_proves(const PreparedModel& model, std::int64_t patch, double s, double t,
-                  const Vec3& p, const Vec3& foot, const Vec3& normal, double distance_sq) {
-  const PreparedModel::ReachCell* cell =
-      model.reach_cell(static_cast<std::size_t>(patch), s, t);
+bool reach_proves(const PreparedModel& model, std::int64_t patch, double s, double t, const Vec3& p,
+                  const Vec3& foot, const Vec3& normal, double distance_sq) {
+  const PreparedModel::ReachCell* cell = model.reach_cell(static_cast<std::size_t>(patch), s, t);
   if (cell == nullptr) return false;
   const BezierPatch& bp = model.patch(static_cast<std::size_t>(patch)).patch;
-  const NurbsSurface& surface = model.model().surfaces[static_cast<std::size_t>(
-      model.patch_surface(static_cast<std::size_t>(patch)))];
+  const NurbsSurface& surface =
+      model.model()
+          .surfaces[static_cast<std::size_t>(model.patch_surface(static_cast<std::size_t>(patch)))];
   const bool s_edge = s <= 0.0 || s >= 1.0, t_edge = t <= 0.0 || t >= 1.0;
   if (s_edge && !((s <= 0.0 && bp.param_u.lo <= surface.domain_u().lo) ||
                   (s >= 1.0 && bp.param_u.hi >= surface.domain_u().hi))) {
@@ -511,9 +511,9 @@ void Projector::project_range(PointView points, const ProjectionOptions& options
             t_loc = hint_t;
             best.distance_sq = newton_on_patch(bp, p, 0.0, 1.0, 0.0, 1.0, s_loc, t_loc, best.foot,
                                                nullptr, &best.normal, &stationary);
-            reach_proven = stationary && best.distance_sq < limit_sq &&
-                           reach_proves(model_, hint_patch, s_loc, t_loc, p, best.foot,
-                                        best.normal, best.distance_sq);
+            reach_proven = options.reach_bounds && stationary && best.distance_sq < limit_sq &&
+                           reach_proves(model_, hint_patch, s_loc, t_loc, p, best.foot, best.normal,
+                                        best.distance_sq);
             proven = reach_proven;
           }
           best.s = s_loc;
@@ -589,8 +589,13 @@ void Projector::project_range(PointView points, const ProjectionOptions& options
         if (best_surface < 0 &&
             model_.seed_from_grid(p, limit_sq, best, best_surface, best_patch)) {
           seed_sq = best.distance_sq;
-          if (model_.reach_cell(static_cast<std::size_t>(best_patch), best.s, best.t) !=
-              nullptr) {
+          const PreparedModel::ReachCell* seed_cell =
+              model_.reach_cell(static_cast<std::size_t>(best_patch), best.s, best.t);
+          // Only where the seed's cell could prove a foot about as far as the seed: elsewhere
+          // (small bounds: fine patches, folds) the Newton would mostly be extra work.
+          if (options.reach_bounds && seed_cell != nullptr &&
+              double(std::max({seed_cell->plus, seed_cell->minus, seed_cell->boundary})) >
+                  0.5 * std::sqrt(seed_sq)) {
             // A patch with reach bounds: Newton from the seed over the patch, whose KKT point
             // the bounds may prove (no search at all); if not, it is a closer alpha for the
             // search and where the patch's clipping starts.
@@ -614,8 +619,8 @@ void Projector::project_range(PointView points, const ProjectionOptions& options
         SurfaceSearch search{best,      best_surface, best_patch,
                              best_edge, best_edge_t,  certifying ? &others : nullptr};
         if (!reach_proven) {
-          search_surfaces(p, search, hint_certified ? hint_patch : -1, hint_patch, hint_s,
-                          hint_t, state);
+          search_surfaces(p, search, hint_certified ? hint_patch : -1, hint_patch, hint_s, hint_t,
+                          state);
         }
         if (best_edge < 0 && best.distance_sq == seed_sq) {
           // The seed point is the answer (every improvement is strict: nothing was found closer
@@ -751,6 +756,9 @@ void prepare_results(PointView points, const ProjectionOptions& options, HintVie
 void Projector::project(PointView points, const ProjectionOptions& options, ProjectionResults& out,
                         HintView hints, ProjectionCounters* counters) {
   prepare_results(points, options, hints, out);
+  if (options.reach_bounds && !hints.empty() && options.target == ProjectionTarget::surfaces) {
+    model_.prepare_reach_bounds();
+  }
   for (ThreadState& s : impl_->states) {
     s.counters = {};
     s.surface_stats = {};
@@ -792,6 +800,9 @@ void Projector::project_serial(PointView points, const ProjectionOptions& option
                                ProjectionResults& out, HintView hints,
                                ProjectionCounters* counters) {
   prepare_results(points, options, hints, out);
+  if (options.reach_bounds && !hints.empty() && options.target == ProjectionTarget::surfaces) {
+    model_.prepare_reach_bounds();
+  }
   ThreadState& state = impl_->states.local();
   state.counters = {};
   state.surface_stats = {};

@@ -36,8 +36,6 @@
 #include <cmath>
 #include <limits>
 #include <queue>
-#include <cstdio>
-#include <cstdlib>
 
 namespace nurbsreg::engine {
 namespace {
@@ -47,8 +45,8 @@ constexpr double kInf = std::numeric_limits<double>::infinity();
 constexpr int kMaxLevel = 7;
 // Pairs taken from the queue per cell and side before the search settles for its current
 // bound (build time: a few hundred microseconds per cell).
-constexpr int kBudget = 200;
-constexpr std::size_t kCellBudget = 2048;
+constexpr int kBudget = 600;
+constexpr std::size_t kCellBudget = 8192;
 // N reaches this fraction of a cell beyond it on every side.
 constexpr double kMargin = 0.5;
 constexpr int kMaxPoints = (kMaxDegree + 1) * (kMaxDegree + 1);
@@ -77,14 +75,18 @@ Grid split(const Grid& g, int dir, double tau, bool keep_low) {
     auto ref = [&](Grid& grid, int k) -> Vec4& { return dir == 0 ? grid.at(k, l) : grid.at(l, k); };
     for (int k = 0; k <= n; ++k)
       tmp[static_cast<std::size_t>(k)] = dir == 0 ? g.at(k, l) : g.at(l, k);
-    if (keep_low) ref(out, 0) = tmp[0];
-    else ref(out, n) = tmp[static_cast<std::size_t>(n)];
+    if (keep_low)
+      ref(out, 0) = tmp[0];
+    else
+      ref(out, n) = tmp[static_cast<std::size_t>(n)];
     for (int k = 1; k <= n; ++k) {
       for (int i = 0; i <= n - k; ++i)
         tmp[static_cast<std::size_t>(i)] = (1.0 - tau) * tmp[static_cast<std::size_t>(i)] +
                                            tau * tmp[static_cast<std::size_t>(i + 1)];
-      if (keep_low) ref(out, k) = tmp[0];
-      else ref(out, n - k) = tmp[static_cast<std::size_t>(n - k)];
+      if (keep_low)
+        ref(out, k) = tmp[0];
+      else
+        ref(out, n - k) = tmp[static_cast<std::size_t>(n - k)];
     }
   }
   return out;
@@ -127,6 +129,7 @@ Aabb grid_box(const Grid& g, const Frame& f) {
 // nominal v0 over the piece's feet (a corner is one point: its cone is evaluated there).
 struct Cone {
   bool corner = false;
+  int edge = -1;  // an edge's cone: which edge of the domain (DomainEdges order)
   Vec3 nrm = Vec3::UnitZ();
   Vec3 m1 = Vec3::Zero(), m2 = Vec3::Zero(), g1 = Vec3::Zero(), g2 = Vec3::Zero();
   double eps = 2.0;
@@ -142,6 +145,10 @@ struct FootPiece {
   int cones = 0;
   Cone cone[8];
   double len_s = 0, len_t = 0;
+  // In the piece's own parameters: min n0 . N over the piece (Bézier product coefficients),
+  // max |S_s|, max |S_t| (hodographs).
+  double min_normal = 0, max_ss = 0, max_st = 0;
+  std::int32_t child[2] = {-1, -1};  // its halves, once split (shared by all its pairs)
 };
 
 // A piece of the model outside N (points x); its control points are in Search::pool.
@@ -151,6 +158,7 @@ struct ModelPiece {
   int p = 0, q = 0;
   std::size_t offset = 0;
   double len_s = 0, len_t = 0;
+  std::int64_t child[2] = {-1, -1};  // its halves, once split (shared by all its pairs)
 };
 
 void lengths(const Grid& g, double& len_s, double& len_t) {
@@ -210,13 +218,17 @@ int normal_control_points(const Grid& g, Vec3* out) {
   for (int i = 0; i <= p; ++i)
     for (int j = 0; j <= q; ++j)
       pts[static_cast<std::size_t>(i * (q + 1) + j)] = g.point(i, j);
-  const auto at = [&](int i, int j) -> const Vec3& { return pts[static_cast<std::size_t>(i * (q + 1) + j)]; };
+  const auto at = [&](int i, int j) -> const Vec3& {
+    return pts[static_cast<std::size_t>(i * (q + 1) + j)];
+  };
   for (int i = 0; i < p; ++i)  // S_s: (p - 1, q), binomial weights folded in
     for (int j = 0; j <= q; ++j)
-      su[static_cast<std::size_t>(i * (q + 1) + j)] = (p * c[p - 1][i] * c[q][j]) * (at(i + 1, j) - at(i, j));
+      su[static_cast<std::size_t>(i * (q + 1) + j)] =
+          (p * c[p - 1][i] * c[q][j]) * (at(i + 1, j) - at(i, j));
   for (int i = 0; i <= p; ++i)  // S_t: (p, q - 1)
     for (int j = 0; j < q; ++j)
-      sv[static_cast<std::size_t>(i * q + j)] = (q * c[p][i] * c[q - 1][j]) * (at(i, j + 1) - at(i, j));
+      sv[static_cast<std::size_t>(i * q + j)] =
+          (q * c[p][i] * c[q - 1][j]) * (at(i, j + 1) - at(i, j));
   for (int k = 0; k <= nu; ++k)
     for (int l = 0; l <= nv; ++l)
       out[k * (nv + 1) + l] = Vec3::Zero();
@@ -225,7 +237,8 @@ int normal_control_points(const Grid& g, Vec3* out) {
       for (int i2 = 0; i2 <= p; ++i2)
         for (int j2 = 0; j2 < q; ++j2)
           out[(i1 + i2) * (nv + 1) + j1 + j2] +=
-              su[static_cast<std::size_t>(i1 * (q + 1) + j1)].cross(sv[static_cast<std::size_t>(i2 * q + j2)]);
+              su[static_cast<std::size_t>(i1 * (q + 1) + j1)].cross(
+                  sv[static_cast<std::size_t>(i2 * q + j2)]);
   for (int k = 0; k <= nu; ++k)
     for (int l = 0; l <= nv; ++l)
       out[k * (nv + 1) + l] /= c[nu][k] * c[nv][l];
@@ -263,6 +276,15 @@ FootPiece make_foot_piece(const BezierPatch& bp, const Rect& r, int level_s, int
   std::array<Vec3, (2 * kMaxDegree) * (2 * kMaxDegree)> normals;
   const int count = normal_control_points(g, normals.data());
   f.eps_n = direction_spread(normals.data(), count, n0);
+  f.min_normal = std::numeric_limits<double>::infinity();
+  for (int k = 0; k < count; ++k)
+    f.min_normal = std::min(f.min_normal, normals[static_cast<std::size_t>(k)].dot(n0));
+  for (int i = 0; i <= g.p; ++i) {
+    for (int j = 0; j <= g.q; ++j) {
+      if (i < g.p) f.max_ss = std::max(f.max_ss, g.p * (g.point(i + 1, j) - g.point(i, j)).norm());
+      if (j < g.q) f.max_st = std::max(f.max_st, g.q * (g.point(i, j + 1) - g.point(i, j)).norm());
+    }
+  }
   // Edge feet: m = +-(tau x n), tau the edge's unit tangent; |m - m0| <= |tau - tau0| +
   // |n - n0| + (1 - |tau0 x n0|) for m0 = +-(tau0 x n0) / |tau0 x n0|.
   for (int k = 0; k < 4; ++k) {
@@ -287,10 +309,11 @@ FootPiece make_foot_piece(const BezierPatch& bp, const Rect& r, int level_s, int
     const Vec3 raw = u_edge ? tau0.cross(n0) : n0.cross(tau0);
     if (!tau0.allFinite() || !(raw.norm() > 0.0)) continue;
     Cone& c = f.cone[f.cones++];
+    c.edge = k;
     c.nrm = f.frame.to(n0);
     c.m1 = f.frame.to(sign * raw.normalized());
-    c.eps = std::min(2.0, f.eps_n + direction_spread(tangent.data(), m, tau0) + f.eps_n +
-                              (1.0 - raw.norm()));
+    c.eps = std::min(
+        2.0, f.eps_n + direction_spread(tangent.data(), m, tau0) + f.eps_n + (1.0 - raw.norm()));
   }
   // Corner feet: one point each, its cone evaluated there (eps: rounding only).
   for (int a = 0; a < 2; ++a) {
@@ -371,8 +394,17 @@ struct LocalBound {
 };
 
 LocalBound local_bound(const PreparedModel& model, int surface, const Rect& n, const Vec3& ju0,
-                       const Vec3& jv0, const Frame& frame, double eps_n) {
+                       const Vec3& jv0, const FootPiece& cell, double cell_wu, double cell_wv) {
   LocalBound out;
+  const Frame& frame = cell.frame;
+  const double eps_n = cell.eps_n;
+  // Per edge cone of the cell: its outward conormal m0 (world) and |m0 . S''| components.
+  Vec3 m_edge[8];
+  double m_uu[8] = {}, m_uv[8] = {}, m_vv[8] = {};
+  for (int k = 0; k < cell.cones; ++k) {
+    const Vec3& m = cell.cone[k].m1;
+    m_edge[k] = m.x() * frame.e[0] + m.y() * frame.e[1] + m.z() * frame.e[2];
+  }
   // sigma, two ways: the smallest singular value of J0 less |J - J0| over N; and, with the
   // columns' tangential parts (a, b) in the convex hulls of the hodographs' (the mean Jacobian
   // along a segment is in them), min det(a, b) / sqrt(max |a|^2 + max |b|^2).
@@ -382,9 +414,9 @@ LocalBound local_bound(const PreparedModel& model, int surface, const Rect& n, c
   const double lambda_min = lambda_max > 0.0 ? std::max(0.0, a * c - b * b) / lambda_max : 0.0;
   const double sigma0 = std::sqrt(lambda_min);
   double e_u = 0.0, e_v = 0.0;
-  double k_uu = 0.0, k_uv = 0.0, k_vv = 0.0;     // |S''| components
-  double n_uu = 0.0, n_uv = 0.0, n_vv = 0.0;     // |n0 . S''| components
-  std::vector<Vec2> hu, hv;                      // tangential parts of the hodographs
+  double k_uu = 0.0, k_uv = 0.0, k_vv = 0.0;  // |S''| components
+  double n_uu = 0.0, n_uv = 0.0, n_vv = 0.0;  // |n0 . S''| components
+  std::vector<Vec2> hu, hv;                   // tangential parts of the hodographs
   const std::int64_t lo = model.locate_patch(surface, n.s0, n.t0);
   const std::int64_t hi = model.locate_patch(surface, n.s1, n.t1);
   if (lo < 0 || hi < 0) return out;
@@ -410,6 +442,10 @@ LocalBound local_bound(const PreparedModel& model, int surface, const Rect& n, c
         k_all = std::max(k_all, x.norm());
         k_n = std::max(k_n, std::abs(x.dot(nrm)));
       };
+      const auto track_m = [&](double* m_part, const Vec3& x) {
+        for (int e = 0; e < cell.cones; ++e)
+          m_part[e] = std::max(m_part[e], std::abs(x.dot(m_edge[e])));
+      };
       for (int i = 0; i <= p; ++i) {
         for (int j = 0; j <= q; ++j) {
           const Vec3 pij = g.point(i, j);
@@ -424,18 +460,23 @@ LocalBound local_bound(const PreparedModel& model, int surface, const Rect& n, c
             hv.emplace_back(frame.e[0].dot(sv), frame.e[1].dot(sv));
           }
           if (i + 1 < p) {
-            track(k_uu, n_uu,
-                  p * (p - 1) * (g.point(i + 2, j) - 2.0 * g.point(i + 1, j) + pij) / (wu * wu), n0);
+            const Vec3 suu =
+                p * (p - 1) * (g.point(i + 2, j) - 2.0 * g.point(i + 1, j) + pij) / (wu * wu);
+            track(k_uu, n_uu, suu, n0);
+            track_m(m_uu, suu);
           }
           if (j + 1 < q) {
-            track(k_vv, n_vv,
-                  q * (q - 1) * (g.point(i, j + 2) - 2.0 * g.point(i, j + 1) + pij) / (wv * wv), n0);
+            const Vec3 svv =
+                q * (q - 1) * (g.point(i, j + 2) - 2.0 * g.point(i, j + 1) + pij) / (wv * wv);
+            track(k_vv, n_vv, svv, n0);
+            track_m(m_vv, svv);
           }
           if (i < p && j < q) {
-            track(k_uv, n_uv,
-                  p * q * (g.point(i + 1, j + 1) - g.point(i + 1, j) - g.point(i, j + 1) + pij) /
-                      (wu * wv),
-                  n0);
+            const Vec3 suv = p * q *
+                             (g.point(i + 1, j + 1) - g.point(i + 1, j) - g.point(i, j + 1) + pij) /
+                             (wu * wv);
+            track(k_uv, n_uv, suv, n0);
+            track_m(m_uv, suv);
           }
         }
       }
@@ -443,8 +484,10 @@ LocalBound local_bound(const PreparedModel& model, int surface, const Rect& n, c
   }
   const double sigma_a = sigma0 - std::sqrt(e_u * e_u + e_v * e_v);
   double det_min = std::numeric_limits<double>::infinity(), max_a = 0.0, max_b = 0.0;
-  for (const Vec2& x : hu) max_a = std::max(max_a, x.squaredNorm());
-  for (const Vec2& y : hv) max_b = std::max(max_b, y.squaredNorm());
+  for (const Vec2& x : hu)
+    max_a = std::max(max_a, x.squaredNorm());
+  for (const Vec2& y : hv)
+    max_b = std::max(max_b, y.squaredNorm());
   for (const Vec2& x : hu)
     for (const Vec2& y : hv)
       det_min = std::min(det_min, x.x() * y.y() - x.y() * y.x());
@@ -458,7 +501,52 @@ LocalBound local_bound(const PreparedModel& model, int surface, const Rect& n, c
   const double k_all = lambda(k_uu, k_uv, k_vv);
   const double k_int = std::min(k_all, lambda(n_uu, n_uv, n_vv) + eps_n * k_all);
   out.interior = k_int > 0.0 ? sigma * sigma / k_int : kInf;
-  out.boundary = k_all > 0.0 ? sigma * sigma / k_all : kInf;
+  // Boundary feet: v = cos th n + sin th t with t in the outward tangential cone. For a u edge
+  // (m outward, m . S_v = 0), with Delta pointing into the domain,
+  //   m . (x - f) <= -c |du| + (m_uu du^2 + 2 m_uv |du| |dv| + m_vv dv^2) / 2,
+  // c = m . S_u >= min |N| / max |S_v| on the cell's edge. Where c dominates the mixed terms over
+  // N (c >= m_uu R_u / 2 + m_uv R_v), m . (x - f) <= m_vv dv^2 / 2: only the edge curve's own
+  // bending in the tangent plane. Then v . (x - f) <= (k_n + m_vv) |Delta|^2 / 2. Otherwise (and
+  // as a bound in any case) |S''| itself.
+  double k_boundary = k_all;
+  if (cell.cones > 0 && cell.min_normal > 0.0) {
+    const double r_u = n.s1 - n.s0, r_v = n.t1 - n.t0;
+    // Global units: N / (cell_wu cell_wv), S_s / cell_wu, S_t / cell_wv.
+    const double c_u = cell.min_normal / (cell.max_st * cell_wu);  // m_u . S_u on a u edge
+    const double c_v = cell.min_normal / (cell.max_ss * cell_wv);  // m_v . S_v on a v edge
+    double edge_term[4] = {kInf, kInf, kInf, kInf};
+    double worst = 0.0;
+    bool ok = true;
+    for (int k = 0; k < cell.cones && ok; ++k) {
+      const Cone& c = cell.cone[k];
+      if (c.corner) continue;
+      const double e = c.eps;  // >= |m - m0|
+      const double uu = m_uu[k] + e * k_uu, uv = m_uv[k] + e * k_uv, vv = m_vv[k] + e * k_vv;
+      double term;
+      if (c.edge < 2) {
+        ok = c_u >= 0.5 * uu * r_u + uv * r_v;
+        term = vv;
+      } else {
+        ok = c_v >= 0.5 * vv * r_v + uv * r_u;
+        term = uu;
+      }
+      edge_term[c.edge] = term;
+      worst = std::max(worst, term);
+    }
+    for (int k = 0; k < cell.cones && ok; ++k) {
+      const Cone& c = cell.cone[k];
+      if (!c.corner) continue;
+      // t = (a m_u + b m_v) / |.|, a, b >= 0: |a m_u + b m_v| >= (a + b) cos(phi / 2).
+      const double half_cos = std::sqrt(std::max(0.0, 0.5 * (1.0 + c.m1.dot(c.m2))));
+      double both = 0.0;
+      for (int e = 0; e < 4; ++e)
+        if (edge_term[e] < kInf) both = std::max(both, edge_term[e]);
+      ok = half_cos > 0.0;
+      if (ok) worst = std::max(worst, both / half_cos);
+    }
+    if (ok) k_boundary = std::min(k_all, k_int + worst);
+  }
+  out.boundary = k_boundary > 0.0 ? sigma * sigma / k_boundary : kInf;
   return out;
 }
 
@@ -611,43 +699,56 @@ class CellBounds {
   }
 
   void split_foot(std::int32_t foot, std::int64_t x) {
-    const FootPiece f = s_.feet[static_cast<std::size_t>(foot)];
-    const bool along_s =
-        f.level_t >= kMaxLevel || (f.level_s < kMaxLevel && f.len_s >= f.len_t);
-    const BezierPatch& bp = model_.patch(cell_patch_).patch;
-    const NurbsSurface& surface = model_.model().surfaces[static_cast<std::size_t>(surface_)];
-    for (int half = 0; half < 2; ++half) {
-      Rect r = f.rect;
-      if (along_s) {
-        const double mid = 0.5 * (r.s0 + r.s1);
-        (half == 0 ? r.s1 : r.s0) = mid;
-      } else {
-        const double mid = 0.5 * (r.t0 + r.t1);
-        (half == 0 ? r.t1 : r.t0) = mid;
+    if (s_.feet[static_cast<std::size_t>(foot)].child[0] < 0) {
+      const FootPiece f = s_.feet[static_cast<std::size_t>(foot)];
+      const bool along_s = f.level_t >= kMaxLevel || (f.level_s < kMaxLevel && f.len_s >= f.len_t);
+      const BezierPatch& bp = model_.patch(cell_patch_).patch;
+      const NurbsSurface& surface = model_.model().surfaces[static_cast<std::size_t>(surface_)];
+      std::int32_t children[2];
+      for (int half = 0; half < 2; ++half) {
+        Rect r = f.rect;
+        double& lo = along_s ? r.s0 : r.t0;
+        double& hi = along_s ? r.s1 : r.t1;
+        const double mid = 0.5 * (lo + hi);
+        (half == 0 ? hi : lo) = mid;
+        s_.feet.push_back(make_foot_piece(bp, r, f.level_s + (along_s ? 1 : 0),
+                                          f.level_t + (along_s ? 0 : 1),
+                                          touched_edges(bp, r, surface)));
+        children[half] = static_cast<std::int32_t>(s_.feet.size() - 1);
       }
-      s_.feet.push_back(make_foot_piece(bp, r, f.level_s + (along_s ? 1 : 0),
-                                        f.level_t + (along_s ? 0 : 1),
-                                        touched_edges(bp, r, surface)));
-      const auto child = static_cast<std::int32_t>(s_.feet.size() - 1);
-      if (x < 0) push_node(child, static_cast<std::uint32_t>(~x));
-      else push_piece(child, x);
+      s_.feet[static_cast<std::size_t>(foot)].child[0] = children[0];
+      s_.feet[static_cast<std::size_t>(foot)].child[1] = children[1];
+    }
+    for (int half = 0; half < 2; ++half) {
+      const std::int32_t child = s_.feet[static_cast<std::size_t>(foot)].child[half];
+      if (x < 0)
+        push_node(child, static_cast<std::uint32_t>(~x));
+      else
+        push_piece(child, x);
     }
   }
 
   void split_piece(std::int32_t foot, std::int64_t x) {
-    const ModelPiece m = s_.pieces[static_cast<std::size_t>(x)];
-    const Grid whole = piece_grid(m);
-    const bool along_s =
-        m.level_t >= kMaxLevel || (m.level_s < kMaxLevel && m.len_s >= m.len_t);
-    for (int half = 0; half < 2; ++half) {
-      Rect r = m.rect;
-      double& lo = along_s ? r.s0 : r.t0;
-      double& hi = along_s ? r.s1 : r.t1;
-      const double mid = 0.5 * (lo + hi);
-      (half == 0 ? hi : lo) = mid;
-      const Grid g = split(whole, along_s ? 0 : 1, 0.5, half == 0);
-      push_piece(foot, add_piece(r, m.level_s + (along_s ? 1 : 0), m.level_t + (along_s ? 0 : 1), g));
+    if (s_.pieces[static_cast<std::size_t>(x)].child[0] < 0) {
+      const ModelPiece m = s_.pieces[static_cast<std::size_t>(x)];
+      const Grid whole = piece_grid(m);
+      const bool along_s = m.level_t >= kMaxLevel || (m.level_s < kMaxLevel && m.len_s >= m.len_t);
+      std::int64_t children[2];
+      for (int half = 0; half < 2; ++half) {
+        Rect r = m.rect;
+        double& lo = along_s ? r.s0 : r.t0;
+        double& hi = along_s ? r.s1 : r.t1;
+        const double mid = 0.5 * (lo + hi);
+        (half == 0 ? hi : lo) = mid;
+        const Grid g = split(whole, along_s ? 0 : 1, 0.5, half == 0);
+        children[half] =
+            add_piece(r, m.level_s + (along_s ? 1 : 0), m.level_t + (along_s ? 0 : 1), g);
+      }
+      s_.pieces[static_cast<std::size_t>(x)].child[0] = children[0];
+      s_.pieces[static_cast<std::size_t>(x)].child[1] = children[1];
     }
+    for (int half = 0; half < 2; ++half)
+      push_piece(foot, s_.pieces[static_cast<std::size_t>(x)].child[half]);
   }
 
  public:
@@ -686,14 +787,19 @@ ReachTable build_reach_table(const PreparedModel& model) {
   // Smaller cells give tighter bounds (the normal varies less over them); about kCellBudget
   // cells in all keeps construction near a tenth of a second per thousand cells.
   const std::size_t patches = with_cells.size();
-  const int K = patches * 16 <= kCellBudget ? 4 : patches * 4 <= kCellBudget ? 2 : 1;
+  const int K = patches * 64 <= kCellBudget   ? 8
+                : patches * 16 <= kCellBudget ? 4
+                : patches * 4 <= kCellBudget  ? 2
+                                              : 1;
   table.cells_per_side = K;
   for (std::size_t w = 0; w < patches; ++w)
     table.first[with_cells[w]] = static_cast<std::uint32_t>(w * K * K);
   table.cells.resize(with_cells.size() * K * K);
-  // Bounds beyond a few model sizes prove nothing more in practice; the cap ends the search.
-  const double cap = 4.0 * std::max(model.bounds().diagonal(), 1e-300);
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, with_cells.size(), 4), [&](const auto& range) {
+  // Bounds beyond half the model's size prove little more in practice (a point that far from
+  // the model is rare); the cap ends the search early.
+  const double cap = 0.5 * std::max(model.bounds().diagonal(), 1e-300);
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, with_cells.size(), 4), [&](const auto&
+                                                                                      range) {
     Search search;
     CellBounds bounds(model, search);
     for (std::size_t w = range.begin(); w != range.end(); ++w) {
@@ -722,12 +828,11 @@ ReachTable build_reach_table(const PreparedModel& model) {
           const DomainEdges edges = touched_edges(bp, cell, s);
           const FootPiece foot = make_foot_piece(bp, cell, 0, 0, edges);
           const LocalBound local =
-              local_bound(model, surface, n, d[1] / wu, d[2] / wv, foot.frame, foot.eps_n);
+              local_bound(model, surface, n, d[1] / wu, d[2] / wv, foot, wu / K, wv / K);
           PreparedModel::ReachCell& out =
               table.cells[table.first[patch] + static_cast<std::uint32_t>(ci * K + cj)];
           const double target = std::min(local.interior, cap);
           const double target_b = std::min(local.boundary, cap);
-          if (std::getenv("REACH_DEBUG")) std::fprintf(stderr, "patch %u cell %d %d: local %g %g eps_n %g far plus %g minus %g\n", patch, ci, cj, local.interior, local.boundary, foot.eps_n, bounds.far_bound(foot, surface, n, kPlus, cap), bounds.far_bound(foot, surface, n, kMinus, cap));
           if (target > 0.0) {
             out.plus = round_down(bounds.far_bound(foot, surface, n, kPlus, target));
             out.minus = round_down(bounds.far_bound(foot, surface, n, kMinus, target));

@@ -38,8 +38,8 @@ using test::folded_patch;
 using test::hairpin;
 using test::hessian_positive_definite;
 using test::model_of;
-using test::wavy_sheet;
 using test::uniform;
+using test::wavy_sheet;
 
 std::vector<Model> test_models() {
   std::vector<Model> models;

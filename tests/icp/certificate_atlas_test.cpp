@@ -116,6 +116,7 @@ TEST(ModelFinderCertificates, BorrowedAndCarriedCertificatesGiveTheExactFeet) {
   const std::size_t n = scan.points.size();
 
   ModelCorrespondenceFinder finder(model);
+  finder.use_reach_bounds(false);  // the certificates alone (reach bounds would prove most)
   finder.reset(n);
   // A coarse stage: every 4th point, small expected moves: certificates are made.
   std::vector<std::size_t> coarse;
@@ -156,6 +157,7 @@ TEST(ModelFinderCertificates, BorrowedAndCarriedCertificatesGiveTheExactFeet) {
     EXPECT_EQ(counters.certificates_made, 0u) << "none made at full resolution";
     // The reference: a fresh finder, no hints, no certificates.
     ModelCorrespondenceFinder cold(model);
+    cold.use_reach_bounds(false);  // the search alone
     cold.reset(n);
     std::vector<Correspondence> expected(n);
     CorrespondenceQuery plain;

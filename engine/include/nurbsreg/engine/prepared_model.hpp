@@ -15,7 +15,10 @@
 // against one PreparedModel at the same time.
 
 #include <algorithm>
+#include <atomic>
 #include <cstdint>
+#include <memory>
+#include <mutex>
 #include <vector>
 
 #include "nurbsreg/engine/bvh.hpp"
@@ -91,18 +94,27 @@ class PreparedModel {
   //   does not touch the surface's edge).
   // Floats rounded down. 0 where nothing is proven (a cell touching another part of the
   // model, a seam, a pole, a crease).
+  // Built on demand (prepare_reach_bounds: about 0.1-0.6 ms per cell on 2 cores, so ~1 s for a
+  // 49-patch model): a Projector builds them at its first frame with hints (ICP's second
+  // iteration, a tracking frame), where they pay; a single cold frame does not wait for them.
   struct ReachCell {
     float plus = 0.0f, minus = 0.0f, boundary = 0.0f;
   };
-  // Cells per patch side: 4, 2 or 1 (fewer on models of many patches: construction time).
-  int reach_cells_per_side() const { return reach_k_; }
-  // Patch i's cell holding local (s, t) in [0, 1]^2; null when the patch has no reach bounds.
+  // Builds the bounds once (thread-safe; later calls return at once).
+  void prepare_reach_bounds() const;
+  bool reach_bounds_ready() const { return reach_->ready.load(std::memory_order_acquire); }
+  // Cells per patch side: 8, 4, 2 or 1 (fewer on models of many patches: construction time).
+  int reach_cells_per_side() const { return reach_->k; }
+  // Patch i's cell holding local (s, t) in [0, 1]^2; null when the patch has no reach bounds or
+  // they are not built.
   const ReachCell* reach_cell(std::size_t i, double s, double t) const {
-    const std::uint32_t first = reach_first_[i];
+    const ReachState& r = *reach_;
+    if (!r.ready.load(std::memory_order_acquire)) return nullptr;
+    const std::uint32_t first = r.first[i];
     if (first == kNoReach) return nullptr;
-    const int a = std::clamp(static_cast<int>(s * reach_k_), 0, reach_k_ - 1);
-    const int b = std::clamp(static_cast<int>(t * reach_k_), 0, reach_k_ - 1);
-    return &reach_cells_[first + static_cast<std::uint32_t>(a * reach_k_ + b)];
+    const int a = std::clamp(static_cast<int>(s * r.k), 0, r.k - 1);
+    const int b = std::clamp(static_cast<int>(t * r.k), 0, r.k - 1);
+    return &r.cells[first + static_cast<std::uint32_t>(a * r.k + b)];
   }
 
   // The surfaces' hierarchy. Its primitives ("items") are the patches that are not trimmed away,
@@ -177,9 +189,15 @@ class PreparedModel {
   bool any_certifiable_ = false;
   std::vector<std::uint32_t> item_patch_;
   static constexpr std::uint32_t kNoReach = 0xffffffffu;
-  std::vector<std::uint32_t> reach_first_;  // per patch: its first ReachCell, or kNoReach
-  std::vector<ReachCell> reach_cells_;
-  int reach_k_ = 1;
+  // Shared by copies (they share the geometry); written once under `once`, then read-only.
+  struct ReachState {
+    std::once_flag once;
+    std::atomic<bool> ready{false};
+    std::vector<std::uint32_t> first;  // per patch: its first ReachCell, or kNoReach
+    std::vector<ReachCell> cells;
+    int k = 1;
+  };
+  std::shared_ptr<ReachState> reach_ = std::make_shared<ReachState>();
   std::vector<Aabb> item_boxes_;  // per hierarchy item (patches, then edge pieces)
   std::vector<BoundingSphere> item_spheres_;
   // A box in the patch's own frame (two tangent directions and the normal of its control net),

@@ -160,6 +160,10 @@ struct ProjectionOptions {
   // Largest anchor radius sought (the certificate's radius is also limited by convexity); <= 0:
   // 0.1% of the model's bounding-box diagonal.
   double certificate_radius = 0.0;
+  // Prove answers with the model's reach bounds where they can (PreparedModel::ReachCell: one
+  // Newton from the hint or the cold seed, no search). false: only certificates and the search
+  // (to measure or test those alone). A frame with hints builds the bounds first if needed.
+  bool reach_bounds = true;
   // Empty: feet and normals go to ProjectionResults. Set: to the sink only (see FootSink).
   FootSink foot_sink;
 };
