@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <numbers>
 #include <stdexcept>
 #include <string>
 #include <type_traits>
@@ -60,6 +61,9 @@ struct Projector::Impl {
   // The frame's processing order (ProjectionOptions::locality_order), reused across frames.
   FrameVector<std::uint32_t> order;
   SpatialOrderScratch order_scratch;
+  // Points projected with hints so far: the model's reach bounds are built once this passes
+  // kReachAfterHintedPoints (they cost about as much as a million warm points save).
+  std::uint64_t hinted_points = 0;
 };
 
 namespace {
@@ -201,12 +205,20 @@ bool reach_proves(const PreparedModel& model, std::int64_t patch, double s, doub
                   (t >= 1.0 && bp.param_v.hi >= surface.domain_v().hi))) {
     return false;
   }
+  if (normal.isZero(0.0)) return false;
+  const double along = (p - foot).dot(normal);
   double rho;
   if (s_edge || t_edge) {
-    rho = cell->boundary;
+    // The direction's angle from the normal picks the sector (on a sectors' common border
+    // either bound holds).
+    const double d = std::sqrt(distance_sq);
+    const double theta = d > 0.0 ? std::acos(std::clamp(along / d, -1.0, 1.0)) : 0.0;
+    const int sector =
+        std::clamp(static_cast<int>(theta * (PreparedModel::kReachSectors / std::numbers::pi)), 0,
+                   PreparedModel::kReachSectors - 1);
+    rho = cell->boundary[sector];
   } else {
-    if (normal.isZero(0.0)) return false;
-    rho = (p - foot).dot(normal) >= 0.0 ? cell->plus : cell->minus;
+    rho = along >= 0.0 ? cell->plus : cell->minus;
   }
   return distance_sq < rho * rho;
 }
@@ -216,6 +228,15 @@ bool reach_proves(const PreparedModel& model, std::int64_t patch, double s, doub
 Projector::Projector(const PreparedModel& model) : model_(model), impl_(std::make_unique<Impl>()) {}
 
 Projector::~Projector() = default;
+
+void Projector::prepare_reach_bounds_after(std::size_t points, const ProjectionOptions& options,
+                                           HintView hints) {
+  if (!options.reach_bounds || hints.empty() || options.target != ProjectionTarget::surfaces) {
+    return;
+  }
+  impl_->hinted_points += points;
+  if (impl_->hinted_points >= kReachAfterHintedPoints) model_.prepare_reach_bounds();
+}
 
 NURBSREG_HOT_CLONES
 void Projector::search_surfaces(const Vec3& p, SurfaceSearch& search, std::int64_t skip_patch,
@@ -594,7 +615,9 @@ void Projector::project_range(PointView points, const ProjectionOptions& options
           // Only where the seed's cell could prove a foot about as far as the seed: elsewhere
           // (small bounds: fine patches, folds) the Newton would mostly be extra work.
           if (options.reach_bounds && seed_cell != nullptr &&
-              double(std::max({seed_cell->plus, seed_cell->minus, seed_cell->boundary})) >
+              double(std::max({seed_cell->plus, seed_cell->minus,
+                               *std::max_element(std::begin(seed_cell->boundary),
+                                                 std::end(seed_cell->boundary))})) >
                   0.5 * std::sqrt(seed_sq)) {
             // A patch with reach bounds: Newton from the seed over the patch, whose KKT point
             // the bounds may prove (no search at all); if not, it is a closer alpha for the
@@ -756,9 +779,7 @@ void prepare_results(PointView points, const ProjectionOptions& options, HintVie
 void Projector::project(PointView points, const ProjectionOptions& options, ProjectionResults& out,
                         HintView hints, ProjectionCounters* counters) {
   prepare_results(points, options, hints, out);
-  if (options.reach_bounds && !hints.empty() && options.target == ProjectionTarget::surfaces) {
-    model_.prepare_reach_bounds();
-  }
+  prepare_reach_bounds_after(points.size(), options, hints);
   for (ThreadState& s : impl_->states) {
     s.counters = {};
     s.surface_stats = {};
@@ -800,9 +821,7 @@ void Projector::project_serial(PointView points, const ProjectionOptions& option
                                ProjectionResults& out, HintView hints,
                                ProjectionCounters* counters) {
   prepare_results(points, options, hints, out);
-  if (options.reach_bounds && !hints.empty() && options.target == ProjectionTarget::surfaces) {
-    model_.prepare_reach_bounds();
-  }
+  prepare_reach_bounds_after(points.size(), options, hints);
   ThreadState& state = impl_->states.local();
   state.counters = {};
   state.surface_stats = {};

@@ -35,6 +35,7 @@
 #include <array>
 #include <cmath>
 #include <limits>
+#include <numbers>
 #include <queue>
 
 namespace nurbsreg::engine {
@@ -337,12 +338,25 @@ FootPiece make_foot_piece(const BezierPatch& bp, const Rect& r, int level_s, int
   return f;
 }
 
+// Kinds of directions: +n, -n, and the boundary cone's sectors th in [k, k + 1] pi / kSectors
+// (kBoundary + k).
 enum Side { kPlus = 0, kMinus = 1, kBoundary = 2 };
+constexpr int kSectors = PreparedModel::kReachSectors;
+
+// max of cos(th) a + sin(th) b over th in the sector's interval.
+double sector_max(int sector, double a, double b) {
+  const double lo = std::numbers::pi * sector / kSectors;
+  const double hi = std::numbers::pi * (sector + 1) / kSectors;
+  const double peak = std::atan2(b, a);
+  if (peak >= lo && peak <= hi) return std::sqrt(a * a + b * b);
+  return std::max(std::cos(lo) * a + std::sin(lo) * b, std::cos(hi) * a + std::sin(hi) * b);
+}
 
 // The largest v.w over the piece's directions of `side` (nominal), plus eps |w|.
 double support(const FootPiece& f, int side, const Vec3& w) {
   if (side == kPlus) return w.z() + f.eps_n * w.norm();
   if (side == kMinus) return -w.z() + f.eps_n * w.norm();
+  const int sector = side - kBoundary;
   double best = -kInf;
   for (int k = 0; k < f.cones; ++k) {
     const Cone& c = f.cone[k];
@@ -355,8 +369,8 @@ double support(const FootPiece& f, int side, const Vec3& w) {
       b = wt.dot(c.g1) >= 0.0 && wt.dot(c.g2) >= 0.0 ? wt.norm()
                                                      : std::max(c.m1.dot(w), c.m2.dot(w));
     }
-    const double bp = std::max(b, 0.0);
-    best = std::max(best, std::sqrt(a * a + bp * bp) + c.eps * w.norm());
+    // sin(th) >= 0: the best t gives sin(th) b.
+    best = std::max(best, sector_max(sector, a, b) + c.eps * w.norm());
   }
   return best;
 }
@@ -364,7 +378,7 @@ double support(const FootPiece& f, int side, const Vec3& w) {
 // Lower bound of |w|^2 / (2 v.w) over w = x - f, x in the box `x` (the piece's frame), f in the
 // piece, v of `side` with v.w > 0; infinity when no such v.w is positive.
 double pair_bound(const FootPiece& f, const Aabb& x, int side) {
-  if (side == kBoundary && f.cones == 0) return kInf;
+  if (side >= kBoundary && f.cones == 0) return kInf;
   const Vec3 lo = x.lo - f.box.hi, hi = x.hi - f.box.lo;
   const double d2 = lo.cwiseMax(0.0).cwiseMax(-hi).squaredNorm();
   if (!(d2 > 0.0)) return 0.0;
@@ -390,7 +404,8 @@ Aabb node_box_in(const Aabb& box, const Frame& frame) {
 // (sigma - E)^2 / K with K bounding v.S''[Delta, Delta] / |Delta|^2. 0 when N holds a rational
 // patch or the Jacobian bounds fail; infinity for an affine N.
 struct LocalBound {
-  double interior = 0.0, boundary = 0.0;
+  double interior = 0.0;
+  double boundary[kSectors] = {};
 };
 
 LocalBound local_bound(const PreparedModel& model, int surface, const Rect& n, const Vec3& ju0,
@@ -545,8 +560,20 @@ LocalBound local_bound(const PreparedModel& model, int surface, const Rect& n, c
       if (ok) worst = std::max(worst, both / half_cos);
     }
     if (ok) k_boundary = std::min(k_all, k_int + worst);
+    // Per sector: v . (x - f) <= |cos th| |n . (x - f)| + sin th t . (x - f).
+    for (int k = 0; k < kSectors && ok; ++k) {
+      const double lo = std::numbers::pi * k / kSectors, hi = std::numbers::pi * (k + 1) / kSectors;
+      const double cos_max = std::max(std::abs(std::cos(lo)), std::abs(std::cos(hi)));
+      const double sin_max = lo <= 0.5 * std::numbers::pi && hi >= 0.5 * std::numbers::pi
+                                 ? 1.0
+                                 : std::max(std::sin(lo), std::sin(hi));
+      const double k_sector = std::min(k_all, cos_max * k_int + sin_max * worst);
+      out.boundary[k] = k_sector > 0.0 ? sigma * sigma / k_sector : kInf;
+    }
+    if (ok) return out;
   }
-  out.boundary = k_boundary > 0.0 ? sigma * sigma / k_boundary : kInf;
+  for (int k = 0; k < kSectors; ++k)
+    out.boundary[k] = k_boundary > 0.0 ? sigma * sigma / k_boundary : kInf;
   return out;
 }
 
@@ -832,13 +859,16 @@ ReachTable build_reach_table(const PreparedModel& model) {
           PreparedModel::ReachCell& out =
               table.cells[table.first[patch] + static_cast<std::uint32_t>(ci * K + cj)];
           const double target = std::min(local.interior, cap);
-          const double target_b = std::min(local.boundary, cap);
           if (target > 0.0) {
             out.plus = round_down(bounds.far_bound(foot, surface, n, kPlus, target));
             out.minus = round_down(bounds.far_bound(foot, surface, n, kMinus, target));
           }
-          if (foot.cones > 0 && target_b > 0.0) {
-            out.boundary = round_down(bounds.far_bound(foot, surface, n, kBoundary, target_b));
+          for (int k = 0; k < kSectors && foot.cones > 0; ++k) {
+            const double target_b = std::min(local.boundary[k], cap);
+            if (target_b > 0.0) {
+              out.boundary[k] =
+                  round_down(bounds.far_bound(foot, surface, n, kBoundary + k, target_b));
+            }
           }
         }
       }

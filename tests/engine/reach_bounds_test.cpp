@@ -97,8 +97,8 @@ struct BallCase {
   double rho = 0;
 };
 
-// Feet at the corners and the centre of every cell of every patch with bounds; directions +-n for every
-// foot, and for feet on the surface's own edge or corner a fan from n through the outward
+// Feet at the corners and the centre of every cell of every patch with bounds; directions +-n for
+// every foot, and for feet on the surface's own edge or corner a fan from n through the outward
 // conormal(s) to -n.
 std::vector<BallCase> ball_cases(const PreparedModel& pm) {
   std::vector<BallCase> cases;
@@ -140,8 +140,10 @@ std::vector<BallCase> ball_cases(const PreparedModel& pm) {
             for (const Vec3& m : tangential) {
               for (int deg = 0; deg <= 180; deg += 15) {
                 const double th = deg * std::numbers::pi / 180.0;
+                const int sector = std::min(deg * PreparedModel::kReachSectors / 180,
+                                            PreparedModel::kReachSectors - 1);
                 cases.push_back(
-                    {i, s, t, d[0], std::cos(th) * n + std::sin(th) * m, cell->boundary});
+                    {i, s, t, d[0], std::cos(th) * n + std::sin(th) * m, cell->boundary[sector]});
               }
             }
           }

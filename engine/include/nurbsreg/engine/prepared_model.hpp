@@ -89,16 +89,20 @@ class PreparedModel {
   // search. One ReachCell per cell of a k x k grid (reach_cells_per_side) of each such patch's
   // local (s, t) square; each bound holds for every foot of its (closed) cell:
   //   plus / minus: q on the side of n = S_u x S_v / minus n (an orthogonal foot);
-  //   boundary: any direction of the normal cone at a foot on the surface's own edge or corner
-  //   (cos th n + sin th m, th in [0, pi], m in the outward tangential cone; 0 for a cell that
-  //   does not touch the surface's edge).
+  //   boundary: directions of the normal cone at a foot on the surface's own edge or corner
+  //   (cos th n + sin th m, m in the outward tangential cone), by sectors of th in [0, pi]; 0
+  //   for a cell that does not touch the surface's edge.
   // Floats rounded down. 0 where nothing is proven (a cell touching another part of the
   // model, a seam, a pole, a crease).
-  // Built on demand (prepare_reach_bounds: about 0.1-0.6 ms per cell on 2 cores, so ~1 s for a
-  // 49-patch model): a Projector builds them at its first frame with hints (ICP's second
-  // iteration, a tracking frame), where they pay; a single cold frame does not wait for them.
+  // Built on demand (prepare_reach_bounds: about 0.3 ms per cell on 2 cores, ~1 s for a
+  // 49-patch model at 8 x 8 cells a patch): a Projector builds them once it has projected about
+  // a million points with hints (Projector::kReachAfterHintedPoints), where they pay.
+  static constexpr int kReachSectors = 4;
   struct ReachCell {
-    float plus = 0.0f, minus = 0.0f, boundary = 0.0f;
+    float plus = 0.0f, minus = 0.0f;
+    // Boundary feet, by the angle th of the direction from n: sector k holds th in
+    // [k, k + 1] pi / kReachSectors (th = pi / 2: straight out of the surface's edge).
+    float boundary[kReachSectors] = {};
   };
   // Builds the bounds once (thread-safe; later calls return at once).
   void prepare_reach_bounds() const;
