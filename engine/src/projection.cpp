@@ -61,9 +61,6 @@ struct Projector::Impl {
   // The frame's processing order (ProjectionOptions::locality_order), reused across frames.
   FrameVector<std::uint32_t> order;
   SpatialOrderScratch order_scratch;
-  // Points projected with hints so far: the model's reach bounds are built once this passes
-  // kReachAfterHintedPoints (they cost about as much as a million warm points save).
-  std::uint64_t hinted_points = 0;
 };
 
 namespace {
@@ -228,15 +225,6 @@ bool reach_proves(const PreparedModel& model, std::int64_t patch, double s, doub
 Projector::Projector(const PreparedModel& model) : model_(model), impl_(std::make_unique<Impl>()) {}
 
 Projector::~Projector() = default;
-
-void Projector::prepare_reach_bounds_after(std::size_t points, const ProjectionOptions& options,
-                                           HintView hints) {
-  if (!options.reach_bounds || hints.empty() || options.target != ProjectionTarget::surfaces) {
-    return;
-  }
-  impl_->hinted_points += points;
-  if (impl_->hinted_points >= kReachAfterHintedPoints) model_.prepare_reach_bounds();
-}
 
 NURBSREG_HOT_CLONES
 void Projector::search_surfaces(const Vec3& p, SurfaceSearch& search, std::int64_t skip_patch,
@@ -779,7 +767,6 @@ void prepare_results(PointView points, const ProjectionOptions& options, HintVie
 void Projector::project(PointView points, const ProjectionOptions& options, ProjectionResults& out,
                         HintView hints, ProjectionCounters* counters) {
   prepare_results(points, options, hints, out);
-  prepare_reach_bounds_after(points.size(), options, hints);
   for (ThreadState& s : impl_->states) {
     s.counters = {};
     s.surface_stats = {};
@@ -821,7 +808,6 @@ void Projector::project_serial(PointView points, const ProjectionOptions& option
                                ProjectionResults& out, HintView hints,
                                ProjectionCounters* counters) {
   prepare_results(points, options, hints, out);
-  prepare_reach_bounds_after(points.size(), options, hints);
   ThreadState& state = impl_->states.local();
   state.counters = {};
   state.surface_stats = {};

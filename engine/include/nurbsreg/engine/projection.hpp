@@ -161,9 +161,9 @@ struct ProjectionOptions {
   // 0.1% of the model's bounding-box diagonal.
   double certificate_radius = 0.0;
   // Prove answers with the model's reach bounds where they can (PreparedModel::ReachCell: one
-  // Newton from the hint or the cold seed, no search), once they are built (see
-  // Projector::kReachAfterHintedPoints). false: only certificates and the search (to measure or
-  // test those alone).
+  // Newton from the hint or the cold seed, no search), when the model has them
+  // (PreparedModel::prepare_reach_bounds). false: only certificates and the search (to measure
+  // or test those alone).
   bool reach_bounds = true;
   // Empty: feet and normals go to ProjectionResults. Set: to the sink only (see FootSink).
   FootSink foot_sink;
@@ -245,12 +245,6 @@ class Projector {
 
   const PreparedModel& model() const { return model_; }
 
-  // The model's reach bounds (PreparedModel::prepare_reach_bounds) are built once this projector
-  // has projected this many points with hints (ProjectionOptions::reach_bounds): long runs (ICP
-  // on large scans, tracking) then use them; a short one does not wait for them. Call
-  // PreparedModel::prepare_reach_bounds() to have them from the start.
-  static constexpr std::uint64_t kReachAfterHintedPoints = 1u << 20;
-
  private:
   struct ThreadState;
   struct Impl;
@@ -275,9 +269,6 @@ class Projector {
   WarmCertificate make_certificate(const Vec3& p, const SurfaceHit& best, std::int64_t patch,
                                    std::int64_t edge, const OtherItems& others,
                                    ThreadState& state) const;
-  // Counts a frame's hinted points; builds the reach bounds once kReachAfterHintedPoints passed.
-  void prepare_reach_bounds_after(std::size_t points, const ProjectionOptions& options,
-                                  HintView hints);
   // Projects points order[begin, end) (or begin .. end - 1 when order is empty).
   void project_range(PointView points, const ProjectionOptions& options, ProjectionResults& out,
                      HintView hints, std::span<const std::uint32_t> order, std::size_t begin,
