@@ -36,7 +36,6 @@
 #include <cmath>
 #include <limits>
 #include <numbers>
-#include <queue>
 
 namespace nurbsreg::engine {
 namespace {
@@ -581,6 +580,20 @@ LocalBound local_bound(const PreparedModel& model, int surface, const Rect& n, c
   return out;
 }
 
+// A piece is halved across its longer side (3-D length), until kMaxLevel halvings of that side.
+bool split_along_s(int level_s, int level_t, double len_s, double len_t) {
+  return level_t >= kMaxLevel || (level_s < kMaxLevel && len_s >= len_t);
+}
+
+// The low (half 0) or high half of r along s or t.
+Rect half_of(Rect r, bool along_s, int half) {
+  double& lo = along_s ? r.s0 : r.t0;
+  double& hi = along_s ? r.s1 : r.t1;
+  const double mid = 0.5 * (lo + hi);
+  (half == 0 ? hi : lo) = mid;
+  return r;
+}
+
 // Per-thread working memory of the search.
 struct Search {
   std::vector<FootPiece> feet;
@@ -600,13 +613,14 @@ class CellBounds {
   CellBounds(const PreparedModel& model, Search& search) : model_(model), s_(search) {}
 
   // The far part's bound for `side`, refined up to `target`.
-  double far_bound(const FootPiece& cell, int surface, const Rect& n_global, int side,
-                   double target) {
+  double far_bound(const FootPiece& cell, std::uint32_t cell_patch, int surface,
+                   const Rect& n_global, int side, double target) {
     s_.feet.clear();
     s_.pieces.clear();
     s_.heap.clear();
     s_.pool.clear();
     s_.feet.push_back(cell);
+    cell_patch_ = cell_patch;
     surface_ = surface;
     n_ = n_global;
     side_ = side;
@@ -732,16 +746,12 @@ class CellBounds {
   void split_foot(std::int32_t foot, std::int64_t x) {
     if (s_.feet[static_cast<std::size_t>(foot)].child[0] < 0) {
       const FootPiece f = s_.feet[static_cast<std::size_t>(foot)];
-      const bool along_s = f.level_t >= kMaxLevel || (f.level_s < kMaxLevel && f.len_s >= f.len_t);
+      const bool along_s = split_along_s(f.level_s, f.level_t, f.len_s, f.len_t);
       const BezierPatch& bp = model_.patch(cell_patch_).patch;
       const NurbsSurface& surface = model_.model().surfaces[static_cast<std::size_t>(surface_)];
       std::int32_t children[2];
       for (int half = 0; half < 2; ++half) {
-        Rect r = f.rect;
-        double& lo = along_s ? r.s0 : r.t0;
-        double& hi = along_s ? r.s1 : r.t1;
-        const double mid = 0.5 * (lo + hi);
-        (half == 0 ? hi : lo) = mid;
+        const Rect r = half_of(f.rect, along_s, half);
         s_.feet.push_back(make_foot_piece(bp, r, f.level_s + (along_s ? 1 : 0),
                                           f.level_t + (along_s ? 0 : 1),
                                           touched_edges(bp, r, surface)));
@@ -763,14 +773,10 @@ class CellBounds {
     if (s_.pieces[static_cast<std::size_t>(x)].child[0] < 0) {
       const ModelPiece m = s_.pieces[static_cast<std::size_t>(x)];
       const Grid whole = piece_grid(m);
-      const bool along_s = m.level_t >= kMaxLevel || (m.level_s < kMaxLevel && m.len_s >= m.len_t);
+      const bool along_s = split_along_s(m.level_s, m.level_t, m.len_s, m.len_t);
       std::int64_t children[2];
       for (int half = 0; half < 2; ++half) {
-        Rect r = m.rect;
-        double& lo = along_s ? r.s0 : r.t0;
-        double& hi = along_s ? r.s1 : r.t1;
-        const double mid = 0.5 * (lo + hi);
-        (half == 0 ? hi : lo) = mid;
+        const Rect r = half_of(m.rect, along_s, half);
         const Grid g = split(whole, along_s ? 0 : 1, 0.5, half == 0);
         children[half] =
             add_piece(r, m.level_s + (along_s ? 1 : 0), m.level_t + (along_s ? 0 : 1), g);
@@ -782,12 +788,10 @@ class CellBounds {
       push_piece(foot, s_.pieces[static_cast<std::size_t>(x)].child[half]);
   }
 
- public:
-  std::uint32_t cell_patch_ = 0;
-
  private:
   const PreparedModel& model_;
   Search& s_;
+  std::uint32_t cell_patch_ = 0;  // the patch of the cell (its feet's pieces)
   int surface_ = -1;
   Rect n_;  // N in the surface's global parameters (s = u, t = v)
   int side_ = kPlus;
@@ -839,7 +843,6 @@ ReachTable build_reach_table(const PreparedModel& model) {
       const NurbsSurface& s = model.model().surfaces[static_cast<std::size_t>(surface)];
       const BezierPatch& bp = model.patch(patch).patch;
       const bool c1 = model.surface_c1(surface);
-      bounds.cell_patch_ = patch;
       for (int ci = 0; ci < K; ++ci) {
         for (int cj = 0; cj < K; ++cj) {
           const Rect cell{double(ci) / K, double(ci + 1) / K, double(cj) / K, double(cj + 1) / K};
@@ -865,14 +868,14 @@ ReachTable build_reach_table(const PreparedModel& model) {
               table.cells[table.first[patch] + static_cast<std::uint32_t>(ci * K + cj)];
           const double target = std::min(local.interior, cap);
           if (target > 0.0) {
-            out.plus = round_down(bounds.far_bound(foot, surface, n, kPlus, target));
-            out.minus = round_down(bounds.far_bound(foot, surface, n, kMinus, target));
+            out.plus = round_down(bounds.far_bound(foot, patch, surface, n, kPlus, target));
+            out.minus = round_down(bounds.far_bound(foot, patch, surface, n, kMinus, target));
           }
           for (int k = 0; k < kSectors && foot.cones > 0; ++k) {
             const double target_b = std::min(local.boundary[k], cap);
             if (target_b > 0.0) {
               out.boundary[k] =
-                  round_down(bounds.far_bound(foot, surface, n, kBoundary + k, target_b));
+                  round_down(bounds.far_bound(foot, patch, surface, n, kBoundary + k, target_b));
             }
           }
         }
