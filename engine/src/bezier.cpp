@@ -41,6 +41,8 @@ void rational_curve_derivatives(const Vec4* a, int order, Vec3* out) {
   }
 }
 
+}  // namespace
+
 void de_casteljau_split(const Vec4* points, int stride, int n, double t, Vec4* left, Vec4* right,
                         int out_stride) {
   Vec4 work[kMaxDegree + 1];
@@ -55,8 +57,6 @@ void de_casteljau_split(const Vec4* points, int stride, int n, double t, Vec4* l
     right[(n - r) * out_stride] = work[n - r];
   }
 }
-
-}  // namespace
 
 void bernstein(int n, double t, double* values) {
   assert(n <= kMaxBernstein);

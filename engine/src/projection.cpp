@@ -180,6 +180,20 @@ bool valid_hint(const ProjectionHint* hint, std::size_t entities) {
          std::isfinite(hint->v);
 }
 
+// Descent-only Newton over all of patch bp from best's local (s, t); best takes its point (s, t,
+// u, v, squared distance, foot, normal). True when it ended at a KKT point of the patch.
+bool newton_over_patch(const BezierPatch& bp, const Vec3& p, SurfaceHit& best) {
+  double s = best.s, t = best.t;
+  bool stationary = false;
+  best.distance_sq = newton_on_patch(bp, p, 0.0, 1.0, 0.0, 1.0, s, t, best.foot, nullptr,
+                                     &best.normal, &stationary);
+  best.s = s;
+  best.t = t;
+  best.u = bp.param_u.to_parent(s);
+  best.v = bp.param_v.to_parent(t);
+  return stationary;
+}
+
 // The model's reach bounds (PreparedModel::ReachCell) prove that `foot`, a KKT point of
 // newton_on_patch over all of `patch` at local (s, t), is the model's closest point to p: p lies
 // closer to it than the cut distance of its cell, along the normal (an orthogonal foot) or in the
@@ -610,20 +624,13 @@ void Projector::project_range(PointView points, const ProjectionOptions& options
             // A patch with reach bounds: Newton from the seed over the patch, whose KKT point
             // the bounds may prove (no search at all); if not, it is a closer alpha for the
             // search and where the patch's clipping starts.
-            const BezierPatch& bp = model_.patch(static_cast<std::size_t>(best_patch)).patch;
-            double s_loc = best.s, t_loc = best.t;
-            bool stationary = false;
-            best.distance_sq = newton_on_patch(bp, p, 0.0, 1.0, 0.0, 1.0, s_loc, t_loc, best.foot,
-                                               nullptr, &best.normal, &stationary);
-            best.s = s_loc;
-            best.t = t_loc;
-            best.u = bp.param_u.to_parent(s_loc);
-            best.v = bp.param_v.to_parent(t_loc);
+            const bool stationary = newton_over_patch(
+                model_.patch(static_cast<std::size_t>(best_patch)).patch, p, best);
             seed_sq = -1.0;  // polished already
             hint_patch = best_patch;
-            hint_s = s_loc;
-            hint_t = t_loc;
-            reach_proven = stationary && reach_proves(model_, best_patch, s_loc, t_loc, p,
+            hint_s = best.s;
+            hint_t = best.t;
+            reach_proven = stationary && reach_proves(model_, best_patch, best.s, best.t, p,
                                                       best.foot, best.normal, best.distance_sq);
           }
         }
@@ -638,14 +645,7 @@ void Projector::project_range(PointView points, const ProjectionOptions& options
           // by more than the clipping's accepted 1e-11 R). Polished on its patch as the clipping
           // polishes a corner value, by a descent-only Newton over the whole patch from it (at a
           // stationary point it stays put and only evaluates foot and normal there).
-          const BezierPatch& bp = model_.patch(static_cast<std::size_t>(best_patch)).patch;
-          double s_loc = best.s, t_loc = best.t;
-          best.distance_sq = newton_on_patch(bp, p, 0.0, 1.0, 0.0, 1.0, s_loc, t_loc, best.foot,
-                                             nullptr, &best.normal);
-          best.s = s_loc;
-          best.t = t_loc;
-          best.u = bp.param_u.to_parent(s_loc);
-          best.v = bp.param_v.to_parent(t_loc);
+          newton_over_patch(model_.patch(static_cast<std::size_t>(best_patch)).patch, p, best);
         }
       }
       if (best_surface < 0) {

@@ -68,32 +68,20 @@ struct Grid {
   Vec3 point(int i, int j) const { return at(i, j).head<3>() / at(i, j)[3]; }
 };
 
-// de Casteljau on every line of the grid along u (dir 0) or v (dir 1) at tau: the part before
-// tau (low) or after it.
-Grid split(const Grid& g, int dir, double tau, bool keep_low) {
-  Grid out = g;
-  const int n = dir == 0 ? g.p : g.q;
-  const int lines = dir == 0 ? g.q + 1 : g.p + 1;
-  std::array<Vec4, kMaxDegree + 1> tmp;
-  for (int l = 0; l < lines; ++l) {
-    auto ref = [&](Grid& grid, int k) -> Vec4& { return dir == 0 ? grid.at(k, l) : grid.at(l, k); };
-    for (int k = 0; k <= n; ++k)
-      tmp[static_cast<std::size_t>(k)] = dir == 0 ? g.at(k, l) : g.at(l, k);
-    if (keep_low)
-      ref(out, 0) = tmp[0];
-    else
-      ref(out, n) = tmp[static_cast<std::size_t>(n)];
-    for (int k = 1; k <= n; ++k) {
-      for (int i = 0; i <= n - k; ++i)
-        tmp[static_cast<std::size_t>(i)] = (1.0 - tau) * tmp[static_cast<std::size_t>(i)] +
-                                           tau * tmp[static_cast<std::size_t>(i + 1)];
-      if (keep_low)
-        ref(out, k) = tmp[0];
-      else
-        ref(out, n - k) = tmp[static_cast<std::size_t>(n - k)];
-    }
+// The grid split along u (dir 0) or v (dir 1) at tau into its parts before and after tau.
+void split(const Grid& g, int dir, double tau, Grid& low, Grid& high) {
+  low.p = high.p = g.p;
+  low.q = high.q = g.q;
+  const int stride = g.q + 1;
+  if (dir == 0) {
+    for (int j = 0; j <= g.q; ++j)
+      de_casteljau_split(g.cw.data() + j, stride, g.p, tau, low.cw.data() + j, high.cw.data() + j,
+                         stride);
+  } else {
+    for (int i = 0; i <= g.p; ++i)
+      de_casteljau_split(g.cw.data() + i * stride, 1, g.q, tau, low.cw.data() + i * stride,
+                         high.cw.data() + i * stride, 1);
   }
-  return out;
 }
 
 Grid restrict_to(const BezierPatch& bp, const Rect& r) {
@@ -103,10 +91,23 @@ Grid restrict_to(const BezierPatch& bp, const Rect& r) {
   for (int i = 0; i <= g.p; ++i)
     for (int j = 0; j <= g.q; ++j)
       g.at(i, j) = bp.at(i, j);
-  if (r.s1 < 1.0) g = split(g, 0, r.s1, true);
-  if (r.s0 > 0.0) g = split(g, 0, r.s0 / r.s1, false);
-  if (r.t1 < 1.0) g = split(g, 1, r.t1, true);
-  if (r.t0 > 0.0) g = split(g, 1, r.t0 / r.t1, false);
+  Grid low, high;
+  if (r.s1 < 1.0) {
+    split(g, 0, r.s1, low, high);
+    g = low;
+  }
+  if (r.s0 > 0.0) {
+    split(g, 0, r.s0 / r.s1, low, high);
+    g = high;
+  }
+  if (r.t1 < 1.0) {
+    split(g, 1, r.t1, low, high);
+    g = low;
+  }
+  if (r.t0 > 0.0) {
+    split(g, 1, r.t0 / r.t1, low, high);
+    g = high;
+  }
   return g;
 }
 
@@ -774,10 +775,12 @@ class CellBounds {
       const ModelPiece m = s_.pieces[static_cast<std::size_t>(x)];
       const Grid whole = piece_grid(m);
       const bool along_s = split_along_s(m.level_s, m.level_t, m.len_s, m.len_t);
+      Grid halves[2];
+      split(whole, along_s ? 0 : 1, 0.5, halves[0], halves[1]);
       std::int64_t children[2];
       for (int half = 0; half < 2; ++half) {
         const Rect r = half_of(m.rect, along_s, half);
-        const Grid g = split(whole, along_s ? 0 : 1, 0.5, half == 0);
+        const Grid& g = halves[half];
         children[half] =
             add_piece(r, m.level_s + (along_s ? 1 : 0), m.level_t + (along_s ? 0 : 1), g);
       }
@@ -812,7 +815,7 @@ float round_down(double x) {
 
 ReachTable build_reach_table(const PreparedModel& model) {
   ReachTable table;
-  table.first.assign(model.patch_count(), ReachTable::kNone);
+  table.first.assign(model.patch_count(), PreparedModel::kNoReach);
   std::vector<std::uint32_t> with_cells;
   for (std::size_t i = 0; i < model.patch_count(); ++i) {
     const int s = model.patch_surface(i);

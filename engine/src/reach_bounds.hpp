@@ -9,10 +9,9 @@
 namespace nurbsreg::engine {
 
 struct ReachTable {
-  std::vector<std::uint32_t> first;  // per patch: index of its first cell, or kNone
+  std::vector<std::uint32_t> first;  // per patch: its first cell, or PreparedModel::kNoReach
   std::vector<PreparedModel::ReachCell> cells;
   int cells_per_side = 1;
-  static constexpr std::uint32_t kNone = 0xffffffffu;
 };
 
 // Bounds for every patch of every untrimmed polynomial surface of `model`, whose patches,

@@ -12,6 +12,11 @@ namespace nurbsreg::engine {
 // Bernstein polynomials B_i^n(t), i = 0..n, into values[0..n]. n <= 2 * kMaxDegree.
 void bernstein(int n, double t, double* values);
 
+// de Casteljau: the control points points[i * stride], i = 0..n (n <= kMaxDegree), split at t
+// into the parts over [0, t] (left) and [t, 1] (right), written at out_stride.
+void de_casteljau_split(const Vec4* points, int stride, int n, double t, Vec4* left, Vec4* right,
+                        int out_stride);
+
 // A rational Bézier curve of degree <= kMaxDegree; local parameter t in [0, 1] maps to
 // `param` in the parent curve. Fixed storage: copying and splitting never allocate.
 struct BezierCurve {

@@ -101,6 +101,7 @@ class PreparedModel {
   // certificates already skip the search (the default alignment took 0.86 s without them and
   // 1.75 s with them built during its run).
   static constexpr int kReachSectors = 4;
+  static constexpr std::uint32_t kNoReach = 0xffffffffu;  // a patch without cells
   struct ReachCell {
     float plus = 0.0f, minus = 0.0f;
     // Boundary feet, by the angle th of the direction from n: sector k holds th in
@@ -109,7 +110,6 @@ class PreparedModel {
   };
   // Builds the bounds once (thread-safe; later calls return at once).
   void prepare_reach_bounds() const;
-  bool reach_bounds_ready() const { return reach_->ready.load(std::memory_order_acquire); }
   // Cells per patch side: 8, 4, 2 or 1 (fewer on models of many patches: construction time).
   int reach_cells_per_side() const { return reach_->k; }
   // Patch i's cell holding local (s, t) in [0, 1]^2; null when the patch has no reach bounds or
@@ -195,7 +195,6 @@ class PreparedModel {
   std::vector<std::uint8_t> surface_certifiable_;  // per surface (surface_certifiable)
   bool any_certifiable_ = false;
   std::vector<std::uint32_t> item_patch_;
-  static constexpr std::uint32_t kNoReach = 0xffffffffu;
   // Shared by copies (they share the geometry); written once under `once`, then read-only.
   struct ReachState {
     std::once_flag once;
