@@ -405,10 +405,12 @@ Aabb node_box_in(const Aabb& box, const Frame& frame) {
 
 // The local part over N (global parameters of the surface), for interior feet (v = +-n(f), f
 // in the cell, |n(f) - n0| <= eps_n) and for boundary feet (any unit v):
-// (sigma - E)^2 / K with K bounding v.S''[Delta, Delta] / |Delta|^2. 0 when N holds a rational
-// patch or the Jacobian bounds fail; infinity for an affine N.
+// (sigma - E)^2 / K with K bounding v.S''[Delta, Delta] / |Delta|^2 from above. For v = +n and
+// v = -n apart (the side towards which N curves away has K <= 0: no point of N is on the far
+// side of the tangent plane, infinity). 0 when N holds a rational patch or the Jacobian bounds
+// fail; infinity for an affine N.
 struct LocalBound {
-  double interior = 0.0;
+  double plus = 0.0, minus = 0.0;
   double boundary[kSectors] = {};
 };
 
@@ -435,6 +437,8 @@ LocalBound local_bound(const PreparedModel& model, int surface, const Rect& n, c
   double e_u = 0.0, e_v = 0.0;
   double k_uu = 0.0, k_uv = 0.0, k_vv = 0.0;  // |S''| components
   double n_uu = 0.0, n_uv = 0.0, n_vv = 0.0;  // |n0 . S''| components
+  // n0 . S'' signed: the largest and smallest of the uu and vv components.
+  double hi_uu = -kInf, lo_uu = kInf, hi_vv = -kInf, lo_vv = kInf;
   std::vector<Vec2> hu, hv;                   // tangential parts of the hodographs
   const std::int64_t lo = model.locate_patch(surface, n.s0, n.t0);
   const std::int64_t hi = model.locate_patch(surface, n.s1, n.t1);
@@ -482,12 +486,16 @@ LocalBound local_bound(const PreparedModel& model, int surface, const Rect& n, c
             const Vec3 suu =
                 p * (p - 1) * (g.point(i + 2, j) - 2.0 * g.point(i + 1, j) + pij) / (wu * wu);
             track(k_uu, n_uu, suu, n0);
+            hi_uu = std::max(hi_uu, suu.dot(n0));
+            lo_uu = std::min(lo_uu, suu.dot(n0));
             track_m(m_uu, suu);
           }
           if (j + 1 < q) {
             const Vec3 svv =
                 q * (q - 1) * (g.point(i, j + 2) - 2.0 * g.point(i, j + 1) + pij) / (wv * wv);
             track(k_vv, n_vv, svv, n0);
+            hi_vv = std::max(hi_vv, svv.dot(n0));
+            lo_vv = std::min(lo_vv, svv.dot(n0));
             track_m(m_vv, svv);
           }
           if (i < p && j < q) {
@@ -519,7 +527,19 @@ LocalBound local_bound(const PreparedModel& model, int surface, const Rect& n, c
   };
   const double k_all = lambda(k_uu, k_uv, k_vv);
   const double k_int = std::min(k_all, lambda(n_uu, n_uv, n_vv) + eps_n * k_all);
-  out.interior = k_int > 0.0 ? sigma * sigma / k_int : kInf;
+  // Per side: +-n0 . S''[Delta, Delta] <= [|du| |dv|] [[h_uu, n_uv], [n_uv, h_vv]] [|du| |dv|]^T
+  // with h the signed extremes (h_uu = max n0 . S_uu for +n, -min for -n): at most lambda_max of
+  // that matrix (negative when N curves away on that side) times |Delta|^2. No uu or vv term
+  // (degree 1 in that direction): 0.
+  const auto signed_lambda = [&](double uu, double vv) {
+    uu = uu > -kInf ? uu : 0.0;
+    vv = vv > -kInf ? vv : 0.0;
+    return std::min(k_int, lambda(uu, n_uv, vv) + eps_n * k_all);
+  };
+  const double k_plus = signed_lambda(hi_uu, hi_vv);
+  const double k_minus = signed_lambda(-lo_uu, -lo_vv);
+  out.plus = k_plus > 0.0 ? sigma * sigma / k_plus : kInf;
+  out.minus = k_minus > 0.0 ? sigma * sigma / k_minus : kInf;
   // Boundary feet: v = cos th n + sin th t with t in the outward tangential cone. For a u edge
   // (m outward, m . S_v = 0), with Delta pointing into the domain,
   //   m . (x - f) <= -c |du| + (m_uu du^2 + 2 m_uv |du| |dv| + m_vv dv^2) / 2,
@@ -564,14 +584,22 @@ LocalBound local_bound(const PreparedModel& model, int surface, const Rect& n, c
       if (ok) worst = std::max(worst, both / half_cos);
     }
     if (ok) k_boundary = std::min(k_all, k_int + worst);
-    // Per sector: v . (x - f) <= |cos th| |n . (x - f)| + sin th t . (x - f).
+    // Per sector: v . (x - f) <= cos th n . (x - f) + sin th t . (x - f).
     for (int k = 0; k < kSectors && ok; ++k) {
       const double lo = std::numbers::pi * k / kSectors, hi = std::numbers::pi * (k + 1) / kSectors;
-      const double cos_max = std::max(std::abs(std::cos(lo)), std::abs(std::cos(hi)));
       const double sin_max = lo <= 0.5 * std::numbers::pi && hi >= 0.5 * std::numbers::pi
                                  ? 1.0
                                  : std::max(std::sin(lo), std::sin(hi));
-      const double k_sector = std::min(k_all, cos_max * k_int + sin_max * worst);
+      // The normal part cos th n . (x - f): +n's bound for th below pi / 2, -n's above (|cos th|
+      // times it), largest at an end of the sector (or 0 at pi / 2).
+      const auto normal_part = [&](double th) {
+        const double c = std::cos(th);
+        return c >= 0.0 ? c * k_plus : -c * k_minus;
+      };
+      double cos_part = std::max(normal_part(lo), normal_part(hi));
+      if (lo < 0.5 * std::numbers::pi && hi > 0.5 * std::numbers::pi)
+        cos_part = std::max(cos_part, 0.0);
+      const double k_sector = std::min(k_all, cos_part + sin_max * worst);
       out.boundary[k] = k_sector > 0.0 ? sigma * sigma / k_sector : kInf;
     }
     if (ok) return out;
@@ -857,10 +885,18 @@ ReachTable build_reach_table(const PreparedModel& model) {
           const double lo_v = c1 ? s.domain_v().lo : bp.param_v.lo;
           const double hi_v = c1 ? s.domain_v().hi : bp.param_v.hi;
           const double margin = margin_in_cells(K) / K;
-          const Rect n{std::max(lo_u, bp.param_u.to_parent(cell.s0) - margin * wu),
-                       std::min(hi_u, bp.param_u.to_parent(cell.s1) + margin * wu),
-                       std::max(lo_v, bp.param_v.to_parent(cell.t0) - margin * wv),
-                       std::min(hi_v, bp.param_v.to_parent(cell.t1) + margin * wv)};
+          // An edge of N that rounding put next to the patch's own edge goes onto it: a sliver of
+          // a neighbour (width ~1e-16) would divide its hodographs' rounding by its width.
+          const auto snap = [](double x, const ParamInterval& patch_range) {
+            const double tol = 1e-9 * (patch_range.hi - patch_range.lo);
+            if (std::abs(x - patch_range.lo) <= tol) return patch_range.lo;
+            if (std::abs(x - patch_range.hi) <= tol) return patch_range.hi;
+            return x;
+          };
+          const Rect n{std::max(lo_u, snap(bp.param_u.to_parent(cell.s0) - margin * wu, bp.param_u)),
+                       std::min(hi_u, snap(bp.param_u.to_parent(cell.s1) + margin * wu, bp.param_u)),
+                       std::max(lo_v, snap(bp.param_v.to_parent(cell.t0) - margin * wv, bp.param_v)),
+                       std::min(hi_v, snap(bp.param_v.to_parent(cell.t1) + margin * wv, bp.param_v))};
           Vec3 d[6];
           bp.derivatives(0.5 * (cell.s0 + cell.s1), 0.5 * (cell.t0 + cell.t1), d);
           const DomainEdges edges = touched_edges(bp, cell, s);
@@ -869,10 +905,13 @@ ReachTable build_reach_table(const PreparedModel& model) {
               local_bound(model, surface, n, d[1] / wu, d[2] / wv, foot, wu / K, wv / K);
           PreparedModel::ReachCell& out =
               table.cells[table.first[patch] + static_cast<std::uint32_t>(ci * K + cj)];
-          const double target = std::min(local.interior, cap);
-          if (target > 0.0) {
-            out.plus = round_down(bounds.far_bound(foot, patch, surface, n, kPlus, target));
-            out.minus = round_down(bounds.far_bound(foot, patch, surface, n, kMinus, target));
+          const double target_plus = std::min(local.plus, cap);
+          if (target_plus > 0.0) {
+            out.plus = round_down(bounds.far_bound(foot, patch, surface, n, kPlus, target_plus));
+          }
+          const double target_minus = std::min(local.minus, cap);
+          if (target_minus > 0.0) {
+            out.minus = round_down(bounds.far_bound(foot, patch, surface, n, kMinus, target_minus));
           }
           for (int k = 0; k < kSectors && foot.cones > 0; ++k) {
             const double target_b = std::min(local.boundary[k], cap);
