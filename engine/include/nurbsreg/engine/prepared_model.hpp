@@ -100,7 +100,7 @@ class PreparedModel {
   // panel, so after a few million points), not in a one-off cold frame nor in ICP, whose
   // certificates already skip the search (the default alignment took 0.86 s without them and
   // 1.75 s with them built during its run).
-  static constexpr int kReachSectors = 4;
+  static constexpr int kReachSectors = 8;
   static constexpr std::uint32_t kNoReach = 0xffffffffu;  // a patch without cells
   struct ReachCell {
     float plus = 0.0f, minus = 0.0f;
