@@ -185,8 +185,8 @@ bool valid_hint(const ProjectionHint* hint, std::size_t entities) {
 bool newton_over_patch(const BezierPatch& bp, const Vec3& p, SurfaceHit& best) {
   double s = best.s, t = best.t;
   bool stationary = false;
-  best.distance_sq = newton_on_patch(bp, p, 0.0, 1.0, 0.0, 1.0, s, t, best.foot, nullptr,
-                                     &best.normal, &stationary);
+  best.distance_sq =
+      newton_to_proven_point(bp, p, 0.0, 1.0, 0.0, 1.0, s, t, best.foot, &best.normal, &stationary);
   best.s = s;
   best.t = t;
   best.u = bp.param_u.to_parent(s);
@@ -195,7 +195,7 @@ bool newton_over_patch(const BezierPatch& bp, const Vec3& p, SurfaceHit& best) {
 }
 
 // The model's reach bounds (PreparedModel::ReachCell) prove that `foot`, a KKT point of
-// newton_on_patch over all of `patch` at local (s, t), is the model's closest point to p: p lies
+// a Newton over all of `patch` at local (s, t), is the model's closest point to p: p lies
 // closer to it than the cut distance of its cell, along the normal (an orthogonal foot) or in the
 // normal cone of the surface's edge or corner. A foot on a patch edge inside the surface's domain
 // proves nothing: the patch's box may have stopped Newton there (the minimum lies beyond).
@@ -532,8 +532,10 @@ void Projector::project_range(PointView points, const ProjectionOptions& options
           if (!proven && !in_box) {
             s_loc = hint_s;
             t_loc = hint_t;
-            best.distance_sq = newton_on_patch(bp, p, 0.0, 1.0, 0.0, 1.0, s_loc, t_loc, best.foot,
-                                               nullptr, &best.normal, &stationary);
+            // Settled at 1e-10 of the patch: the reach bounds prove its point, or the search
+            // below starts from it.
+            best.distance_sq = newton_to_proven_point(bp, p, 0.0, 1.0, 0.0, 1.0, s_loc, t_loc,
+                                                      best.foot, &best.normal, &stationary);
             reach_proven = options.reach_bounds && stationary && best.distance_sq < limit_sq &&
                            reach_proves(model_, hint_patch, s_loc, t_loc, p, best.foot, best.normal,
                                         best.distance_sq);

@@ -439,7 +439,7 @@ LocalBound local_bound(const PreparedModel& model, int surface, const Rect& n, c
   double n_uu = 0.0, n_uv = 0.0, n_vv = 0.0;  // |n0 . S''| components
   // n0 . S'' signed: the largest and smallest of the uu and vv components.
   double hi_uu = -kInf, lo_uu = kInf, hi_vv = -kInf, lo_vv = kInf;
-  std::vector<Vec2> hu, hv;                   // tangential parts of the hodographs
+  std::vector<Vec2> hu, hv;  // tangential parts of the hodographs
   const std::int64_t lo = model.locate_patch(surface, n.s0, n.t0);
   const std::int64_t hi = model.locate_patch(surface, n.s1, n.t1);
   if (lo < 0 || hi < 0) return out;
@@ -893,10 +893,11 @@ ReachTable build_reach_table(const PreparedModel& model) {
             if (std::abs(x - patch_range.hi) <= tol) return patch_range.hi;
             return x;
           };
-          const Rect n{std::max(lo_u, snap(bp.param_u.to_parent(cell.s0) - margin * wu, bp.param_u)),
-                       std::min(hi_u, snap(bp.param_u.to_parent(cell.s1) + margin * wu, bp.param_u)),
-                       std::max(lo_v, snap(bp.param_v.to_parent(cell.t0) - margin * wv, bp.param_v)),
-                       std::min(hi_v, snap(bp.param_v.to_parent(cell.t1) + margin * wv, bp.param_v))};
+          const Rect n{
+              std::max(lo_u, snap(bp.param_u.to_parent(cell.s0) - margin * wu, bp.param_u)),
+              std::min(hi_u, snap(bp.param_u.to_parent(cell.s1) + margin * wu, bp.param_u)),
+              std::max(lo_v, snap(bp.param_v.to_parent(cell.t0) - margin * wv, bp.param_v)),
+              std::min(hi_v, snap(bp.param_v.to_parent(cell.t1) + margin * wv, bp.param_v))};
           Vec3 d[6];
           bp.derivatives(0.5 * (cell.s0 + cell.s1), 0.5 * (cell.t0 + cell.t1), d);
           const DomainEdges edges = touched_edges(bp, cell, s);

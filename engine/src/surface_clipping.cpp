@@ -1553,9 +1553,9 @@ double newton_on_patch(const BezierPatch& patch, const Vec3& p, double s0, doubl
                      std::numeric_limits<double>::infinity(), converged);
 }
 
-double newton_in_certified_box(const BezierPatch& patch, const Vec3& p, double s0, double s1,
-                               double t0, double t1, double& s, double& t, Vec3& foot, Vec3* normal,
-                               bool* converged) {
+double newton_to_proven_point(const BezierPatch& patch, const Vec3& p, double s0, double s1,
+                              double t0, double t1, double& s, double& t, Vec3& foot, Vec3* normal,
+                              bool* converged) {
   // 1e-10 of the patch's parameter range: the foot's error is then ~1e-10 of the patch's size
   // along the surface at most, and the squared distance's ~|H| 1e-20, far below the 1e-11 R the
   // clipping itself does not pursue.

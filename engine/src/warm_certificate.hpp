@@ -19,12 +19,13 @@ namespace nurbsreg::engine {
 double grid_convexity_radius(const double* n, int rows, int cols, double e_ss, double e_tt,
                              double e_st, double r_max);
 
-// newton_on_patch on a box where F is proven strictly convex (a certificate's N): a Newton step
-// below 1e-10 of the parameter range counts as converged without being taken, which saves the
-// last evaluation.
-double newton_in_certified_box(const BezierPatch& patch, const Vec3& p, double s0, double s1,
-                               double t0, double t1, double& s, double& t, Vec3& foot, Vec3* normal,
-                               bool* converged);
+// newton_on_patch for a caller that proves its KKT point the answer by other means (a
+// certificate's N, where F is strictly convex; the model's reach bounds): a Newton step below
+// 1e-10 of the parameter range counts as converged without being taken, which saves the last
+// evaluation (the point is then that close to the minimiser, F within ~|H| 1e-20 of it).
+double newton_to_proven_point(const BezierPatch& patch, const Vec3& p, double s0, double s1,
+                              double t0, double t1, double& s, double& t, Vec3& foot, Vec3* normal,
+                              bool* converged);
 
 struct PatchCertificate {
   // N in P's local parameters, as floats (compact in hints); every test was made on exactly

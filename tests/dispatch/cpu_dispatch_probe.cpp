@@ -7,7 +7,7 @@
 // The cases cover the cloned paths: cold projection (hierarchy walk, clipping of bicubic and
 // rational biquadratic patches, trimmed faces and their edges, Newton) and the certified warm
 // path of ICP (hints with certificates, on the untrimmed polynomial models:
-// newton_in_certified_box). Hard cases: points on the surface and off it on both sides, near the
+// newton_to_proven_point). Hard cases: points on the surface and off it on both sides, near the
 // trim loops, far away.
 
 #include <cstdint>
