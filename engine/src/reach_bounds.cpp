@@ -351,13 +351,26 @@ FootPiece make_foot_piece(const BezierPatch& bp, const Rect& r, int level_s, int
 enum Side { kPlus = 0, kMinus = 1, kBoundary = 2 };
 constexpr int kSectors = PreparedModel::kReachSectors;
 
-// max of cos(th) a + sin(th) b over th in the sector's interval.
+// The sectors' ends, (cos th, sin th) at th = k pi / kSectors.
+struct SectorEnds {
+  double c[kSectors + 1], s[kSectors + 1];
+  SectorEnds() {
+    for (int k = 0; k <= kSectors; ++k) {
+      c[k] = std::cos(std::numbers::pi * k / kSectors);
+      s[k] = std::sin(std::numbers::pi * k / kSectors);
+    }
+  }
+};
+const SectorEnds kSectorEnds;
+
+// max of cos(th) a + sin(th) b over th in the sector's interval: |(a, b)| where the direction of
+// (a, b) lies in the sector (counter-clockwise of its low end, clockwise of its high end: the
+// sector is narrower than pi), else the larger end value.
 double sector_max(int sector, double a, double b) {
-  const double lo = std::numbers::pi * sector / kSectors;
-  const double hi = std::numbers::pi * (sector + 1) / kSectors;
-  const double peak = std::atan2(b, a);
-  if (peak >= lo && peak <= hi) return std::sqrt(a * a + b * b);
-  return std::max(std::cos(lo) * a + std::sin(lo) * b, std::cos(hi) * a + std::sin(hi) * b);
+  const double c0 = kSectorEnds.c[sector], s0 = kSectorEnds.s[sector];
+  const double c1 = kSectorEnds.c[sector + 1], s1 = kSectorEnds.s[sector + 1];
+  if (c0 * b - s0 * a >= 0.0 && a * s1 - b * c1 >= 0.0) return std::sqrt(a * a + b * b);
+  return std::max(c0 * a + s0 * b, c1 * a + s1 * b);
 }
 
 // The largest v.w over the piece's directions of `side` (nominal), plus eps |w|.
@@ -635,7 +648,8 @@ struct Search {
   struct Entry {
     double bound;
     std::int32_t foot;
-    std::int64_t x;  // >= 0: pieces[x]; < 0: hierarchy node ~x
+    std::int64_t x;       // >= 0: pieces[x]; < 0: hierarchy node ~x
+    double x_diag = 0.0;  // a piece's box diagonal in the foot piece's frame
     bool operator>(const Entry& o) const { return bound > o.bound; }
   };
   std::vector<Entry> heap;
@@ -679,8 +693,7 @@ class CellBounds {
       const bool x_can = x.level_s < kMaxLevel || x.level_t < kMaxLevel;
       if (!f_can && !x_can) return e.bound;
       const double f_diag = f.box.diagonal();
-      const double x_diag = piece_box(x, f.frame).diagonal();
-      if (f_can && (!x_can || f_diag >= x_diag)) {
+      if (f_can && (!x_can || f_diag >= e.x_diag)) {
         split_foot(e.foot, e.x);
       } else {
         split_piece(e.foot, e.x);
@@ -690,9 +703,9 @@ class CellBounds {
   }
 
  private:
-  void push(std::int32_t foot, std::int64_t x, double bound) {
+  void push(std::int32_t foot, std::int64_t x, double bound, double x_diag = 0.0) {
     if (!(bound < target_)) return;  // never needed: the search stops before reaching it
-    s_.heap.push_back({bound, foot, x});
+    s_.heap.push_back({bound, foot, x, x_diag});
     std::push_heap(s_.heap.begin(), s_.heap.end(), std::greater<>());
   }
 
@@ -705,7 +718,8 @@ class CellBounds {
   void push_piece(std::int32_t foot, std::int64_t x) {
     const FootPiece& f = s_.feet[static_cast<std::size_t>(foot)];
     const ModelPiece& m = s_.pieces[static_cast<std::size_t>(x)];
-    push(foot, x, pair_bound(f, piece_box(m, f.frame), side_));
+    const Aabb box = piece_box(m, f.frame);
+    push(foot, x, pair_bound(f, box, side_), box.diagonal());
   }
 
   Aabb piece_box(const ModelPiece& m, const Frame& frame) const {
