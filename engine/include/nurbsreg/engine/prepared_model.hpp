@@ -110,7 +110,8 @@ class PreparedModel {
   };
   // Builds the bounds once (thread-safe; later calls return at once).
   void prepare_reach_bounds() const;
-  // Cells per patch side: 8, 4, 2 or 1 (fewer on models of many patches: construction time).
+  // Cells per patch side: 16, 8, 4, 2 or 1 (fewer on models of many patches: construction
+  // time).
   int reach_cells_per_side() const { return reach_->k; }
   // Patch i's cell holding local (s, t) in [0, 1]^2; null when the patch has no reach bounds or
   // they are not built.
