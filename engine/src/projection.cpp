@@ -194,6 +194,16 @@ bool newton_over_patch(const BezierPatch& bp, const Vec3& p, SurfaceHit& best) {
   return stationary;
 }
 
+// cos(k pi / PreparedModel::kReachSectors): where sector k of the boundary cone starts.
+struct SectorStartCosine {
+  double value[PreparedModel::kReachSectors];
+  SectorStartCosine() {
+    for (int k = 0; k < PreparedModel::kReachSectors; ++k)
+      value[k] = std::cos(k * std::numbers::pi / PreparedModel::kReachSectors);
+  }
+};
+const SectorStartCosine kSectorStartCosine;
+
 // The model's reach bounds (PreparedModel::ReachCell) prove that `foot`, a KKT point of
 // a Newton over all of `patch` at local (s, t), is the model's closest point to p: p lies
 // closer to it than the cut distance of its cell, along the normal (an orthogonal foot) or in the
@@ -220,13 +230,14 @@ bool reach_proves(const PreparedModel& model, std::int64_t patch, double s, doub
   const double along = (p - foot).dot(normal);
   double rho;
   if (s_edge || t_edge) {
-    // The direction's angle from the normal picks the sector (on a sectors' common border
-    // either bound holds).
+    // The direction's angle th from the normal picks the sector: th >= k pi / kReachSectors
+    // where cos th <= that angle's cosine (on a sectors' common border either bound holds).
     const double d = std::sqrt(distance_sq);
-    const double theta = d > 0.0 ? std::acos(std::clamp(along / d, -1.0, 1.0)) : 0.0;
-    const int sector =
-        std::clamp(static_cast<int>(theta * (PreparedModel::kReachSectors / std::numbers::pi)), 0,
-                   PreparedModel::kReachSectors - 1);
+    const double cos_theta = d > 0.0 ? along / d : 1.0;
+    int sector = 0;
+    while (sector + 1 < PreparedModel::kReachSectors &&
+           cos_theta <= kSectorStartCosine.value[sector + 1])
+      ++sector;
     rho = cell->boundary[sector];
   } else {
     rho = along >= 0.0 ? cell->plus : cell->minus;
