@@ -273,6 +273,17 @@ void bernstein_012(int n, double t, double* b0, double* b1, double* b2) {
 // sums, then the quotient rule (The NURBS Book eq. 4.20). The same formulas as
 // BezierPatch::derivatives with one basis pass per direction and no zero-filled storage: the
 // Newton iteration's inner cost.
+// Every weight exactly 1 (a polynomial patch, as most CAD surfaces' are): the homogeneous sums are
+// then the derivatives themselves, and the quotient rule (a division and ~50 operations, 9% of a
+// warm frame's time) would only divide by sums of the Bernstein values that rounding keeps
+// near 1 and 0.
+[[gnu::always_inline]] inline bool unit_weights(const double* cw, int count) {
+  bool unit = true;
+  for (int k = 0; k < count; ++k)
+    unit &= cw[4 * k + 3] == 1.0;
+  return unit;
+}
+
 // The quotient rule from the six homogeneous sums a_kl = d^(k+l) A / ds^k dt^l (A = Σ B B P^w).
 void rational_from_homogeneous(const Vec4& a00, const Vec4& a10, const Vec4& a01, const Vec4& a20,
                                const Vec4& a11, const Vec4& a02, Vec3* out) {
@@ -339,6 +350,15 @@ template <int N>
     a11 += bu[1][i] * r1;
     a20 += bu[2][i] * r0;
   }
+  if (unit_weights(cw->data(), (p + 1) * (q + 1))) {
+    out[0] = a00.head<3>();
+    out[1] = a10.head<3>();
+    out[2] = a01.head<3>();
+    out[3] = a20.head<3>();
+    out[4] = a11.head<3>();
+    out[5] = a02.head<3>();
+    return;
+  }
   rational_from_homogeneous(a00, a10, a01, a20, a11, a02, out);
 }
 
@@ -346,9 +366,10 @@ template <int N>
 // IEEE operations, one SSE2 or AVX register): W = 4 does the four homogeneous coordinates in one
 // pass where AVX is enabled, W = 2 does (x, y) and then (z, w). Each coordinate sees exactly the
 // operations of tensor_derivatives + rational_from_homogeneous in the same order (products, then
-// sums from zero in index order; the same quotient-rule expressions), so the results are
-// bit-identical to them; only the schedule differs: one half of the accumulators at a time fits
-// the 16 SSE registers, where the Vec4 form spilled to the stack.
+// sums from zero in index order; the same quotient-rule expressions, or the same unit-weight
+// shortcut), so the results are bit-identical to them; only the schedule differs: one half of
+// the accumulators at a time fits the 16 SSE registers, where the Vec4 form spilled to the
+// stack.
 #if defined(__AVX__)
 constexpr int kLanes = 4;
 #else
@@ -546,6 +567,17 @@ template <int P, int Q, int W>
     store_lanes(a11 + h, s11);
     store_lanes(a02 + h, s02);
   }
+  if (unit_weights(cw, (P + 1) * (Q + 1))) {
+    for (int c = 0; c < 3; ++c) {
+      out[0][c] = a00[c];
+      out[1][c] = a10[c];
+      out[2][c] = a01[c];
+      out[3][c] = a20[c];
+      out[4][c] = a11[c];
+      out[5][c] = a02[c];
+    }
+    return;
+  }
   // rational_from_homogeneous, coordinate by coordinate, with its expressions' evaluation order.
   const double inv_w = 1.0 / a00[3];
   const double w10 = a10[3], w01 = a01[3], w20 = a20[3], w11 = a11[3], w02 = a02[3];
@@ -594,7 +626,8 @@ void patch_derivatives(const BezierPatch& patch, double s, double t, Vec3* out) 
 
 // S, S_s and S_t only (out[0..2]): the last evaluation of a Newton that is known to stop there
 // needs no second derivatives. The same sums in the same order as tensor_derivatives and
-// rational_from_homogeneous, so the three values are bit-identical to patch_derivatives'.
+// rational_from_homogeneous (or its unit-weight shortcut), so the three values are
+// bit-identical to patch_derivatives'.
 template <int P, int Q>
 [[gnu::always_inline]] inline void patch_first_derivatives_fixed(const BezierPatch& patch, double s,
                                                                  double t, Vec3* out) {
@@ -613,6 +646,12 @@ template <int P, int Q>
     a00 += bu[0][i] * r0;
     a01 += bu[0][i] * r1;
     a10 += bu[1][i] * r0;
+  }
+  if (unit_weights(cw->data(), (P + 1) * (Q + 1))) {
+    out[0] = a00.head<3>();
+    out[1] = a10.head<3>();
+    out[2] = a01.head<3>();
+    return;
   }
   const double inv_w = 1.0 / a00[3];
   const Vec3 x = a00.head<3>() * inv_w;
