@@ -46,14 +46,15 @@ constexpr int kMaxLevel = 7;
 // Pairs taken from the queue per cell and side before the search settles for its current
 // bound (build time: a few hundred microseconds per cell). More for the boundary cone's sectors:
 // their cells are few (the surface's edges), and far points project there (on the peers
-// benchmark's 49-patch panel 1,500 proves 2,000 more of its 100,000 points than 600, for 0.2 s;
-// beyond that the local part limits them; 1,500 for the normal's sides adds 345 for 0.4 s).
+// benchmark's 49-patch panel, 8 x 8 cells a patch: 1,500 proves 2,000 more of its 100,000 points
+// than 600, for 0.2 s; beyond that the local part limits them; 1,500 for the normal's sides adds
+// 345 for 0.4 s).
 constexpr int kBudget = 600;
 constexpr int kBoundaryBudget = 1500;
 constexpr std::size_t kCellBudget = 16384;
 // N reaches beyond the cell on every side by an eighth of the patch, at least half a cell
-// (measured best on the benchmark panels, 8 x 8 and 2 x 2 cells a patch: a wider N weakens the
-// local bound, a narrower one the far search's).
+// (measured best on the benchmark panels, 16 x 16, 8 x 8 and 2 x 2 cells a patch: a wider N
+// weakens the local bound, a narrower one the far search's).
 double margin_in_cells(int cells_per_side) {
   return std::max(0.5, cells_per_side / 8.0);
 }
