@@ -232,8 +232,18 @@ void PreparedModel::prepare_reach_bounds() const {
 std::int64_t PreparedModel::locate_patch(int surface, double u, double v) const {
   const SurfacePatches& layout = surface_patches_[static_cast<std::size_t>(surface)];
   if (layout.spans_u == 0 || layout.spans_v == 0) return -1;
-  // The last span whose lower bound is <= the parameter (the first span below all of them).
+  // The last span whose lower bound is <= the parameter (the first span below all of them): the
+  // number of lower bounds after the first that are <= x. Counted without branches up to 64
+  // spans (a binary search's branches mispredict on every call of a warm frame's scattered
+  // hints), by binary search beyond.
   auto span = [](const std::vector<double>& breaks, double x) {
+    const std::size_t n = breaks.size();
+    if (n <= 64) {
+      int count = 0;
+      for (std::size_t k = 1; k < n; ++k)
+        count += breaks[k] <= x ? 1 : 0;
+      return count;
+    }
     const auto it = std::upper_bound(breaks.begin() + 1, breaks.end(), x);
     return static_cast<int>(it - breaks.begin()) - 1;
   };
