@@ -3,6 +3,7 @@
 #include <cmath>
 #include <limits>
 
+#include "binomial_table.hpp"
 #include "curve_local_solve.hpp"
 #include "nurbsreg/engine/bernstein_clipping.hpp"
 #include "nurbsreg/engine/curve_projection.hpp"
@@ -12,18 +13,8 @@ namespace {
 
 constexpr double kEps = std::numeric_limits<double>::epsilon();
 
-// Binomial coefficients up to 2 * kMaxDegree (exact in double: C(24, 12) < 2^53).
-struct Binomials {
-  double c[kMaxBernsteinDegree + 1][kMaxBernsteinDegree + 1] = {};
-  constexpr Binomials() {
-    for (int n = 0; n <= kMaxBernsteinDegree; ++n) {
-      c[n][0] = c[n][n] = 1.0;
-      for (int k = 1; k < n; ++k)
-        c[n][k] = c[n - 1][k - 1] + c[n - 1][k];
-    }
-  }
-};
-constexpr Binomials kBinomials;
+// Up to 2 * kMaxDegree (Bézier products).
+constexpr BinomialTable<kMaxBernsteinDegree> kBinomials;
 
 }  // namespace
 

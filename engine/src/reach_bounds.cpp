@@ -8,16 +8,18 @@
 // of a cell of a patch and every v of one kind (the normal's two sides, the boundary's cone) is
 // what a cell stores. It is made of two parts:
 //
-//  - x near f: N, the cell grown by one cell's width on every side (within the surface's domain,
-//    and within the patch unless the surface is C1 across patch edges). For f = S(b) and
-//    x = S(a) in N, with Delta = a - b:
+//  - x near f: N, the cell grown by an eighth of a patch (at least half a cell) on every side
+//    (within the surface's domain, and within the patch unless the surface is C1 across patch
+//    edges). For f = S(b) and x = S(a) in N, with Delta = a - b:
 //      |x - f| >= (sigma - E) |Delta|, sigma the smallest singular value of the Jacobian J0 at
 //      the cell's centre and E >= |J - J0| over N (Bézier hodograph bounds), since
 //      x - f = integral of J along the segment times Delta;
-//      v.(x - f) <= K |Delta|^2 / 2, K >= |S''| over N, since v.J(b) Delta <= 0 for every v of
-//      the normal cone at f and every Delta pointing into the domain (Taylor with integral
-//      remainder; S is C1 and piecewise polynomial along the segment).
-//    So t_cut >= (sigma - E)^2 / K for those x.
+//      v.(x - f) <= K |Delta|^2 / 2, K >= v.S''[Delta, Delta] / |Delta|^2 over N (for +n and -n
+//      apart: the signed extremes of n0 . S'', plus the normal's spread times |S''|), since
+//      v.J(b) Delta <= 0 for every v of the normal cone at f and every Delta pointing into the
+//      domain (Taylor with integral remainder; S is C1 and piecewise polynomial along the
+//      segment).
+//    So t_cut >= (sigma - E)^2 / K for those x (no limit where K <= 0: N curves away).
 //  - everything else of the model (every surface's patches, trimmed ones whole: more points only
 //    lower the bound): a best-first branch and bound over pairs (a piece of the cell, a box of
 //    the model), the model's hierarchy first, then Bézier sub-patches. A pair's bound is
@@ -36,6 +38,8 @@
 #include <cmath>
 #include <limits>
 #include <numbers>
+
+#include "binomial_table.hpp"
 
 namespace nurbsreg::engine {
 namespace {
@@ -96,22 +100,18 @@ Grid restrict_to(const BezierPatch& bp, const Rect& r) {
   for (int i = 0; i <= g.p; ++i)
     for (int j = 0; j <= g.q; ++j)
       g.at(i, j) = bp.at(i, j);
+  // Per direction: cut at the rect's high end, then at its low end (rescaled to what is left).
   Grid low, high;
-  if (r.s1 < 1.0) {
-    split(g, 0, r.s1, low, high);
-    g = low;
-  }
-  if (r.s0 > 0.0) {
-    split(g, 0, r.s0 / r.s1, low, high);
-    g = high;
-  }
-  if (r.t1 < 1.0) {
-    split(g, 1, r.t1, low, high);
-    g = low;
-  }
-  if (r.t0 > 0.0) {
-    split(g, 1, r.t0 / r.t1, low, high);
-    g = high;
+  for (int dir = 0; dir < 2; ++dir) {
+    const double lo = dir == 0 ? r.s0 : r.t0, hi = dir == 0 ? r.s1 : r.t1;
+    if (hi < 1.0) {
+      split(g, dir, hi, low, high);
+      g = low;
+    }
+    if (lo > 0.0) {
+      split(g, dir, lo / hi, low, high);
+      g = high;
+    }
   }
   return g;
 }
@@ -190,18 +190,8 @@ DomainEdges touched_edges(const BezierPatch& bp, const Rect& r, const NurbsSurfa
   return e;
 }
 
-// Binomial coefficients up to 2 kMaxDegree (Bézier products).
-struct Binomials {
-  double c[2 * kMaxDegree + 1][2 * kMaxDegree + 1] = {};
-  Binomials() {
-    for (int n = 0; n <= 2 * kMaxDegree; ++n) {
-      c[n][0] = 1.0;
-      for (int k = 1; k <= n; ++k)
-        c[n][k] = c[n - 1][k - 1] + (k <= n - 1 ? c[n - 1][k] : 0.0);
-    }
-  }
-};
-const Binomials kBinomials;
+// Up to 2 kMaxDegree (Bézier products).
+constexpr BinomialTable<2 * kMaxDegree> kBinomials;
 
 // Bound of |x / |x| - x0| over the convex hull of the vectors `c` (a Bézier vector function's
 // control points), x0 unit: |x_perp| <= max |c_perp| and x . x0 >= min c . x0, so the angle is

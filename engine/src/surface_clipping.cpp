@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstring>
 
+#include "binomial_table.hpp"
 #include "cpu_dispatch.hpp"
 #include "nurbsreg/engine/surface_projection.hpp"
 #include "nurbsreg/engine/trim_region.hpp"
@@ -212,18 +213,6 @@ bool convex_polynomial(const double* a, int rows, int cols) {
   return second_derivative_ranges(a, rows, cols, f) && convex(f);
 }
 
-// Binomial coefficients C(n, i), n <= N, exact in double.
-template <int N>
-struct BinomialTable {
-  double c[N + 1][N + 1] = {};
-  constexpr BinomialTable() {
-    for (int n = 0; n <= N; ++n) {
-      c[n][0] = c[n][n] = 1.0;
-      for (int i = 1; i < n; ++i)
-        c[n][i] = c[n - 1][i - 1] + c[n - 1][i];
-    }
-  }
-};
 constexpr BinomialTable<kMaxDegree> kBinomial;
 // Up to the degree of the squared distance along a boundary curve (bernstein_minimiser).
 constexpr BinomialTable<2 * kMaxDegree> kWideBinomial;

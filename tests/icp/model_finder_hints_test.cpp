@@ -124,7 +124,6 @@ TEST_F(ModelFinderHints, CertificatesAreReusedInPlaceCarriedAndForgotten) {
   const std::vector<std::size_t> superset = every(2, 1);      // odd: holds coarse
   const double small = 1e-5 * prepared_.bounds().diagonal();  // below half the radius cap
   ModelCorrespondenceFinder finder(prepared_);
-  finder.use_reach_bounds(false);  // the certificates alone (reach bounds would prove most)
   finder.reset(scan_.size());
   EXPECT_EQ(find_and_check(finder, coarse, 0.0, kUnknown).certified, 0u);
   const engine::ProjectionCounters made = find_and_check(finder, coarse, 1e-4, small);

@@ -94,12 +94,12 @@ class PreparedModel {
   //   for a cell that does not touch the surface's edge.
   // Floats rounded down. 0 where nothing is proven (a cell touching another part of the
   // model, a seam, a pole, a crease).
-  // Built only on request (prepare_reach_bounds: about 0.2 ms per cell on 2 cores, ~0.7 s for a
-  // 49-patch model at 8 x 8 cells a patch): they pay where frames come with bare (surface, u, v)
-  // hints (tracking without certificates: ~0.3 us saved per point on the 49-patch benchmark
-  // panel, so after a few million points), not in a one-off cold frame nor in ICP, whose
-  // certificates already skip the search (the default alignment took 0.86 s without them and
-  // 1.75 s with them built during its run).
+  // Built only on request (prepare_reach_bounds: about 0.2 ms per cell on 2 cores, ~2.3 s for a
+  // 49-patch model at 16 x 16 cells a patch): they pay where frames come with bare (surface, u,
+  // v) hints (tracking without certificates: ~0.3 us of wall time saved per point on 2 cores on
+  // the 49-patch benchmark panel, so after about seven million points), not in a one-off cold
+  // frame nor in ICP, whose certificates already skip the search (the default alignment took
+  // 0.86 s without them and 1.75 s with 0.8 s bounds built during its run).
   static constexpr int kReachSectors = 8;
   static constexpr std::uint32_t kNoReach = 0xffffffffu;  // a patch without cells
   struct ReachCell {

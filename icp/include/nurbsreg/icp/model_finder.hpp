@@ -42,8 +42,6 @@ class ModelCorrespondenceFinder final : public CorrespondenceFinder {
   // model's bounding-box diagonal, so that a certificate made on a 10% subsample usually covers
   // the points between.
   double certificate_radius() const { return certificate_radius_; }
-  // engine::ProjectionOptions::reach_bounds for every find() (default true).
-  void use_reach_bounds(bool on) { reach_bounds_ = on; }
 
  private:
   bool beyond_edge(std::size_t k, const engine::Vec3& p, const Correspondence& c) const;
@@ -62,7 +60,6 @@ class ModelCorrespondenceFinder final : public CorrespondenceFinder {
   engine::ProjectionResults results_;
   engine::ProjectionCounters counters_;
   double certificate_radius_ = 0.0;
-  bool reach_bounds_ = true;
   std::size_t scan_size_ = 0;
   // The scan points of the previous query since reset(): all of them in order
   // (previous_all_), or previous_indices_.
