@@ -11,11 +11,11 @@
 #include "common.hpp"
 #include "frame_jobs.hpp"
 #include "nurbsreg/icp/icp.hpp"
-#include "nurbsreg/icp/model_finder.hpp"
 #include "nurbsreg/io/errors.hpp"
 #include "nurbsreg/io/point_cloud.hpp"
 #include "nurbsreg/io/pose.hpp"
 #include "nurbsreg/io/projection_results.hpp"
+#include "nurbsreg/registration/alignment.hpp"
 
 namespace nurbsreg::cli {
 namespace {
@@ -61,22 +61,20 @@ void run_align(const AlignArgs& args) {
                cloud.skipped_nonfinite);
 
   const engine::PreparedModel prepared(std::move(model));
-  icp::ModelCorrespondenceFinder finder(prepared);
-  icp::IcpSolver solver(options);
-  const ScanSize sizes = scan_size(cloud, prepared);
-  const AlignFrameResult frame = align_frame(finder, solver, cloud, init, args.icp);
+  registration::Aligner aligner(prepared, options);
+  const registration::AlignmentResult frame = align_frame(aligner, cloud, init);
   const icp::IcpResult& result = frame.icp;
-  const Deviation& dev = frame.deviation;
+  const registration::DeviationSummary& dev = frame.deviation;
   spdlog::info("{}", result.brief_report());
-  if (const auto failure = alignment_failure(result, args.icp, sizes)) {
+  if (const auto& failure = frame.failure) {
     // No pose and no aligned scan: they would align nothing. The report says what happened
     // (converged: false, the termination and every iteration).
-    write_align_outputs(frame, finder.last_results(), cloud, args.icp,
+    write_align_outputs(frame, aligner.last_projections(), cloud, args.icp,
                         AlignOutputs{"", "", args.report}, total);
     throw std::runtime_error(args.scan + ": " + *failure);
   }
   warn_if_unconverged(args.scan, result, args.icp);
-  if (const auto note = sizes.warning()) spdlog::warn("{}: {}", args.scan, *note);
+  if (const auto note = frame.sizes.warning()) spdlog::warn("{}: {}", args.scan, *note);
   if (result.degeneracy.degenerate()) {
     spdlog::warn("the scan does not constrain the pose fully; free directions: {}",
                  result.degeneracy.describe());
@@ -93,7 +91,7 @@ void run_align(const AlignArgs& args) {
   if (result.degeneracy.degenerate()) {
     std::cout << "degenerate: unconstrained " << result.degeneracy.describe() << "\n";
   }
-  write_align_outputs(frame, finder.last_results(), cloud, args.icp,
+  write_align_outputs(frame, aligner.last_projections(), cloud, args.icp,
                       AlignOutputs{args.out_pose, args.aligned, args.report}, total);
   spdlog::info("aligned {} points in {:.2f} s", cloud.size(), total.seconds());
 }

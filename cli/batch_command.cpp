@@ -3,7 +3,7 @@
 //
 // Design:
 //  - The model is loaded and prepared once (PreparedModel is immutable and shared); every frame
-//    in flight borrows a Worker (Projector, or correspondence finder + ICP solver) from a pool,
+//    in flight borrows a Worker (Projector, or registration::Aligner) from a pool,
 //    so the per-thread scratch of those objects is reused over frames.
 //  - A tbb::parallel_pipeline of four filters: pick the next frame (serial, in order) -> read
 //    (parallel) -> align or project and write (parallel) -> record (serial, in order). At most
@@ -281,8 +281,7 @@ bool frame_complete(const Frame& frame) {
 // then reused. One frame at a time per Worker.
 struct Worker {
   std::unique_ptr<engine::Projector> projector;
-  std::unique_ptr<icp::ModelCorrespondenceFinder> finder;
-  std::unique_ptr<icp::IcpSolver> solver;
+  std::unique_ptr<registration::Aligner> aligner;
 };
 
 class WorkerPool {
@@ -292,8 +291,7 @@ class WorkerPool {
     for (std::size_t i = 0; i < size; ++i) {
       auto w = std::make_unique<Worker>();
       if (align) {
-        w->finder = std::make_unique<icp::ModelCorrespondenceFinder>(model);
-        w->solver = std::make_unique<icp::IcpSolver>(options);
+        w->aligner = std::make_unique<registration::Aligner>(model, options);
       } else {
         w->projector = std::make_unique<engine::Projector>(model);
       }
@@ -533,16 +531,15 @@ void run_batch(const BatchArgs& args) {
           // does not start another frame's work on top of it (bounded stack, and each
           // Worker's per-thread scratch is used by one frame at a time).
           tbb::this_task_arena::isolate([&] {
-            const ScanSize sizes = scan_size(token->cloud, prepared);
+            const registration::ScanSize sizes = scan_size(token->cloud, prepared);
             if (align) {
-              const AlignFrameResult r =
-                  align_frame(*worker->finder, *worker->solver, token->cloud, init, args.icp);
+              const registration::AlignmentResult r =
+                  align_frame(*worker->aligner, token->cloud, init);
               // A failed frame keeps no output (fail() removes them); its reason is in the
               // summary.
-              if (const auto failure = alignment_failure(r.icp, args.icp, sizes))
-                throw std::runtime_error(*failure);
+              if (r.failure) throw std::runtime_error(*r.failure);
               warn_if_unconverged(token->row.file, r.icp, args.icp);
-              write_align_outputs(r, worker->finder->last_results(), token->cloud, args.icp,
+              write_align_outputs(r, worker->aligner->last_projections(), token->cloud, args.icp,
                                   frame.align, token->clock);
               token->row.rms = fmt::format("{}", r.icp.rms);
               token->row.iterations = std::to_string(r.icp.iterations);

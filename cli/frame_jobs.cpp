@@ -20,36 +20,6 @@ namespace {
 // few lines a second without costing parallelism.
 constexpr std::size_t kProgressBlock = 1 << 18;
 
-Deviation summarise(std::vector<double> distances) {
-  Deviation d;
-  d.count = distances.size();
-  if (distances.empty()) return d;
-  double sum = 0.0;
-  double sum_sq = 0.0;
-  for (double x : distances) {
-    sum += x;
-    sum_sq += x * x;
-  }
-  // The order statistics of the sorted distances, by selection instead of a sort (a tenth of a
-  // second on a 1 M-point scan): each nth_element leaves the smaller values before its index,
-  // where the next, smaller quantile is selected.
-  const auto index = [&](double q) {
-    return static_cast<std::ptrdiff_t>(q * static_cast<double>(distances.size() - 1));
-  };
-  const auto begin = distances.begin();
-  const std::ptrdiff_t i99 = index(0.99), i95 = index(0.95), i50 = index(0.5);
-  std::nth_element(begin, begin + i99, distances.end());
-  std::nth_element(begin, begin + i95, begin + i99);
-  std::nth_element(begin, begin + i50, begin + i95);
-  d.mean = sum / static_cast<double>(distances.size());
-  d.rms = std::sqrt(sum_sq / static_cast<double>(distances.size()));
-  d.p50 = begin[i50];
-  d.p95 = begin[i95];
-  d.p99 = begin[i99];
-  d.max = *std::max_element(begin + i99, distances.end());
-  return d;
-}
-
 }  // namespace
 
 engine::ProjectionTarget parse_projection_target(const std::string& target) {
@@ -166,81 +136,18 @@ icp::IcpOptions icp_options(const IcpArgs& args) {
   return options;
 }
 
-AlignFrameResult align_frame(icp::ModelCorrespondenceFinder& finder, icp::IcpSolver& solver,
-                             const io::PointCloud& cloud, const Eigen::Isometry3d& init,
-                             const IcpArgs& args) {
-  AlignFrameResult frame;
-  frame.icp = solver.align(finder, cloud.points, init);
-  const icp::IcpResult& result = frame.icp;
-  for (const icp::IcpIteration& it : result.log) {
-    spdlog::debug("stage {} rms {:.6g} inliers {}/{} step {:.3g} rad {:.3g}", it.stage, it.rms,
-                  it.inliers, it.points, it.rotation_step, it.translation_step);
+registration::AlignmentResult align_frame(registration::Aligner& aligner,
+                                          const io::PointCloud& cloud,
+                                          const Eigen::Isometry3d& init) {
+  try {
+    return aligner.align(cloud.points, init);
+  } catch (const std::invalid_argument& e) {
+    throw UsageError(e.what());
   }
-  if (result.termination == icp::IcpTermination::invalid_input) {
-    throw UsageError("align: " + result.message);
-  }
-
-  // Final per-point deviations at the solved pose (exact projections, warm-started).
-  std::vector<engine::Vec3>& aligned = frame.aligned;
-  aligned.resize(cloud.size());
-  for (std::size_t i = 0; i < cloud.size(); ++i)
-    aligned[i] = result.T_model_scan * cloud.points[i];
-  std::vector<icp::Correspondence> correspondences(cloud.size());
-  icp::CorrespondenceQuery query;
-  query.points = aligned;
-  finder.find(query, correspondences);
-  const engine::ProjectionResults& proj = finder.last_results();
-  std::vector<double> inlier_distances;
-  for (std::size_t i = 0; i < cloud.size(); ++i) {
-    if (proj.distance[i] <= args.max_distance) inlier_distances.push_back(proj.distance[i]);
-  }
-  frame.deviation = summarise(std::move(inlier_distances));
-  return frame;
 }
 
-ScanSize scan_size(const io::PointCloud& cloud, const engine::PreparedModel& model) {
-  engine::Aabb box;
-  for (const engine::Vec3& p : cloud.points)
-    box.extend(p);
-  return {box.diagonal(), model.bounds().diagonal(), model.model().units};
-}
-
-std::optional<std::string> ScanSize::note(double smaller, double larger) const {
-  if (!(scan > 0.0) || !(model > 0.0)) return std::nullopt;
-  const double ratio = scan / model;
-  if (ratio >= smaller && ratio <= larger) return std::nullopt;
-  const auto factor = [](double x) { return fmt::format("{:.{}f}", x, x >= 10.0 ? 0 : 1); };
-  const std::string diagonals =
-      fmt::format("(bounding-box diagonals {:.4g} and {:.4g} {})", scan, model, units);
-  if (ratio > larger) {
-    return fmt::format(
-        "the scan is {} times the size of the model {}: are both in the same units (m, mm, in)? "
-        "Or does the scan hold more than the part?",
-        factor(ratio), diagonals);
-  }
-  return fmt::format(
-      "the scan is 1/{} of the size of the model {}: are both in the same units (m, mm, in)?",
-      factor(1.0 / ratio), diagonals);
-}
-
-std::optional<std::string> alignment_failure(const icp::IcpResult& result, const IcpArgs& args,
-                                             const ScanSize& sizes) {
-  using icp::IcpTermination;
-  if (result.termination != IcpTermination::too_few_correspondences &&
-      result.termination != IcpTermination::numerical_failure) {
-    return std::nullopt;
-  }
-  std::string reason =
-      fmt::format("alignment failed after {} iterations: {} ({})", result.iterations,
-                  icp::to_string(result.termination), result.message);
-  // A scan with fewer points than a pose needs fails wherever it lies: no hint about its place.
-  const bool scan_too_small = result.points < icp_options(args).min_correspondences;
-  if (result.termination == IcpTermination::too_few_correspondences && !scan_too_small) {
-    reason += "; is the scan near the model? Give a starting pose (--init)";
-    if (std::isfinite(args.max_distance)) reason += " or a larger --max-distance";
-  }
-  if (const auto note = sizes.failure_note()) reason += "; " + *note;
-  return reason;
+registration::ScanSize scan_size(const io::PointCloud& cloud, const engine::PreparedModel& model) {
+  return registration::scan_size(cloud.points, model);
 }
 
 void warn_if_unconverged(const std::string& scan, const icp::IcpResult& result,
@@ -250,9 +157,9 @@ void warn_if_unconverged(const std::string& scan, const icp::IcpResult& result,
                scan, args.max_iterations);
 }
 
-void write_align_outputs(const AlignFrameResult& frame, const engine::ProjectionResults& proj,
-                         const io::PointCloud& cloud, const IcpArgs& args,
-                         const AlignOutputs& outputs, const Stopwatch& clock) {
+void write_align_outputs(const registration::AlignmentResult& frame,
+                         const engine::ProjectionResults& proj, const io::PointCloud& cloud,
+                         const IcpArgs& args, const AlignOutputs& outputs, const Stopwatch& clock) {
   const icp::IcpResult& result = frame.icp;
   const std::vector<engine::Vec3>& aligned = frame.aligned;
 

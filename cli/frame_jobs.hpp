@@ -24,6 +24,7 @@
 #include "nurbsreg/icp/icp.hpp"
 #include "nurbsreg/icp/model_finder.hpp"
 #include "nurbsreg/io/point_cloud.hpp"
+#include "nurbsreg/registration/alignment.hpp"
 
 namespace nurbsreg::cli {
 
@@ -54,24 +55,8 @@ ProjectFrameResult project_frame(engine::Projector& projector, const io::PointCl
 
 // ---- scan against model ----------------------------------------------------------------------
 
-// The sizes (bounding-box diagonals) of a scan and of the model, to tell the user when they are
-// far apart: a scan in metres against a model in millimetres is 1/1000 of it, and ICP then
-// "aligns" it onto a small patch of the model with a tiny rms; a scan in inches is 1/25.4; a
-// scan of a whole scene is much larger than its part.
-struct ScanSize {
-  double scan = 0.0;
-  double model = 0.0;
-  std::string units;  // the model's
-
-  // One line when scan / model lies outside [smaller, larger]; nothing otherwise, or when either
-  // has no size (a single point).
-  std::optional<std::string> note(double smaller, double larger) const;
-  // The warning of every command: partial views of large models stay quiet down to 1/200.
-  std::optional<std::string> warning() const { return note(1.0 / 200.0, 8.0); }
-  // Added to a failed alignment's message, where a mismatch is the likelier cause: 1/10 and 4.
-  std::optional<std::string> failure_note() const { return note(0.1, 4.0); }
-};
-ScanSize scan_size(const io::PointCloud& cloud, const engine::PreparedModel& model);
+// The scan's and the model's sizes (registration::ScanSize) for a loaded cloud.
+registration::ScanSize scan_size(const io::PointCloud& cloud, const engine::PreparedModel& model);
 
 // ---- align ---------------------------------------------------------------------------------
 
@@ -96,34 +81,14 @@ struct AlignOutputs {
   std::string report;
 };
 
-// Deviation of the aligned scan from the model: order statistics of |d| over the inliers.
-struct Deviation {
-  std::size_t count = 0;
-  double mean = 0, rms = 0, p50 = 0, p95 = 0, p99 = 0, max = 0;
-};
+// An alignment run by the command line: the scan's non-empty points through `aligner` from
+// `init`. Logs each iteration at debug level; throws UsageError when ICP rejects the input
+// (IcpTermination::invalid_input). Afterwards `aligner.last_projections()` holds the exact
+// projections of the aligned points (for write_align_outputs).
+registration::AlignmentResult align_frame(registration::Aligner& aligner,
+                                          const io::PointCloud& cloud,
+                                          const Eigen::Isometry3d& init);
 
-struct AlignFrameResult {
-  icp::IcpResult icp;
-  Deviation deviation;
-  std::vector<engine::Vec3> aligned;  // T * scan point, for the aligned cloud
-};
-
-// Aligns `cloud` (must be non-empty: the caller reports an empty scan) from `init` and computes
-// the final deviations; afterwards `finder.last_results()` holds the exact projections of
-// `aligned` (for write_align_outputs). Throws UsageError when ICP rejects the input
-// (IcpTermination::invalid_input).
-AlignFrameResult align_frame(icp::ModelCorrespondenceFinder& finder, icp::IcpSolver& solver,
-                             const io::PointCloud& cloud, const Eigen::Isometry3d& init,
-                             const IcpArgs& args);
-
-// Why an alignment gave no pose to use, as one line for the user, or nothing. ICP that lost its
-// correspondences (fewer inliers than it needs: the scan is too far from the model, beyond
-// --max-distance or beside the model's free edges) or whose normal equations broke down returns
-// whatever pose it had reached, which aligns nothing. A run that only ran out of iterations is
-// not a failure: its pose is reported (converged: false) with warn_if_unconverged's warning.
-// The sizes' failure_note, when there is one, ends the line.
-std::optional<std::string> alignment_failure(const icp::IcpResult& result, const IcpArgs& args,
-                                             const ScanSize& sizes);
 // The warning for a pose that ran out of iterations (IcpTermination::max_iterations), naming the
 // scan; nothing otherwise.
 void warn_if_unconverged(const std::string& scan, const icp::IcpResult& result,
@@ -132,7 +97,7 @@ void warn_if_unconverged(const std::string& scan, const icp::IcpResult& result,
 // Writes the requested outputs of an aligned frame; `projections` are the final ones
 // (finder.last_results() right after align_frame). The report's "seconds" is read from `clock`
 // (the single command: started with the command; batch: with the frame).
-void write_align_outputs(const AlignFrameResult& frame,
+void write_align_outputs(const registration::AlignmentResult& frame,
                          const engine::ProjectionResults& projections, const io::PointCloud& cloud,
                          const IcpArgs& args, const AlignOutputs& outputs, const Stopwatch& clock);
 

@@ -1,0 +1,32 @@
+#pragma once
+// The sizes (bounding-box diagonals) of a scan and of the model, to tell the user when they are
+// far apart: a scan in metres against a model in millimetres is 1/1000 of it, and ICP then
+// "aligns" it onto a small patch of the model with a tiny rms; a scan in inches is 1/25.4; a
+// scan of a whole scene is much larger than its part.
+
+#include <optional>
+#include <span>
+#include <string>
+
+#include "nurbsreg/engine/prepared_model.hpp"
+#include "nurbsreg/engine/types.hpp"
+
+namespace nurbsreg::registration {
+
+struct ScanSize {
+  double scan = 0.0;
+  double model = 0.0;
+  std::string units;  // the model's
+
+  // One line when scan / model lies outside [smaller, larger]; nothing otherwise, or when either
+  // has no size (a single point).
+  std::optional<std::string> note(double smaller, double larger) const;
+  // The warning of every command: partial views of large models stay quiet down to 1/200.
+  std::optional<std::string> warning() const { return note(1.0 / 200.0, 8.0); }
+  // Added to a failed alignment's message, where a mismatch is the likelier cause: 1/10 and 4.
+  std::optional<std::string> failure_note() const { return note(0.1, 4.0); }
+};
+
+ScanSize scan_size(std::span<const engine::Vec3> scan, const engine::PreparedModel& model);
+
+}  // namespace nurbsreg::registration

@@ -1,0 +1,32 @@
+#include "nurbsreg/registration/scan_size.hpp"
+
+#include <spdlog/fmt/fmt.h>
+
+namespace nurbsreg::registration {
+
+ScanSize scan_size(std::span<const engine::Vec3> scan, const engine::PreparedModel& model) {
+  engine::Aabb box;
+  for (const engine::Vec3& p : scan)
+    box.extend(p);
+  return {box.diagonal(), model.bounds().diagonal(), model.model().units};
+}
+
+std::optional<std::string> ScanSize::note(double smaller, double larger) const {
+  if (!(scan > 0.0) || !(model > 0.0)) return std::nullopt;
+  const double ratio = scan / model;
+  if (ratio >= smaller && ratio <= larger) return std::nullopt;
+  const auto factor = [](double x) { return fmt::format("{:.{}f}", x, x >= 10.0 ? 0 : 1); };
+  const std::string diagonals =
+      fmt::format("(bounding-box diagonals {:.4g} and {:.4g} {})", scan, model, units);
+  if (ratio > larger) {
+    return fmt::format(
+        "the scan is {} times the size of the model {}: are both in the same units (m, mm, in)? "
+        "Or does the scan hold more than the part?",
+        factor(ratio), diagonals);
+  }
+  return fmt::format(
+      "the scan is 1/{} of the size of the model {}: are both in the same units (m, mm, in)?",
+      factor(1.0 / ratio), diagonals);
+}
+
+}  // namespace nurbsreg::registration

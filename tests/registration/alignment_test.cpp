@@ -1,0 +1,126 @@
+// registration::Aligner, the one alignment call behind align, batch, the service and Python:
+// the pose against the known one of a synthetic scan, the deviation summary against a sort, the
+// failure line when ICP loses its correspondences, and warm reuse over frames.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+#include <random>
+#include <stdexcept>
+
+#include "nurbsreg/engine/prepared_model.hpp"
+#include "nurbsreg/engine/synthetic_scan.hpp"
+#include "nurbsreg/io/model_json.hpp"
+#include "nurbsreg/registration/alignment.hpp"
+
+namespace nurbsreg::registration {
+namespace {
+
+using Eigen::Isometry3d;
+using engine::Vec3;
+
+const engine::PreparedModel& panel() {
+  static const engine::PreparedModel model(io::read_model(NURBSREG_EXAMPLES_DIR "/panel.json"));
+  return model;
+}
+
+Isometry3d true_pose(double size) {
+  Isometry3d T = Isometry3d::Identity();
+  T.linear() = Eigen::AngleAxisd(4.0 * std::numbers::pi / 180.0, Vec3(1, 2, 3).normalized())
+                   .toRotationMatrix();
+  T.translation() = Vec3(3.0, -2.0, 4.0).normalized() * 0.03 * size;
+  return T;
+}
+
+engine::SyntheticScan scan_of(const engine::PreparedModel& model, std::size_t points, double noise,
+                              std::uint64_t seed) {
+  engine::SyntheticScanOptions o;
+  o.points = points;
+  o.noise_sigma = noise;
+  o.T_scan_model = true_pose(model.bounds().diagonal()).inverse();
+  o.seed = seed;
+  return engine::make_synthetic_scan(model.model(), o);
+}
+
+TEST(DeviationSummary, QuantilesAreThoseOfTheSortedValues) {
+  std::mt19937_64 rng(7);
+  std::exponential_distribution<double> dist(3.0);
+  std::vector<double> values(1001);
+  for (double& v : values)
+    v = dist(rng);
+  const DeviationSummary d = summarise_deviations(values);
+  std::vector<double> sorted = values;
+  std::sort(sorted.begin(), sorted.end());
+  double sum = 0, sum_sq = 0;
+  for (double v : values) {
+    sum += v;
+    sum_sq += v * v;
+  }
+  EXPECT_EQ(d.count, 1001u);
+  EXPECT_EQ(d.p50, sorted[500]);
+  EXPECT_EQ(d.p95, sorted[950]);
+  EXPECT_EQ(d.p99, sorted[990]);
+  EXPECT_EQ(d.max, sorted.back());
+  EXPECT_NEAR(d.mean, sum / 1001.0, 1e-12);
+  EXPECT_NEAR(d.rms, std::sqrt(sum_sq / 1001.0), 1e-12);
+  EXPECT_EQ(summarise_deviations({}).count, 0u);
+}
+
+TEST(Aligner, RecoversTheKnownPoseAndSummarisesTheExactDeviations) {
+  const engine::PreparedModel& model = panel();
+  const double noise = 1e-4 * model.bounds().diagonal();
+  const engine::SyntheticScan scan = scan_of(model, 5000, noise, 3);
+  Aligner aligner(model, icp::IcpOptions{});
+  const AlignmentResult r = aligner.align(scan.points, Isometry3d::Identity());
+  ASSERT_TRUE(r.ok()) << *r.failure;
+  const Isometry3d error = true_pose(model.bounds().diagonal()) * r.icp.T_model_scan.inverse();
+  EXPECT_LT(Eigen::AngleAxisd(error.linear()).angle(), 1e-3);
+  EXPECT_LT(error.translation().norm(), 10 * noise);
+  ASSERT_EQ(r.aligned.size(), scan.points.size());
+  // The deviations are the exact distances of the aligned points: at the noise level.
+  EXPECT_EQ(r.deviation.count, scan.points.size());
+  EXPECT_LT(r.deviation.rms, 2 * noise);
+  EXPECT_GT(r.deviation.rms, 0.5 * noise);
+  const engine::ProjectionResults& proj = aligner.last_projections();
+  ASSERT_EQ(proj.distance.size(), scan.points.size());
+  std::vector<double> distances(proj.distance.begin(), proj.distance.end());
+  EXPECT_EQ(summarise_deviations(distances).p95, r.deviation.p95);
+  EXPECT_NEAR(r.sizes.model, model.bounds().diagonal(), 0.0);
+}
+
+TEST(Aligner, ReusedOverFramesGivesTheSamePoseAsAFreshOne) {
+  const engine::PreparedModel& model = panel();
+  const double noise = 1e-4 * model.bounds().diagonal();
+  const engine::SyntheticScan first = scan_of(model, 3000, noise, 11);
+  const engine::SyntheticScan second = scan_of(model, 4000, noise, 12);
+  Aligner reused(model, icp::IcpOptions{});
+  (void)reused.align(first.points, Isometry3d::Identity());
+  const AlignmentResult warm = reused.align(second.points, Isometry3d::Identity());
+  Aligner fresh(model, icp::IcpOptions{});
+  const AlignmentResult cold = fresh.align(second.points, Isometry3d::Identity());
+  EXPECT_TRUE(warm.icp.T_model_scan.matrix().isApprox(cold.icp.T_model_scan.matrix(), 1e-9));
+}
+
+TEST(Aligner, AScanFarFromTheModelFailsWithAReason) {
+  const engine::PreparedModel& model = panel();
+  const engine::SyntheticScan scan = scan_of(model, 2000, 0.0, 5);
+  icp::IcpOptions options;
+  options.max_correspondence_distance = 1e-3 * model.bounds().diagonal();
+  Aligner aligner(model, options);
+  Isometry3d far = Isometry3d::Identity();
+  far.translation() = Vec3(0, 0, 10 * model.bounds().diagonal());
+  const AlignmentResult r = aligner.align(scan.points, far);
+  ASSERT_FALSE(r.ok());
+  EXPECT_NE(r.failure->find("alignment failed"), std::string::npos) << *r.failure;
+  EXPECT_NE(r.failure->find("--max-distance"), std::string::npos) << *r.failure;
+}
+
+TEST(Aligner, InvalidOptionsAreRejectedByName) {
+  icp::IcpOptions options;
+  options.keep_fraction = 0.0;
+  EXPECT_THROW(Aligner(panel(), options), std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace nurbsreg::registration
