@@ -67,7 +67,7 @@ class Bvh {
   // primitive (the larger of it and the primitive's box distance is used); `visit(primitive,
   // alpha_sq)` may lower alpha_sq. Primitives are visited in order of increasing bound, and one
   // whose bound is >= alpha_sq at that moment is never visited. Always inlined: the walk then
-  // runs in its caller's code, which may be an AVX2 clone (engine/src/cpu_dispatch.hpp).
+  // runs in its caller's code, which may be an AVX2 clone (engine/src/platform/cpu_dispatch.hpp).
   template <typename LowerBound, typename Visit>
   void nearest(const Vec3& p, double& alpha_sq, Scratch& scratch, LowerBound&& lower_bound,
                Visit&& visit) const;

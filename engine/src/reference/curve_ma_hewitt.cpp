@@ -9,8 +9,8 @@
 #include <algorithm>
 #include <cmath>
 
-#include "curve_local_solve.hpp"
-#include "curve_ma_hewitt.hpp"
+#include "curve/curve_local_solve.hpp"
+#include "reference/curve_ma_hewitt.hpp"
 
 namespace nurbsreg::engine::detail {
 namespace {

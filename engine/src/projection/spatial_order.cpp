@@ -1,4 +1,4 @@
-#include "spatial_order.hpp"
+#include "projection/spatial_order.hpp"
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>

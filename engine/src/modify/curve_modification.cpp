@@ -19,7 +19,7 @@
 #include <cmath>
 #include <stdexcept>
 
-#include "curve_modification_detail.hpp"
+#include "modify/curve_modification_detail.hpp"
 #include "nurbsreg/engine/basis.hpp"
 
 namespace nurbsreg::engine {

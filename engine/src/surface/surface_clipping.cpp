@@ -7,11 +7,11 @@
 #include <cmath>
 #include <cstring>
 
-#include "binomial_table.hpp"
-#include "cpu_dispatch.hpp"
+#include "bernstein/binomial_table.hpp"
+#include "platform/cpu_dispatch.hpp"
 #include "nurbsreg/engine/surface_projection.hpp"
 #include "nurbsreg/engine/trim_region.hpp"
-#include "warm_certificate.hpp"
+#include "proofs/warm_certificate.hpp"
 
 namespace nurbsreg::engine {
 namespace {

@@ -1,4 +1,4 @@
-#include "validation.hpp"
+#include "geometry/validation.hpp"
 
 #include <cmath>
 #include <sstream>

@@ -3,8 +3,8 @@
 #include <cmath>
 #include <limits>
 
-#include "binomial_table.hpp"
-#include "curve_local_solve.hpp"
+#include "bernstein/binomial_table.hpp"
+#include "curve/curve_local_solve.hpp"
 #include "nurbsreg/engine/bernstein_clipping.hpp"
 #include "nurbsreg/engine/curve_projection.hpp"
 

@@ -6,7 +6,7 @@
 #include <set>
 #include <stdexcept>
 
-#include "curve_modification_detail.hpp"
+#include "modify/curve_modification_detail.hpp"
 
 namespace nurbsreg::engine {
 

@@ -9,8 +9,8 @@
 #include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
 
-#include "curve_local_solve.hpp"
-#include "curve_ma_hewitt.hpp"
+#include "curve/curve_local_solve.hpp"
+#include "reference/curve_ma_hewitt.hpp"
 #include "nurbsreg/engine/curve_projection.hpp"
 #include "nurbsreg/engine/decompose.hpp"
 

@@ -10,7 +10,7 @@
 
 #include "nurbsreg/engine/bounds.hpp"
 #include "nurbsreg/engine/sampling.hpp"
-#include "random_streams.hpp"
+#include "synth/random_streams.hpp"
 
 namespace nurbsreg::engine {
 

@@ -7,7 +7,7 @@
 #include <stdexcept>
 
 #include "nurbsreg/engine/decompose.hpp"
-#include "reach_bounds.hpp"
+#include "proofs/reach_bounds.hpp"
 
 namespace nurbsreg::engine {
 namespace {

@@ -7,7 +7,7 @@
 #include <cstdint>
 #include <limits>
 
-#include "curve_local_solve.hpp"
+#include "curve/curve_local_solve.hpp"
 
 namespace nurbsreg::engine::detail {
 

@@ -29,7 +29,7 @@
 #include <numbers>
 #include <stdexcept>
 
-#include "curve_modification_detail.hpp"
+#include "modify/curve_modification_detail.hpp"
 
 namespace nurbsreg::engine {
 

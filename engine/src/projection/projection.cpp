@@ -12,10 +12,10 @@
 #include <string>
 #include <type_traits>
 
-#include "cpu_dispatch.hpp"
+#include "platform/cpu_dispatch.hpp"
 #include "nurbsreg/engine/sampling.hpp"
-#include "spatial_order.hpp"
-#include "warm_certificate.hpp"
+#include "projection/spatial_order.hpp"
+#include "proofs/warm_certificate.hpp"
 
 namespace nurbsreg::engine {
 

@@ -14,7 +14,7 @@
 
 #include "nurbsreg/engine/decompose.hpp"
 #include "nurbsreg/engine/trim_region.hpp"
-#include "random_streams.hpp"
+#include "synth/random_streams.hpp"
 
 namespace nurbsreg::engine {
 namespace {

@@ -1,4 +1,4 @@
-#include "reach_bounds.hpp"
+#include "proofs/reach_bounds.hpp"
 
 // Reach bounds. For a foot f of the model M and a unit direction v of M's normal cone at f, the
 // point q = f + d v has f as its closest point on M exactly when the open ball B(f + d v, d)
@@ -39,7 +39,7 @@
 #include <limits>
 #include <numbers>
 
-#include "binomial_table.hpp"
+#include "bernstein/binomial_table.hpp"
 
 namespace nurbsreg::engine {
 namespace {

@@ -4,7 +4,7 @@
 #include <cmath>
 
 #include "nurbsreg/engine/basis.hpp"
-#include "validation.hpp"
+#include "geometry/validation.hpp"
 
 namespace nurbsreg::engine {
 

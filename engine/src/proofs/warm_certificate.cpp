@@ -1,4 +1,4 @@
-#include "warm_certificate.hpp"
+#include "proofs/warm_certificate.hpp"
 
 #include <algorithm>
 #include <cmath>
