@@ -3,9 +3,9 @@
 #include <cmath>
 #include <limits>
 
+#include "bernstein/bernstein_clipping.hpp"
 #include "bernstein/binomial_table.hpp"
 #include "curve/curve_local_solve.hpp"
-#include "nurbsreg/engine/bernstein_clipping.hpp"
 #include "nurbsreg/engine/curve_projection.hpp"
 
 namespace nurbsreg::engine {

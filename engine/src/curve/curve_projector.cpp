@@ -10,9 +10,9 @@
 #include <tbb/parallel_for.h>
 
 #include "curve/curve_local_solve.hpp"
-#include "reference/curve_ma_hewitt.hpp"
 #include "nurbsreg/engine/curve_projection.hpp"
 #include "nurbsreg/engine/decompose.hpp"
+#include "reference/curve_ma_hewitt.hpp"
 
 namespace nurbsreg::engine {
 namespace {
@@ -148,7 +148,7 @@ CurveHit CurveProjector::project(const Vec3& p, double hint_u, CurveStrategy str
 
 void CurveProjector::project(std::span<const Vec3> points, std::span<CurveProjectionResult> results,
                              CurveStrategy strategy, CurveProjectionStats* stats,
-                             CurveExecution execution) const {
+                             Execution execution) const {
   if (points.size() != results.size()) {
     throw std::invalid_argument("CurveProjector::project: " + std::to_string(points.size()) +
                                 " points but " + std::to_string(results.size()) + " results");
@@ -157,7 +157,7 @@ void CurveProjector::project(std::span<const Vec3> points, std::span<CurveProjec
     CurveProjectionResult& out = results[i];
     if (!points[i].allFinite()) {
       out = CurveProjectionResult{};
-      out.status = CurveProjectionStatus::skipped_non_finite;
+      out.status = CurveProjectionStatus::skipped_nonfinite;
       return;
     }
     CurveProjectionStats local;
@@ -169,7 +169,7 @@ void CurveProjector::project(std::span<const Vec3> points, std::span<CurveProjec
                                             : CurveProjectionStatus::converged;
     acc += local;
   };
-  if (execution == CurveExecution::serial) {
+  if (execution == Execution::serial) {
     CurveProjectionStats acc;
     for (std::size_t i = 0; i < points.size(); ++i)
       one(i, acc);

@@ -1,4 +1,4 @@
-#include "nurbsreg/engine/basis.hpp"
+#include "geometry/basis.hpp"
 
 #include <algorithm>
 #include <cassert>

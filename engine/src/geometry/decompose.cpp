@@ -3,7 +3,7 @@
 #include <algorithm>
 #include <cassert>
 
-#include "nurbsreg/engine/basis.hpp"
+#include "geometry/basis.hpp"
 
 namespace nurbsreg::engine {
 namespace {

@@ -2,7 +2,7 @@
 
 #include <cmath>
 
-#include "nurbsreg/engine/basis.hpp"
+#include "geometry/basis.hpp"
 #include "geometry/validation.hpp"
 
 namespace nurbsreg::engine {

@@ -3,7 +3,7 @@
 #include <algorithm>
 #include <cmath>
 
-#include "nurbsreg/engine/basis.hpp"
+#include "geometry/basis.hpp"
 #include "geometry/validation.hpp"
 
 namespace nurbsreg::engine {

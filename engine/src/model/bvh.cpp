@@ -1,4 +1,4 @@
-#include "nurbsreg/engine/bvh.hpp"
+#include "model/bvh.hpp"
 
 #include <algorithm>
 #include <limits>

@@ -6,6 +6,7 @@
 #include <limits>
 #include <stdexcept>
 
+#include "model/prepared_model_internals.hpp"
 #include "nurbsreg/engine/decompose.hpp"
 #include "proofs/reach_bounds.hpp"
 
@@ -61,7 +62,8 @@ bool c1_across_spans(const NurbsSurface& s) {
 
 }  // namespace
 
-PreparedModel::PreparedModel(Model model) : model_(std::move(model)), serial_(next_serial++) {
+PreparedModel::PreparedModel(Model model)
+    : model_(std::move(model)), reach_(std::make_shared<ReachState>()), serial_(next_serial++) {
   if (auto error = model_.validate()) throw std::invalid_argument(*error);
   for (std::size_t s = 0; s < model_.surfaces.size(); ++s) {
     const NurbsSurface& surface = model_.surfaces[s];
@@ -175,11 +177,11 @@ PreparedModel::PreparedModel(Model model) : model_(std::move(model)), serial_(ne
       bounds_.extend(piece_boxes_.back());
     }
   }
-  patch_bvh_ = Bvh(item_boxes_, 2);
+  patch_bvh_ = std::make_shared<const Bvh>(item_boxes_, 2);
   // The seed grid: about 32 cells along the model's longest side; each cell's point is the
   // sample nearest to its centre of the patch a greedy descent from the centre reaches
   // (seed_from_grid). Outside the model's box the nearest cell is used.
-  if (!patch_bvh_.empty() && !item_patch_.empty() && !bounds_.empty()) {
+  if (!patch_bvh_->empty() && !item_patch_.empty() && !bounds_.empty()) {
     constexpr int kCellsAlongLongest = 32;
     const Vec3 extent = bounds_.hi - bounds_.lo;
     const double cell = std::max(extent.maxCoeff() / kCellsAlongLongest, 1e-300);
@@ -193,7 +195,7 @@ PreparedModel::PreparedModel(Model model) : model_(std::move(model)), serial_(ne
       for (int y = 0; y < seed_dims_[1]; ++y) {
         for (int x = 0; x < seed_dims_[0]; ++x) {
           const Vec3 centre = seed_lo_ + cell * Vec3(x + 0.5, y + 0.5, z + 0.5);
-          const std::int64_t item = patch_bvh_.greedy_primitive(centre);
+          const std::int64_t item = patch_bvh_->greedy_primitive(centre);
           if (item < 0 || static_cast<std::size_t>(item) >= item_patch_.size()) continue;
           const std::uint32_t k = item_patch_[static_cast<std::size_t>(item)];
           if (patch_class_[k] != RegionClass::inside) continue;
@@ -216,7 +218,17 @@ PreparedModel::PreparedModel(Model model) : model_(std::move(model)), serial_(ne
       }
     }
   }
-  piece_bvh_ = Bvh(piece_boxes_, 2);
+  piece_bvh_ = std::make_shared<const Bvh>(piece_boxes_, 2);
+}
+
+PreparedModel::PreparedModel(const PreparedModel&) = default;
+PreparedModel::PreparedModel(PreparedModel&&) noexcept = default;
+PreparedModel& PreparedModel::operator=(const PreparedModel&) = default;
+PreparedModel& PreparedModel::operator=(PreparedModel&&) noexcept = default;
+PreparedModel::~PreparedModel() = default;
+
+int PreparedModel::reach_cells_per_side() const {
+  return reach_->k;
 }
 
 void PreparedModel::prepare_reach_bounds() const {

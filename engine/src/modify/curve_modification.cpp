@@ -19,8 +19,8 @@
 #include <cmath>
 #include <stdexcept>
 
+#include "geometry/basis.hpp"
 #include "modify/curve_modification_detail.hpp"
-#include "nurbsreg/engine/basis.hpp"
 
 namespace nurbsreg::engine {
 

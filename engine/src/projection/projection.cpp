@@ -12,9 +12,11 @@
 #include <string>
 #include <type_traits>
 
-#include "platform/cpu_dispatch.hpp"
+#include "model/prepared_model_internals.hpp"
 #include "nurbsreg/engine/sampling.hpp"
+#include "platform/cpu_dispatch.hpp"
 #include "projection/spatial_order.hpp"
+#include "proofs/reach_bounds.hpp"
 #include "proofs/warm_certificate.hpp"
 
 namespace nurbsreg::engine {

@@ -40,6 +40,7 @@
 #include <numbers>
 
 #include "bernstein/binomial_table.hpp"
+#include "model/prepared_model_internals.hpp"
 
 namespace nurbsreg::engine {
 namespace {

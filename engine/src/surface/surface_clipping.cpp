@@ -8,9 +8,9 @@
 #include <cstring>
 
 #include "bernstein/binomial_table.hpp"
-#include "platform/cpu_dispatch.hpp"
 #include "nurbsreg/engine/surface_projection.hpp"
 #include "nurbsreg/engine/trim_region.hpp"
+#include "platform/cpu_dispatch.hpp"
 #include "proofs/warm_certificate.hpp"
 
 namespace nurbsreg::engine {

@@ -98,7 +98,7 @@ SurfaceHit SurfaceProjector::project(const Vec3& p, double u_hint, double v_hint
 }
 
 void SurfaceProjector::project(std::span<const Vec3> points, SurfaceStrategy strategy,
-                               std::span<SurfaceProjectionResult> results, bool parallel,
+                               std::span<SurfaceProjectionResult> results, Execution execution,
                                SurfaceProjectionStats* stats) const {
   if (points.size() != results.size()) {
     throw std::invalid_argument("SurfaceProjector::project: results.size() != points.size()");
@@ -114,7 +114,7 @@ void SurfaceProjector::project(std::span<const Vec3> points, SurfaceStrategy str
       SurfaceProjectionResult& out = results[i];
       if (!points[i].allFinite()) {
         out = SurfaceProjectionResult{};
-        out.status = SurfaceProjectionStatus::skipped_nan;
+        out.status = SurfaceProjectionStatus::skipped_nonfinite;
         continue;
       }
       const SurfaceHit hit = project(points[i], strategy, local.scratch, &local.stats);
@@ -127,7 +127,7 @@ void SurfaceProjector::project(std::span<const Vec3> points, SurfaceStrategy str
     }
   };
   const tbb::blocked_range<std::size_t> all(0, points.size(), 64);
-  if (parallel) {
+  if (execution == Execution::parallel) {
     tbb::parallel_for(all, body);
   } else {
     body(all);

@@ -6,7 +6,7 @@
 #include <cmath>
 #include <random>
 
-#include "nurbsreg/engine/bernstein_clipping.hpp"
+#include "bernstein/bernstein_clipping.hpp"
 #include "nurbsreg/engine/bezier.hpp"
 #include "support/random_entities.hpp"
 

@@ -600,12 +600,12 @@ TEST(CurveProjection, BatchEqualsSinglePoint) {
     std::vector<CurveProjectionResult> serial(points.size());
     CurveProjectionStats parallel_stats;
     CurveProjectionStats serial_stats;
-    projector.project(points, parallel, strategy, &parallel_stats, CurveExecution::parallel);
-    projector.project(points, serial, strategy, &serial_stats, CurveExecution::serial);
+    projector.project(points, parallel, strategy, &parallel_stats, Execution::parallel);
+    projector.project(points, serial, strategy, &serial_stats, Execution::serial);
     for (std::size_t i = 0; i < points.size(); ++i) {
       if (i == 17 || i == 18) {
-        EXPECT_EQ(parallel[i].status, CurveProjectionStatus::skipped_non_finite);
-        EXPECT_EQ(serial[i].status, CurveProjectionStatus::skipped_non_finite);
+        EXPECT_EQ(parallel[i].status, CurveProjectionStatus::skipped_nonfinite);
+        EXPECT_EQ(serial[i].status, CurveProjectionStatus::skipped_nonfinite);
         continue;
       }
       const CurveHit single = projector.project(points[i], strategy);

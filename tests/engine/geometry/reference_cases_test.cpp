@@ -14,7 +14,7 @@
 #include <string>
 #include <vector>
 
-#include "nurbsreg/engine/basis.hpp"
+#include "geometry/basis.hpp"
 #include "nurbsreg/engine/nurbs_curve.hpp"
 #include "nurbsreg/engine/nurbs_surface.hpp"
 #include "support/random_entities.hpp"

@@ -2,7 +2,7 @@
 // their centre points) whatever the tree, and never visit a primitive it could prune.
 #include <gtest/gtest.h>
 
-#include "nurbsreg/engine/bvh.hpp"
+#include "model/bvh.hpp"
 #include "support/random_entities.hpp"
 
 namespace nurbsreg::engine {

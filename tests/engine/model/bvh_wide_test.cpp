@@ -6,7 +6,7 @@
 #include <cmath>
 #include <functional>
 
-#include "nurbsreg/engine/bvh.hpp"
+#include "model/bvh.hpp"
 #include "support/random_entities.hpp"
 
 namespace nurbsreg::engine {

@@ -8,6 +8,7 @@
 
 #include <random>
 
+#include "model/prepared_model_internals.hpp"
 #include "nurbsreg/engine/projection.hpp"
 #include "nurbsreg/engine/sampling.hpp"
 #include "nurbsreg/engine/shapes.hpp"

@@ -20,6 +20,7 @@
 
 #include "nurbsreg/engine/prepared_model.hpp"
 #include "nurbsreg/engine/projection.hpp"
+#include "proofs/reach_bounds.hpp"
 #include "support/hard_surfaces.hpp"
 #include "support/random_entities.hpp"
 #include "support/surface_reference.hpp"

@@ -446,8 +446,8 @@ TEST(SurfaceProjection, BatchParallelEqualsSerialAndWarmStartEqualsCold) {
   std::vector<Vec3> with_nan = points;
   with_nan.emplace_back(std::nan(""), 0, 0);
   std::vector<SurfaceProjectionResult> serial(with_nan.size()), parallel(with_nan.size());
-  projector.project(with_nan, kClip, serial, false);
-  projector.project(with_nan, kClip, parallel, true);
+  projector.project(with_nan, kClip, serial, Execution::serial);
+  projector.project(with_nan, kClip, parallel, Execution::parallel);
   SurfaceScratch scratch;
   for (std::size_t k = 0; k < points.size(); ++k) {
     EXPECT_EQ(serial[k].u, parallel[k].u);
@@ -459,8 +459,8 @@ TEST(SurfaceProjection, BatchParallelEqualsSerialAndWarmStartEqualsCold) {
                                               serial[k].v, kClip, scratch);
     EXPECT_NEAR(std::sqrt(warm.distance_sq), serial[k].distance, 1e-9 * projector.box().diagonal());
   }
-  EXPECT_EQ(serial.back().status, SurfaceProjectionStatus::skipped_nan);
-  EXPECT_EQ(parallel.back().status, SurfaceProjectionStatus::skipped_nan);
+  EXPECT_EQ(serial.back().status, SurfaceProjectionStatus::skipped_nonfinite);
+  EXPECT_EQ(parallel.back().status, SurfaceProjectionStatus::skipped_nonfinite);
   // Single-point calls with a NaN return at once with no point.
   EXPECT_FALSE(std::isfinite(projector.project(with_nan.back(), kClip, scratch).distance_sq));
 }
