@@ -68,7 +68,8 @@ Fixture& fixture(const std::string& name) {
   const bool trimmed = name.size() > suffix.size() &&
                        name.compare(name.size() - suffix.size(), suffix.size(), suffix) == 0;
   const std::string file = trimmed ? name.substr(0, name.size() - suffix.size()) : name;
-  Model model = nurbsreg::io::read_model(std::string(NURBSREG_EXAMPLES_DIR) + "/" + file + ".json");
+  Model model =
+      nurbsreg::io::read_model_json(std::string(NURBSREG_EXAMPLES_DIR) + "/" + file + ".json");
   if (trimmed) trim_every_surface(model);
   f.model = std::make_unique<PreparedModel>(std::move(model));
   std::mt19937_64 rng(20261122);

@@ -7,7 +7,7 @@
 # prebuilt libraries we link (PCL), which are compiled for SSE2.
 option(NURBSREG_NATIVE "Compile nurbsreg's targets with -march=native (not portable)" OFF)
 # The portable build's hot kernels are compiled for SSE2 and for x86-64-v3 (AVX2), chosen at load
-# time (engine/src/cpu_dispatch.hpp). OFF: SSE2 only. Without effect when NURBSREG_NATIVE is on.
+# time (engine/src/platform/cpu_dispatch.hpp). OFF: SSE2 only. Without effect when NURBSREG_NATIVE is on.
 option(NURBSREG_CPU_DISPATCH "Runtime dispatch of the hot kernels to AVX2 clones (GCC, x86-64)" ON)
 
 function(nurbsreg_apply_standard target)
@@ -34,12 +34,16 @@ function(nurbsreg_apply_standard target)
   endif()
 endfunction()
 
-# nurbsreg_add_module(NAME <name> [DEPS <targets...>])
-# A static library from <name>/src/*.cpp with public headers in <name>/include,
-# exported as nurbsreg::<name>.
+# nurbsreg_add_module(<name> [RECURSE] [PUBLIC_DEPS <targets...>] [PRIVATE_DEPS <targets...>])
+# A static library from <name>/src/*.cpp (RECURSE: also from the folders below src/, one folder
+# per job) with public headers in <name>/include, exported as nurbsreg::<name>.
 function(nurbsreg_add_module name)
-  cmake_parse_arguments(ARG "" "" "PUBLIC_DEPS;PRIVATE_DEPS" ${ARGN})
-  file(GLOB sources CONFIGURE_DEPENDS "${CMAKE_CURRENT_SOURCE_DIR}/src/*.cpp")
+  cmake_parse_arguments(ARG "RECURSE" "" "PUBLIC_DEPS;PRIVATE_DEPS" ${ARGN})
+  if(ARG_RECURSE)
+    file(GLOB_RECURSE sources CONFIGURE_DEPENDS "${CMAKE_CURRENT_SOURCE_DIR}/src/*.cpp")
+  else()
+    file(GLOB sources CONFIGURE_DEPENDS "${CMAKE_CURRENT_SOURCE_DIR}/src/*.cpp")
+  endif()
   if(NOT sources)
     message(STATUS "nurbsreg: module ${name} has no sources yet; skipped")
     return()

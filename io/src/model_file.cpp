@@ -14,7 +14,7 @@ engine::Model read_model_file(const std::string& path) {
   std::string ext = std::filesystem::path(path).extension().string();
   std::transform(ext.begin(), ext.end(), ext.begin(),
                  [](unsigned char ch) { return static_cast<char>(std::tolower(ch)); });
-  if (ext == ".json") return read_model(path);
+  if (ext == ".json") return read_model_json(path);
   if (ext == ".step" || ext == ".stp" || ext == ".iges" || ext == ".igs")
     return read_cad_file(path);
   throw InputError(path, "unknown model format: expected a .json, .step, .stp, .iges or .igs file");

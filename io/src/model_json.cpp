@@ -520,7 +520,7 @@ engine::Model parse_model(std::string_view text, const std::string& file_label) 
   return model;
 }
 
-engine::Model read_model(const std::string& path) {
+engine::Model read_model_json(const std::string& path) {
   const std::string text = text_detail::read_text_file(path);
   return parse_model(text, path);
 }

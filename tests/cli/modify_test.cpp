@@ -72,7 +72,7 @@ class ModifyCommand : public ::testing::Test {
 };
 
 TEST_F(ModifyCommand, ControlPointsPutEveryNoseOnItsTarget) {
-  const engine::Model before = io::read_model(path("model.json"));
+  const engine::Model before = io::read_model_json(path("model.json"));
   const std::vector<engine::NosePoint> noses = engine::nose_points(curve_named(before, "profile"));
   std::string csv = "segment,x,y\n";
   std::vector<engine::Vec3> targets;
@@ -95,7 +95,7 @@ TEST_F(ModifyCommand, ControlPointsPutEveryNoseOnItsTarget) {
   }
   const RunResult r = run(base() + " --targets " + path("t.csv") + " --report " + path("r.json"));
   ASSERT_EQ(r.status, 0) << r.err;
-  const engine::Model after = io::read_model(path("out.json"));
+  const engine::Model after = io::read_model_json(path("out.json"));
   const engine::NurbsCurve& modified = curve_named(after, "profile");
   for (std::size_t j = 0; j < noses.size(); ++j) {
     EXPECT_LT((modified.evaluate(noses[j].u) - targets[j]).norm(), 1e-9) << j;
@@ -110,7 +110,7 @@ TEST_F(ModifyCommand, ControlPointsPutEveryNoseOnItsTarget) {
 }
 
 TEST_F(ModifyCommand, ScanTargetsWithTheIteratedRecipe) {
-  const engine::Model before = io::read_model(path("model.json"));
+  const engine::Model before = io::read_model_json(path("model.json"));
   const engine::NurbsCurve& curve = curve_named(before, "profile");
   // A "scan" of the built part: the curve pushed outwards by 2 mm along its normal, sampled.
   std::string xyz = "# x y z\n";

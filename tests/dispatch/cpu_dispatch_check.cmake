@@ -1,4 +1,4 @@
-# ctest checks of the runtime CPU dispatch (engine/src/cpu_dispatch.hpp), run with cmake -P.
+# ctest checks of the runtime CPU dispatch (engine/src/platform/cpu_dispatch.hpp), run with cmake -P.
 #
 # MODE=instructions, on the libraries LIBS (;-separated):
 #  - no fused multiply-add instruction. An FMA rounds once where a * b + c rounds twice: one in a

@@ -1,8 +1,8 @@
 // Runs a fixed set of projections and prints a digest of every result bit, for
 // cpu_dispatch_check.cmake: built twice, once with the normal runtime CPU dispatch (the AVX2
-// clones of the hot kernels on a CPU that has AVX2, engine/src/cpu_dispatch.hpp) and once with
-// baseline_cpu_model.cpp (every dispatch picks the x86-64 baseline clone). The two digests must
-// be equal: the clones compute bit-identical results.
+// clones of the hot kernels on a CPU that has AVX2, engine/src/platform/cpu_dispatch.hpp) and once
+// with baseline_cpu_model.cpp (every dispatch picks the x86-64 baseline clone). The two digests
+// must be equal: the clones compute bit-identical results.
 //
 // The cases cover the cloned paths: cold projection (hierarchy walk, clipping of bicubic and
 // rational biquadratic patches, trimmed faces and their edges, Newton) and the certified warm

@@ -101,7 +101,8 @@ TEST(CertificateAtlas, GrowsAndFindsEveryAnchor) {
 }
 
 const engine::PreparedModel& panel() {
-  static const engine::PreparedModel model(io::read_model(NURBSREG_EXAMPLES_DIR "/panel.json"));
+  static const engine::PreparedModel model(
+      io::read_model_json(NURBSREG_EXAMPLES_DIR "/panel.json"));
   return model;
 }
 

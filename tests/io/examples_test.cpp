@@ -1,5 +1,5 @@
 // The committed example models (examples/*.json, written by examples/generate_examples.cpp)
-// load through io::read_model and have the properties examples/README.md promises.
+// load through io::read_model_json and have the properties examples/README.md promises.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -26,7 +26,7 @@ std::string example(const std::string& name) {
 Model load(const std::string& name) {
   const std::string path = example(name);
   EXPECT_LT(std::filesystem::file_size(path), 200u * 1024u) << name;
-  Model m = read_model(path);
+  Model m = read_model_json(path);
   EXPECT_EQ(m.units, "mm") << name;
   return m;
 }

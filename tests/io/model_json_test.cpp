@@ -134,7 +134,7 @@ TEST(ModelJson, WriteThenReadIsBitExact) {
   ASSERT_FALSE(original.validate()) << *original.validate();
   const std::string path = (temp_dir() / "round_trip.json").string();
   write_model(path, original);
-  const Model back = read_model(path);
+  const Model back = read_model_json(path);
   EXPECT_EQ(back.units, original.units);
   ASSERT_EQ(back.surfaces.size(), original.surfaces.size());
   ASSERT_EQ(back.curves.size(), original.curves.size());
@@ -355,14 +355,14 @@ TEST(ModelJson, LongKnotVectorsWithFewPointsFailFastWithoutHugeAllocation) {
 TEST(ModelJson, UnreadableFilesAreInputErrors) {
   const auto dir = temp_dir();
   try {
-    read_model((dir / "does_not_exist.json").string());
+    read_model_json((dir / "does_not_exist.json").string());
     FAIL() << "no exception";
   } catch (const InputError& e) {
     EXPECT_NE(std::string(e.what()).find("does_not_exist.json: cannot open"), std::string::npos)
         << e.what();
   }
   try {
-    read_model(dir.string());
+    read_model_json(dir.string());
     FAIL() << "no exception";
   } catch (const InputError& e) {
     EXPECT_NE(std::string(e.what()).find("is a directory"), std::string::npos) << e.what();

@@ -99,19 +99,20 @@ bool project_onto_piece_ma_hewitt(const PreparedCurvePiece& piece, const Vec3& p
                                   CurveProjectionStats* stats = nullptr);
 
 enum class CurveProjectionStatus : std::uint8_t {
-  converged,           // the closest point (global minimum up to rounding)
-  depth_limited,       // as above, but the subdivision safety net triggered on the way
-  skipped_non_finite,  // the input point had a NaN or infinite coordinate; nothing computed
+  converged,          // the closest point (global minimum up to rounding)
+  depth_limited,      // as above, but the subdivision safety net triggered on the way
+  skipped_nonfinite,  // the input point had a NaN or infinite coordinate; nothing computed
 };
 
 struct CurveProjectionResult {
   Vec3 foot = Vec3::Zero();
   double u = 0.0;
   double distance = 0.0;  // Euclidean, >= 0
-  CurveProjectionStatus status = CurveProjectionStatus::skipped_non_finite;
+  CurveProjectionStatus status = CurveProjectionStatus::skipped_nonfinite;
 };
 
-enum class CurveExecution : std::uint8_t { serial, parallel };
+// The former name of Execution (types.hpp), kept for code written against it.
+using CurveExecution = Execution;
 
 // A NURBS curve prepared for projection: Bézier decomposition, one PreparedCurvePiece per
 // non-empty knot span, and a balanced bounding-box tree over the pieces (in parameter order).
@@ -136,12 +137,12 @@ class CurveProjector {
   // Batch: results[i] for points[i] (sizes must match), written by index, so results are the
   // same for any thread count and identical to single-point calls. Parallel over blocks with
   // TBB unless `execution` is serial (the thread count is the caller's: tbb::global_control
-  // or a task_arena). Non-finite points get status skipped_non_finite. Allocates only the
+  // or a task_arena). Non-finite points get status skipped_nonfinite. Allocates only the
   // per-thread counters, once per call; `stats` receives their (order-independent) sum.
   void project(std::span<const Vec3> points, std::span<CurveProjectionResult> results,
                CurveStrategy strategy = CurveStrategy::circular_clipping,
                CurveProjectionStats* stats = nullptr,
-               CurveExecution execution = CurveExecution::parallel) const;
+               Execution execution = Execution::parallel) const;
 
   // Point inversion (seed 000 §11): the parameter u of p when p lies on the curve, i.e. when
   // its distance to the curve is <= tolerance (then C(u) is the closest point to p); nullopt

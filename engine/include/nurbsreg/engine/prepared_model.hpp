@@ -21,7 +21,7 @@
 #include <mutex>
 #include <vector>
 
-#include "nurbsreg/engine/bvh.hpp"
+#include "nurbsreg/engine/bounds.hpp"
 #include "nurbsreg/engine/curve_projection.hpp"
 #include "nurbsreg/engine/model.hpp"
 #include "nurbsreg/engine/surface_projection.hpp"
@@ -29,11 +29,19 @@
 
 namespace nurbsreg::engine {
 
+class Bvh;  // the bounding volume hierarchy (engine-internal: src/model/bvh.hpp)
+
 class PreparedModel {
  public:
   // Validates the model (throws std::invalid_argument with Model::validate()'s message; also
   // when a trimmed surface's region or edges cannot be built: TrimRegion, trim_edges).
   explicit PreparedModel(Model model);
+  // Copies share the geometry (it is immutable) and the reach bounds.
+  PreparedModel(const PreparedModel&);
+  PreparedModel(PreparedModel&&) noexcept;
+  PreparedModel& operator=(const PreparedModel&);
+  PreparedModel& operator=(PreparedModel&&) noexcept;
+  ~PreparedModel();
 
   const Model& model() const { return model_; }
 
@@ -81,19 +89,12 @@ class PreparedModel {
   // of a parameter box makes it strictly convex on the box (a WarmCertificate may span patches).
   bool surface_c1(int s) const { return surface_c1_[static_cast<std::size_t>(s)] != 0; }
 
-  // Reach bounds (reach_bounds.cpp): for a foot f on an untrimmed polynomial surface, a lower
-  // bound rho of how far a point may lie from f along a direction of f's normal cone and still
-  // have f as its closest point on the whole model (the cut distance of Federer's reach: the
-  // open ball of radius rho touching the model at f on that side holds no model point). A
-  // query q whose KKT point f on the surface has |q - f| < rho is then answered without any
-  // search. One ReachCell per cell of a k x k grid (reach_cells_per_side) of each such patch's
-  // local (s, t) square; each bound holds for every foot of its (closed) cell:
-  //   plus / minus: q on the side of n = S_u x S_v / minus n (an orthogonal foot);
-  //   boundary: directions of the normal cone at a foot on the surface's own edge or corner
-  //   (cos th n + sin th m, m in the outward tangential cone), by sectors of th in [0, pi]; 0
-  //   for a cell that does not touch the surface's edge.
-  // Floats rounded down. 0 where nothing is proven (a cell touching another part of the
-  // model, a seam, a pole, a crease).
+  // Reach bounds (proofs/reach_bounds.cpp): for a foot f on an untrimmed polynomial surface, a
+  // lower bound of how far a point may lie from f along a direction of f's normal cone and still
+  // have f as its closest point on the whole model, so that such a query is answered without any
+  // search (ProjectionOptions::reach_bounds). One ReachCell per cell of a k x k grid of each such
+  // patch's local (s, t) square; the cell type and reach_cell() are engine-internal
+  // (src/proofs/reach_bounds.hpp).
   // Built only on request (prepare_reach_bounds: about 0.2 ms per cell on 2 cores, ~2.3 s for a
   // 49-patch model at 16 x 16 cells a patch): they pay where frames come with bare (surface, u,
   // v) hints (tracking without certificates: ~0.3 us of wall time saved per point on 2 cores on
@@ -102,34 +103,21 @@ class PreparedModel {
   // 0.86 s without them and 1.75 s with 0.8 s bounds built during its run).
   static constexpr int kReachSectors = 8;
   static constexpr std::uint32_t kNoReach = 0xffffffffu;  // a patch without cells
-  struct ReachCell {
-    float plus = 0.0f, minus = 0.0f;
-    // Boundary feet, by the angle th of the direction from n: sector k holds th in
-    // [k, k + 1] pi / kReachSectors (th = pi / 2: straight out of the surface's edge).
-    float boundary[kReachSectors] = {};
-  };
+  struct ReachCell;
   // Builds the bounds once (thread-safe; later calls return at once).
   void prepare_reach_bounds() const;
   // Cells per patch side: 16, 8, 4, 2 or 1 (fewer on models of many patches: construction
   // time).
-  int reach_cells_per_side() const { return reach_->k; }
+  int reach_cells_per_side() const;
   // Patch i's cell holding local (s, t) in [0, 1]^2; null when the patch has no reach bounds or
-  // they are not built.
-  const ReachCell* reach_cell(std::size_t i, double s, double t) const {
-    const ReachState& r = *reach_;
-    if (!r.ready.load(std::memory_order_acquire)) return nullptr;
-    const std::uint32_t first = r.first[i];
-    if (first == kNoReach) return nullptr;
-    const int a = std::clamp(static_cast<int>(s * r.k), 0, r.k - 1);
-    const int b = std::clamp(static_cast<int>(t * r.k), 0, r.k - 1);
-    return &r.cells[first + static_cast<std::uint32_t>(a * r.k + b)];
-  }
+  // they are not built. Inline in src/proofs/reach_bounds.hpp (the projection's hot path).
+  const ReachCell* reach_cell(std::size_t i, double s, double t) const;
 
   // The surfaces' hierarchy. Its primitives ("items") are the patches that are not trimmed away,
   // k < hierarchy_patch_items(), with item_patch(k) their patch index, then the trim-edge pieces,
   // edge piece k - hierarchy_patch_items(). For a model without trimmed surfaces the items are
   // exactly the patches, item_patch(k) == k.
-  const Bvh& patch_hierarchy() const { return patch_bvh_; }
+  const Bvh& patch_hierarchy() const { return *patch_bvh_; }
   std::size_t hierarchy_patch_items() const { return item_patch_.size(); }
   std::uint32_t item_patch(std::uint32_t k) const { return item_patch_[k]; }
   // Cold start: an upper bound on p's squared distance to the surfaces before any clipping, so
@@ -145,8 +133,8 @@ class PreparedModel {
 
   // Squared-distance lower bound from p to item k, to be combined with the item's box distance
   // (the hierarchy walk does, Bvh::nearest): a patch's oriented box (OrientedBox), an edge
-  // piece's bounding sphere. Inline (below): the walk calls it for every leaf it reaches, and
-  // inlined it runs in the walk's own (possibly AVX2, cpu_dispatch.hpp) code.
+  // piece's bounding sphere. Inline (src/model/prepared_model_internals.hpp): the walk calls it
+  // for every leaf it reaches, and inlined it runs in the walk's own (possibly AVX2) code.
   double item_lower_bound(std::uint32_t k, const Vec3& p) const;
 
   // Trim-edge pieces: Bézier pieces of the faces' 3-D boundary edges (trim_edges).
@@ -166,7 +154,7 @@ class PreparedModel {
   std::size_t piece_count() const { return pieces_.size(); }
   const PreparedCurvePiece& piece(std::size_t i) const { return pieces_[i]; }
   int piece_curve(std::size_t i) const { return piece_curve_[i]; }
-  const Bvh& piece_hierarchy() const { return piece_bvh_; }
+  const Bvh& piece_hierarchy() const { return *piece_bvh_; }
   double piece_lower_bound(std::size_t i, const Vec3& p) const;
 
   // Box around every control point of the model (contains the whole model).
@@ -196,64 +184,32 @@ class PreparedModel {
   std::vector<std::uint8_t> surface_certifiable_;  // per surface (surface_certifiable)
   bool any_certifiable_ = false;
   std::vector<std::uint32_t> item_patch_;
-  // Shared by copies (they share the geometry); written once under `once`, then read-only.
-  struct ReachState {
-    std::once_flag once;
-    std::atomic<bool> ready{false};
-    std::vector<std::uint32_t> first;  // per patch: its first ReachCell, or kNoReach
-    std::vector<ReachCell> cells;
-    int k = 1;
-  };
-  std::shared_ptr<ReachState> reach_ = std::make_shared<ReachState>();
+  // Shared by copies (they share the geometry); written once, then read-only
+  // (src/proofs/reach_bounds.hpp).
+  struct ReachState;
+  std::shared_ptr<ReachState> reach_;
   std::vector<Aabb> item_boxes_;  // per hierarchy item (patches, then edge pieces)
   std::vector<BoundingSphere> item_spheres_;
-  // A box in the patch's own frame (two tangent directions and the normal of its control net),
-  // per patch item: much tighter than the axis-aligned box for a tilted or curved patch, so a
-  // patch the axis-aligned bound lets through is often rejected before its clipping starts.
-  // `axis` holds orthonormal axes; the patch lies in lo[k] <= axis[k] . x <= hi[k] (convex hull
-  // property of the control points).
-  struct OrientedBox {
-    Vec3 axis[3] = {Vec3::UnitX(), Vec3::UnitY(), Vec3::UnitZ()};
-    double lo[3] = {0, 0, 0}, hi[3] = {0, 0, 0};
-  };
+  // A box in the patch's own frame per patch item, and the cold-start seed grid: cells of side
+  // 1 / seed_inv_cell_ from seed_lo_, x fastest (src/model/prepared_model_internals.hpp).
+  struct OrientedBox;
   std::vector<OrientedBox> item_oriented_;  // per patch item (k < hierarchy_patch_items())
-  // The seed grid: cells of side 1 / seed_inv_cell_ from seed_lo_, x fastest. Each holds a
-  // surface point near its centre: a sample of a patch (local (s, t) on a kSeedSamples^2 grid,
-  // corners included) with its coordinates, or patch -1 (none: trimmed surfaces).
   static constexpr int kSeedSamples = 5;
-  struct SeedCell {
-    std::int64_t patch = -1;
-    double s = 0, t = 0;
-    Vec3 point = Vec3::Zero();
-  };
+  struct SeedCell;
   Vec3 seed_lo_ = Vec3::Zero();
   double seed_inv_cell_ = 0.0;
   int seed_dims_[3] = {0, 0, 0};
   std::vector<SeedCell> seed_cells_;
   std::vector<PreparedCurvePiece> edge_pieces_;
   std::vector<EdgePiece> edge_piece_info_;
-  Bvh patch_bvh_;
+  std::shared_ptr<const Bvh> patch_bvh_;  // never null after construction
   std::vector<PreparedCurvePiece> pieces_;
   std::vector<int> piece_curve_;
   std::vector<Aabb> piece_boxes_;
   std::vector<BoundingSphere> piece_spheres_;
-  Bvh piece_bvh_;
+  std::shared_ptr<const Bvh> piece_bvh_;
   Aabb bounds_;
   std::uint32_t serial_ = 0;
 };
-
-inline double PreparedModel::item_lower_bound(std::uint32_t k, const Vec3& p) const {
-  // The item's axis-aligned box is not repeated here: the hierarchy walk already takes the larger
-  // of this bound and the box distance (Bvh::nearest).
-  if (k >= item_oriented_.size()) return item_spheres_[k].squared_distance(p);  // edge piece
-  const OrientedBox& ob = item_oriented_[k];
-  double oriented = 0.0;
-  for (int a = 0; a < 3; ++a) {
-    const double y = ob.axis[a].dot(p);
-    const double out = std::max(std::max(ob.lo[a] - y, 0.0), y - ob.hi[a]);
-    oriented += out * out;
-  }
-  return oriented;
-}
 
 }  // namespace nurbsreg::engine

@@ -230,7 +230,9 @@ struct HintView {
 
 class Projector {
  public:
+  // Keeps a reference to `model`, which must outlive the projector: a temporary is rejected.
   explicit Projector(const PreparedModel& model);
+  Projector(const PreparedModel&&) = delete;
   ~Projector();
   Projector(const Projector&) = delete;
   Projector& operator=(const Projector&) = delete;

@@ -177,10 +177,11 @@ double newton_on_patch(const BezierPatch& patch, const Vec3& p, double s0, doubl
 // patch can be skipped. Uses the scratch's first grid; no heap allocation.
 bool squared_distance_convex(const PreparedPatch& patch, const Vec3& p, SurfaceScratch& scratch);
 
-// converged: the closest point was found; skipped_nan: the point has a NaN or infinite
-// coordinate; no_candidate: the strategy produced no point at all (only ma_hewitt can: its
-// Theorem 1 may discard every patch of a closed surface).
-enum class SurfaceProjectionStatus : std::uint8_t { converged, skipped_nan, no_candidate };
+// converged: the closest point was found; skipped_nonfinite: the point has a NaN or infinite
+// coordinate (the same name in every status enum of the engine); no_candidate: the strategy
+// produced no point at all (only ma_hewitt can: its Theorem 1 may discard every patch of a closed
+// surface).
+enum class SurfaceProjectionStatus : std::uint8_t { converged, skipped_nonfinite, no_candidate };
 
 // One batch result (written by index).
 struct SurfaceProjectionResult {
@@ -217,11 +218,14 @@ class SurfaceProjector {
   // The answer is the same exact closest point (the hint only prunes).
   SurfaceHit project(const Vec3& p, double u_hint, double v_hint, SurfaceStrategy strategy,
                      SurfaceScratch& scratch, SurfaceProjectionStats* stats = nullptr) const;
-  // Batch: results[i] for points[i], in parallel (TBB) when `parallel`; identical results for any
+  // Batch: results[i] for points[i], in parallel (TBB) unless `execution` is serial; identical
+  // results for any
   // thread count (each point is independent). results.size() must equal points.size(). Points
-  // with a NaN or infinite coordinate get status skipped_nan. Allocates per-thread scratch once.
+  // with a NaN or infinite coordinate get status skipped_nonfinite. Allocates per-thread scratch
+  // once.
   void project(std::span<const Vec3> points, SurfaceStrategy strategy,
-               std::span<SurfaceProjectionResult> results, bool parallel = true,
+               std::span<SurfaceProjectionResult> results,
+               Execution execution = Execution::parallel,
                SurfaceProjectionStats* stats = nullptr) const;
   // Point inversion: the parameters of p if p lies on the surface within `tolerance` (distance).
   // Patches farther than the tolerance are pruned at once (seed 000 §11, convex hull property).

@@ -1,10 +1,17 @@
 #pragma once
 // Basic value types shared by every engine header.
 
+#include <cstdint>
+
 #include <Eigen/Core>
 #include <Eigen/Geometry>  // cross products, rotations: used throughout
 
 namespace nurbsreg::engine {
+
+// How a batch call runs: on the calling thread only (debugging, and the reference of the
+// "parallel == serial" tests), or in parallel with TBB in the caller's task arena. Results are
+// the same either way. Projector spells it project() / project_serial().
+enum class Execution : std::uint8_t { serial, parallel };
 
 using Vec2 = Eigen::Vector2d;
 using Vec3 = Eigen::Vector3d;

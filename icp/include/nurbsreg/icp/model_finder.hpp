@@ -29,6 +29,8 @@ class ModelCorrespondenceFinder final : public CorrespondenceFinder {
   // `model` must outlive the finder. The finder is not thread-safe itself (it keeps the hints);
   // its find() projects in parallel with TBB when the query allows.
   explicit ModelCorrespondenceFinder(const engine::PreparedModel& model);
+  // It keeps a reference to the model: a temporary would dangle.
+  ModelCorrespondenceFinder(const engine::PreparedModel&&) = delete;
 
   void reset(std::size_t scan_size) override;
   void find(const CorrespondenceQuery& query, std::span<Correspondence> out) override;

@@ -1,6 +1,6 @@
 #pragma once
 // One entry point for model files, by extension (case-insensitive):
-//   .json          -> read_model (model_json.hpp), the project's own format;
+//   .json          -> read_model_json (model_json.hpp), the project's own format;
 //   .step, .stp, .iges, .igs -> read_cad_file (cad_import.hpp), every face of a CAD file,
 //                     trimmed, via OpenCASCADE.
 // Anything else throws InputError naming the supported extensions. Thread-safe.

@@ -30,8 +30,9 @@ namespace nurbsreg::io {
 // The format version this build reads and writes (`"nurbsreg_model": 1`).
 inline constexpr int kModelFormatVersion = 1;
 
-// Reads and validates a model file. Throws InputError (unreadable, malformed or invalid).
-engine::Model read_model(const std::string& path);
+// Reads and validates a model in the project's JSON format (read_model_file, model_file.hpp,
+// reads every supported format). Throws InputError (unreadable, malformed or invalid).
+engine::Model read_model_json(const std::string& path);
 
 // Parses a model from JSON text; `file_label` is the name used in error messages.
 engine::Model parse_model(std::string_view text, const std::string& file_label);

@@ -1,0 +1,309 @@
+#include "nurbsreg/engine/prepared_model.hpp"
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+
+#include "model/prepared_model_internals.hpp"
+#include "nurbsreg/engine/decompose.hpp"
+#include "proofs/reach_bounds.hpp"
+
+namespace nurbsreg::engine {
+namespace {
+
+// The frame of a patch's control net: a = the direction between its first and last rows, n the
+// normal of the net's two diagonals' plane made orthogonal to a, b = n x a. Any orthonormal
+// frame gives a valid bound (the control points are projected on each axis); this one makes the
+// box thin along the normal for a nearly flat patch.
+void oriented_axes(const BezierPatch& bp, Vec3 axis[3]) {
+  const int p = bp.degree_u, q = bp.degree_v;
+  auto point = [&](int i, int j) -> Vec3 {
+    const Vec4& c = bp.at(i, j);
+    return c.head<3>() / c[3];
+  };
+  Vec3 a = point(p, 0) + point(p, q) - point(0, 0) - point(0, q);
+  Vec3 b = point(0, q) + point(p, q) - point(0, 0) - point(p, 0);
+  Vec3 n = a.cross(b);
+  if (!(a.norm() > 0.0) || !(n.norm() > 1e-12 * a.norm() * b.norm())) {
+    axis[0] = Vec3::UnitX();
+    axis[1] = Vec3::UnitY();
+    axis[2] = Vec3::UnitZ();
+    return;
+  }
+  a.normalize();
+  n.normalize();
+  axis[0] = a;
+  axis[1] = n.cross(a).normalized();
+  axis[2] = n;
+}
+
+}  // namespace
+
+namespace {
+std::atomic<std::uint32_t> next_serial{1};
+
+// No knot strictly inside the domain repeats `degree` times or more (a B-spline is C^(p - m) at a
+// knot of multiplicity m), in u and in v.
+bool c1_across_spans(const NurbsSurface& s) {
+  const auto c1 = [](const std::vector<double>& knots, int degree, int count) {
+    const double lo = knots[static_cast<std::size_t>(degree)];
+    const double hi = knots[static_cast<std::size_t>(count)];
+    int run = 0;
+    for (std::size_t k = 0; k < knots.size(); ++k) {
+      run = k > 0 && knots[k] == knots[k - 1] ? run + 1 : 1;
+      if (knots[k] > lo && knots[k] < hi && run >= degree) return false;
+    }
+    return true;
+  };
+  return c1(s.knots_u, s.degree_u, s.count_u) && c1(s.knots_v, s.degree_v, s.count_v);
+}
+
+}  // namespace
+
+PreparedModel::PreparedModel(Model model)
+    : model_(std::move(model)), reach_(std::make_shared<ReachState>()), serial_(next_serial++) {
+  if (auto error = model_.validate()) throw std::invalid_argument(*error);
+  for (std::size_t s = 0; s < model_.surfaces.size(); ++s) {
+    const NurbsSurface& surface = model_.surfaces[s];
+    surface_region_.push_back(-1);
+    if (surface.is_trimmed()) {
+      surface_region_.back() = static_cast<int>(regions_.size());
+      regions_.emplace_back(surface);
+    }
+    SurfacePatches layout;
+    layout.first = patches_.size();
+    const std::vector<BezierPatch> pieces = decompose(model_.surfaces[s]);
+    surface_certifiable_.push_back(0);
+    for (const BezierPatch& patch : pieces) {
+      patches_.push_back(prepare_patch(patch));
+      patch_surface_.push_back(static_cast<int>(s));
+      patch_class_.push_back(RegionClass::inside);
+      bounds_.extend(patches_.back().box);
+      if (!surface.is_trimmed() && !patches_.back().rational) {
+        surface_certifiable_.back() = 1;
+        any_certifiable_ = true;
+      }
+    }
+    // Recover the span grid from the patches' parameter boxes and check the layout: the warm
+    // start's patch lookup relies on it (a mismatch is an internal error, not bad input).
+    for (const BezierPatch& patch : pieces) {
+      if (patch.param_u.lo != pieces.front().param_u.lo) break;
+      layout.breaks_v.push_back(patch.param_v.lo);
+    }
+    layout.spans_v = static_cast<int>(layout.breaks_v.size());
+    if (layout.spans_v > 0) {
+      layout.spans_u = static_cast<int>(pieces.size()) / layout.spans_v;
+      for (int a = 0; a < layout.spans_u; ++a)
+        layout.breaks_u.push_back(pieces[static_cast<std::size_t>(a) * layout.spans_v].param_u.lo);
+    }
+    bool consistent = static_cast<std::size_t>(layout.spans_u) * layout.spans_v == pieces.size();
+    for (std::size_t k = 0; consistent && k < pieces.size(); ++k) {
+      const int a = static_cast<int>(k) / std::max(layout.spans_v, 1);
+      const int b = static_cast<int>(k) % std::max(layout.spans_v, 1);
+      consistent =
+          pieces[k].param_u.lo == layout.breaks_u[a] && pieces[k].param_v.lo == layout.breaks_v[b];
+    }
+    if (!consistent) {
+      throw std::logic_error("PreparedModel: surface '" + model_.surfaces[s].name +
+                             "': Bézier patches are not in span order");
+    }
+    for (std::size_t k = 0; k < pieces.size(); ++k) {
+      patch_span_.push_back(
+          {static_cast<int>(k) / layout.spans_v, static_cast<int>(k) % layout.spans_v});
+    }
+    surface_c1_.push_back(c1_across_spans(surface) ? 1 : 0);
+    surface_patches_.push_back(std::move(layout));
+  }
+  // Classify the trimmed surfaces' patches (regions_ is complete: pointers into it are stable).
+  for (std::size_t i = 0; i < patches_.size(); ++i) {
+    const TrimRegion* region = surface_region(patch_surface_[i]);
+    if (region == nullptr) continue;
+    const BezierPatch& bp = patches_[i].patch;
+    patch_class_[i] = region->classify(bp.param_u.lo, bp.param_u.hi, bp.param_v.lo, bp.param_v.hi);
+  }
+  // Hierarchy items: the patches that are not trimmed away, then the trim-edge pieces.
+  for (std::size_t i = 0; i < patches_.size(); ++i) {
+    if (patch_class_[i] == RegionClass::outside) continue;
+    item_patch_.push_back(static_cast<std::uint32_t>(i));
+    // The prepared patch already holds its bounds.
+    item_boxes_.push_back(patches_[i].box);
+    item_spheres_.push_back(patches_[i].sphere);
+    const BezierPatch& bp = patches_[i].patch;
+    OrientedBox ob;
+    oriented_axes(bp, ob.axis);
+    for (int k = 0; k < 3; ++k) {
+      ob.lo[k] = std::numeric_limits<double>::infinity();
+      ob.hi[k] = -ob.lo[k];
+    }
+    for (const Vec4& c : bp.cw) {
+      const Vec3 x = c.head<3>() / c[3];
+      for (int k = 0; k < 3; ++k) {
+        const double y = ob.axis[k].dot(x);
+        ob.lo[k] = std::min(ob.lo[k], y);
+        ob.hi[k] = std::max(ob.hi[k], y);
+      }
+    }
+    // Rounding in the projections (relative 1e-15 of |x|): widen so the box still holds every
+    // control point's true projection.
+    for (int k = 0; k < 3; ++k) {
+      const double slack = 1e-14 * (std::abs(ob.lo[k]) + std::abs(ob.hi[k]) +
+                                    (patches_[i].box.hi - patches_[i].box.lo).norm());
+      ob.lo[k] -= slack;
+      ob.hi[k] += slack;
+    }
+    item_oriented_.push_back(ob);
+  }
+  for (std::size_t s = 0; s < model_.surfaces.size(); ++s) {
+    const NurbsSurface& surface = model_.surfaces[s];
+    if (!surface.is_trimmed()) continue;
+    for (const TrimEdge& edge : trim_edges(surface)) {
+      for (const BezierCurve& piece : decompose(edge.edge)) {
+        edge_pieces_.push_back(prepare_curve_piece(piece));
+        edge_piece_info_.push_back({static_cast<int>(s), edge.loop, edge.curve});
+        item_boxes_.push_back(bounding_box(piece));
+        item_spheres_.push_back(bounding_sphere(piece));
+        bounds_.extend(item_boxes_.back());
+      }
+    }
+  }
+  for (std::size_t c = 0; c < model_.curves.size(); ++c) {
+    for (const BezierCurve& piece : decompose(model_.curves[c])) {
+      piece_boxes_.push_back(bounding_box(piece));
+      piece_spheres_.push_back(bounding_sphere(piece));
+      pieces_.push_back(prepare_curve_piece(piece));
+      piece_curve_.push_back(static_cast<int>(c));
+      bounds_.extend(piece_boxes_.back());
+    }
+  }
+  patch_bvh_ = std::make_shared<const Bvh>(item_boxes_, 2);
+  // The seed grid: about 32 cells along the model's longest side; each cell's point is the
+  // sample nearest to its centre of the patch a greedy descent from the centre reaches
+  // (seed_from_grid). Outside the model's box the nearest cell is used.
+  if (!patch_bvh_->empty() && !item_patch_.empty() && !bounds_.empty()) {
+    constexpr int kCellsAlongLongest = 32;
+    const Vec3 extent = bounds_.hi - bounds_.lo;
+    const double cell = std::max(extent.maxCoeff() / kCellsAlongLongest, 1e-300);
+    seed_lo_ = bounds_.lo;
+    seed_inv_cell_ = 1.0 / cell;
+    for (int a = 0; a < 3; ++a)
+      seed_dims_[a] =
+          std::clamp(static_cast<int>(std::ceil(extent[a] / cell)), 1, kCellsAlongLongest);
+    seed_cells_.resize(static_cast<std::size_t>(seed_dims_[0]) * seed_dims_[1] * seed_dims_[2]);
+    for (int z = 0; z < seed_dims_[2]; ++z) {
+      for (int y = 0; y < seed_dims_[1]; ++y) {
+        for (int x = 0; x < seed_dims_[0]; ++x) {
+          const Vec3 centre = seed_lo_ + cell * Vec3(x + 0.5, y + 0.5, z + 0.5);
+          const std::int64_t item = patch_bvh_->greedy_primitive(centre);
+          if (item < 0 || static_cast<std::size_t>(item) >= item_patch_.size()) continue;
+          const std::uint32_t k = item_patch_[static_cast<std::size_t>(item)];
+          if (patch_class_[k] != RegionClass::inside) continue;
+          SeedCell& c =
+              seed_cells_[(static_cast<std::size_t>(z) * seed_dims_[1] + y) * seed_dims_[0] + x];
+          double nearest = std::numeric_limits<double>::infinity();
+          for (int a = 0; a < kSeedSamples; ++a) {
+            for (int b = 0; b < kSeedSamples; ++b) {
+              const double s_loc = double(a) / (kSeedSamples - 1);
+              const double t_loc = double(b) / (kSeedSamples - 1);
+              const Vec3 point = patches_[k].patch.evaluate(s_loc, t_loc);
+              const double d = (point - centre).squaredNorm();
+              if (d < nearest) {
+                nearest = d;
+                c = {static_cast<std::int64_t>(k), s_loc, t_loc, point};
+              }
+            }
+          }
+        }
+      }
+    }
+  }
+  piece_bvh_ = std::make_shared<const Bvh>(piece_boxes_, 2);
+}
+
+PreparedModel::PreparedModel(const PreparedModel&) = default;
+PreparedModel::PreparedModel(PreparedModel&&) noexcept = default;
+PreparedModel& PreparedModel::operator=(const PreparedModel&) = default;
+PreparedModel& PreparedModel::operator=(PreparedModel&&) noexcept = default;
+PreparedModel::~PreparedModel() = default;
+
+int PreparedModel::reach_cells_per_side() const {
+  return reach_->k;
+}
+
+void PreparedModel::prepare_reach_bounds() const {
+  std::call_once(reach_->once, [this] {
+    ReachTable table = build_reach_table(*this);
+    reach_->first = std::move(table.first);
+    reach_->cells = std::move(table.cells);
+    reach_->k = table.cells_per_side;
+    reach_->ready.store(true, std::memory_order_release);
+  });
+}
+
+std::int64_t PreparedModel::locate_patch(int surface, double u, double v) const {
+  const SurfacePatches& layout = surface_patches_[static_cast<std::size_t>(surface)];
+  if (layout.spans_u == 0 || layout.spans_v == 0) return -1;
+  // The last span whose lower bound is <= the parameter (the first span below all of them): the
+  // number of lower bounds after the first that are <= x. Counted without branches up to 64
+  // spans (a binary search's branches mispredict on every call of a warm frame's scattered
+  // hints), by binary search beyond.
+  auto span = [](const std::vector<double>& breaks, double x) {
+    const std::size_t n = breaks.size();
+    if (n <= 64) {
+      int count = 0;
+      for (std::size_t k = 1; k < n; ++k)
+        count += breaks[k] <= x ? 1 : 0;
+      return count;
+    }
+    const auto it = std::upper_bound(breaks.begin() + 1, breaks.end(), x);
+    return static_cast<int>(it - breaks.begin()) - 1;
+  };
+  const int a = span(layout.breaks_u, u), b = span(layout.breaks_v, v);
+  return static_cast<std::int64_t>(layout.first) + static_cast<std::int64_t>(a) * layout.spans_v +
+         b;
+}
+
+bool PreparedModel::seed_from_grid(const Vec3& p, double limit_sq, SurfaceHit& best, int& surface,
+                                   std::int64_t& patch) const {
+  if (seed_cells_.empty()) return false;
+  int cell[3];
+  for (int a = 0; a < 3; ++a) {
+    const double x = (p[a] - seed_lo_[a]) * seed_inv_cell_;
+    // NaN-safe: the caller passes finite points only, but a clamp of NaN must not index.
+    cell[a] = x > 0.0 ? static_cast<int>(std::min(x, double(seed_dims_[a] - 1))) : 0;
+  }
+  const SeedCell& c =
+      seed_cells_[(static_cast<std::size_t>(cell[2]) * seed_dims_[1] + cell[1]) * seed_dims_[0] +
+                  cell[0]];
+  if (c.patch < 0) return false;
+  const double d = (c.point - p).squaredNorm();
+  if (!(d < limit_sq)) return false;
+  const BezierPatch& bp = patches_[static_cast<std::size_t>(c.patch)].patch;
+  best.s = c.s;
+  best.t = c.t;
+  best.u = bp.param_u.to_parent(c.s);
+  best.v = bp.param_v.to_parent(c.t);
+  best.distance_sq = d;
+  best.foot = c.point;
+  best.normal = Vec3::Zero();
+  surface = patch_surface_[static_cast<std::size_t>(c.patch)];
+  patch = c.patch;
+  return true;
+}
+
+Vec2 PreparedModel::edge_uv(std::size_t i, double t) const {
+  const EdgePiece& e = edge_piece_info_[i];
+  const NurbsCurve& uv = model_.surfaces[static_cast<std::size_t>(e.surface)]
+                             .trim_loops[static_cast<std::size_t>(e.loop)]
+                             .curves[static_cast<std::size_t>(e.curve)]
+                             .uv;
+  const Vec3 x = uv.evaluate(t);
+  return {x.x(), x.y()};
+}
+
+double PreparedModel::piece_lower_bound(std::size_t i, const Vec3& p) const {
+  return std::max(piece_boxes_[i].squared_distance(p), piece_spheres_[i].squared_distance(p));
+}
+
+}  // namespace nurbsreg::engine

@@ -1,0 +1,400 @@
+#include "proofs/warm_certificate.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace nurbsreg::engine {
+namespace {
+
+// `out` = the grid `in` (rows x cols, s along rows) restricted from [0, 1] to [s0, s1] in s: on
+// every column, the de Casteljau restriction of its Bernstein polynomial (degree rows - 1), first
+// to the part left of s1, then to the part of that right of s0 / s1. The columns are the inner
+// loop (whole rows at a time, which vectorises).
+void restrict_s(const double* in, double* out, int rows, int cols, double s0, double s1) {
+  std::copy(in, in + rows * cols, out);
+  const int n = rows - 1;
+  if (s1 < 1.0) {
+    for (int r = 1; r <= n; ++r) {
+      for (int k = n; k >= r; --k) {
+        double* row = out + k * cols;
+        const double* prev = row - cols;
+        for (int j = 0; j < cols; ++j)
+          row[j] = (1.0 - s1) * prev[j] + s1 * row[j];
+      }
+    }
+  }
+  const double t = s1 > 0.0 ? s0 / s1 : 0.0;
+  if (t > 0.0) {
+    for (int r = 1; r <= n; ++r) {
+      for (int k = 0; k <= n - r; ++k) {
+        double* row = out + k * cols;
+        const double* next = row + cols;
+        for (int j = 0; j < cols; ++j)
+          row[j] = (1.0 - t) * row[j] + t * next[j];
+      }
+    }
+  }
+}
+
+// `out` (cols x rows) = the transpose of `in` (rows x cols): a restriction in t is then one in s
+// of the transpose (whole rows again), with the same values.
+void transpose(const double* in, double* out, int rows, int cols) {
+  for (int i = 0; i < rows; ++i) {
+    for (int j = 0; j < cols; ++j)
+      out[j * rows + i] = in[i * cols + j];
+  }
+}
+
+// The smallest of x[0, n): four running minima (independent chains, which vectorise), then theirs.
+double smallest_of(const double* x, int n) {
+  const double inf = std::numeric_limits<double>::infinity();
+  double m[4] = {inf, inf, inf, inf};
+  int k = 0;
+  for (; k + 4 <= n; k += 4) {
+    for (int l = 0; l < 4; ++l)
+      m[l] = std::min(m[l], x[k + l]);
+  }
+  for (; k < n; ++k)
+    m[0] = std::min(m[0], x[k]);
+  return std::min(std::min(m[0], m[1]), std::min(m[2], m[3]));
+}
+
+struct LocalBox {
+  double s0, s1, t0, t1;
+};
+
+// `out` = the grid `in` restricted to the box (s first, then t), through `work` and `strip`.
+void restrict_grid(const double* in, double* out, double* work, double* strip, int rows, int cols,
+                   const LocalBox& b) {
+  restrict_s(in, work, rows, cols, b.s0, b.s1);
+  transpose(work, strip, rows, cols);
+  restrict_s(strip, work, cols, rows, b.t0, b.t1);
+  transpose(work, out, cols, rows);
+}
+
+// Lower bound of F on P \ N: the eight tiles of P around N (the 3 x 3 tiling by N's sides, less
+// N), each bounded by its restricted grid's smallest coefficient (convex hull property); a tile
+// whose bound is below target_sq is halved once along its longer side and bounded again. Each
+// column of tiles shares one restriction in s, kept transposed (`strip`) so that the tiles'
+// restrictions in t run on whole rows too; only their smallest coefficient is needed, which the
+// transpose does not change. `work` and `tile` are scratch grids.
+double outside_lower_bound(const double* full, double* strip, double* work, double* tile, int rows,
+                           int cols, const LocalBox& n, double target_sq, double rounding) {
+  const double s_cuts[4] = {0.0, n.s0, n.s1, 1.0};
+  const double t_cuts[4] = {0.0, n.t0, n.t1, 1.0};
+  const int size = rows * cols;
+  // The smallest coefficient of `from` (transposed: cols x rows) restricted to [t0, t1] in t.
+  const auto smallest = [&](const double* from, double t0, double t1) {
+    restrict_s(from, tile, cols, rows, t0, t1);
+    return smallest_of(tile, size) - rounding;
+  };
+  double bound = target_sq;
+  for (int a = 0; a < 3; ++a) {
+    if (!(s_cuts[a + 1] > s_cuts[a])) continue;
+    restrict_s(full, work, rows, cols, s_cuts[a], s_cuts[a + 1]);
+    transpose(work, strip, rows, cols);
+    for (int b = 0; b < 3; ++b) {
+      if (a == 1 && b == 1) continue;
+      const double t0 = t_cuts[b], t1 = t_cuts[b + 1];
+      if (!(t1 > t0)) continue;
+      double value = smallest(strip, t0, t1);
+      if (value < bound) {
+        // Halved along the longer side; each half restricted from the full grid, as the tile was.
+        const double s0 = s_cuts[a], s1 = s_cuts[a + 1];
+        if (s1 - s0 >= t1 - t0) {
+          const double mid = 0.5 * (s0 + s1);
+          double* half = work;  // the strip is transposed: `work` is free
+          restrict_s(full, tile, rows, cols, s0, mid);
+          transpose(tile, half, rows, cols);
+          value = smallest(half, t0, t1);
+          restrict_s(full, tile, rows, cols, mid, s1);
+          transpose(tile, half, rows, cols);
+          value = std::min(value, smallest(half, t0, t1));
+        } else {
+          const double mid = 0.5 * (t0 + t1);
+          value = std::min(smallest(strip, t0, mid), smallest(strip, mid, t1));
+        }
+      }
+      bound = std::min(bound, value);
+    }
+  }
+  return std::max(bound, 0.0);
+}
+
+// Feet on the patch's own edge or corner (points beyond the surface's boundary): F need not be
+// convex around them. Instead F strictly increasing away from that edge on the box (first
+// differences of one sign) and, along the edge, strictly convex (second differences of the edge's
+// row) put the box's minimum on the edge, where it is unique; at a corner F increasing in both
+// directions puts it at the corner. Projected Newton's only KKT point on the box is then that
+// minimum. The largest radius for which this holds for every q within it of the anchor (first
+// and second differences move by at most 2 r times those of E, scaled by the box's widths);
+// 0 if it does not hold at the anchor.
+double edge_radius(const double* n, int rows, int cols, int s_edge, int t_edge, double e_s,
+                   double e_t, double e_ss, double e_tt, double r_max) {
+  double radius = r_max;
+  const auto limit = [&](double least, double e, double scale) {
+    // least - 2 r e > 1e-12 scale (rounding) for r < radius.
+    const double slack = least - 1e-12 * scale;
+    if (!(slack > 0.0)) return false;
+    if (e > 0.0) radius = std::min(radius, slack / (2.0 * e));
+    return true;
+  };
+  double scale = 0.0;
+  for (int k = 0; k < rows * cols; ++k)
+    scale = std::max(scale, std::abs(n[k]));
+  const auto at = [&](int i, int j) { return n[i * cols + j]; };
+  if (s_edge != 0) {  // +1: F increases with s (edge s = 0); -1: decreases (edge s = 1)
+    double least = std::numeric_limits<double>::infinity();
+    for (int i = 0; i + 1 < rows; ++i) {
+      for (int j = 0; j < cols; ++j)
+        least = std::min(least, s_edge * (at(i + 1, j) - at(i, j)));
+    }
+    if (!limit(least, e_s, scale)) return 0.0;
+  }
+  if (t_edge != 0) {
+    double least = std::numeric_limits<double>::infinity();
+    for (int i = 0; i < rows; ++i) {
+      for (int j = 0; j + 1 < cols; ++j)
+        least = std::min(least, t_edge * (at(i, j + 1) - at(i, j)));
+    }
+    if (!limit(least, e_t, scale)) return 0.0;
+  }
+  if (s_edge != 0 && t_edge == 0) {  // convex in t along the edge row
+    const int i = s_edge > 0 ? 0 : rows - 1;
+    double least = std::numeric_limits<double>::infinity();
+    for (int j = 0; j + 2 < cols; ++j)
+      least = std::min(least, at(i, j + 2) - 2.0 * at(i, j + 1) + at(i, j));
+    if (!limit(least, e_tt, scale)) return 0.0;
+  }
+  if (t_edge != 0 && s_edge == 0) {  // convex in s along the edge column
+    const int j = t_edge > 0 ? 0 : cols - 1;
+    double least = std::numeric_limits<double>::infinity();
+    for (int i = 0; i + 2 < rows; ++i)
+      least = std::min(least, at(i + 2, j) - 2.0 * at(i + 1, j) + at(i, j));
+    if (!limit(least, e_ss, scale)) return 0.0;
+  }
+  return radius;
+}
+
+// The float box [center - h, center + h] clipped to [lo_limit, hi_limit] (integers), rounded
+// outward so it holds center.
+void float_range(double center, double h, float& lo, float& hi, double lo_limit = 0.0,
+                 double hi_limit = 1.0) {
+  lo = static_cast<float>(std::max(lo_limit, center - h));
+  hi = static_cast<float>(std::min(hi_limit, center + h));
+  if (static_cast<double>(lo) > center) lo = std::nextafter(lo, static_cast<float>(lo_limit));
+  if (static_cast<double>(hi) < center) hi = std::nextafter(hi, static_cast<float>(hi_limit));
+  lo = std::max(lo, static_cast<float>(lo_limit));
+  hi = std::min(hi, static_cast<float>(hi_limit));
+}
+
+}  // namespace
+
+PatchCertificate certify_patch(const PreparedPatch& pp, const Vec3& a, double s, double t, double d,
+                               double r_max, SurfaceScratch& scratch) {
+  PatchCertificate c;
+  if (pp.rational || !a.allFinite() || !(r_max > 0.0)) return c;
+  const int rows = pp.rows, cols = pp.cols;
+  double* full = scratch.grids.data();
+  double* grid = full + SurfaceScratch::kGridCapacity;
+  double* strip = grid + SurfaceScratch::kGridCapacity;
+  double* work = strip + SurfaceScratch::kGridCapacity;
+  pp.numerator(a, full);
+  c.radius = grid_convexity_radius(full, rows, cols, pp.e_ss, pp.e_tt, pp.e_st, r_max);
+  if (c.radius > 0.0) {
+    c.outside_sq = std::numeric_limits<double>::infinity();
+    return c;
+  }
+  // The same rounding allowance as the clipping's (coefficients carry ~eps reach^2).
+  const double reach = pp.sphere.radius + (a - pp.origin).norm();
+  const double rounding = 1e-14 * reach * reach;
+  // A foot on the patch's edge: which edge (s = 0 edge: F must increase with s, and so on).
+  const int s_edge = s <= 0.0 ? 1 : (s >= 1.0 ? -1 : 0);
+  const int t_edge = t <= 0.0 ? 1 : (t >= 1.0 ? -1 : 0);
+  for (const double h : {1.0, 0.25, 0.1}) {
+    if (h == 1.0 && s_edge == 0 && t_edge == 0) continue;  // all of P: tested above
+    float_range(s, h, c.s0, c.s1);
+    float_range(t, h, c.t0, c.t1);
+    const double ws = double(c.s1) - c.s0, wt = double(c.t1) - c.t0;
+    if (!(ws > 0.0) || !(wt > 0.0)) continue;
+    restrict_grid(full, grid, work, strip, rows, cols, {c.s0, c.s1, c.t0, c.t1});
+    // E restricted to the box: its first and second differences are those of the derivatives'
+    // coefficients scaled by the box's widths, convex combinations of the whole patch's.
+    c.radius = h == 1.0 ? 0.0
+                        : grid_convexity_radius(grid, rows, cols, pp.e_ss * ws * ws,
+                                                pp.e_tt * wt * wt, pp.e_st * ws * wt, r_max);
+    if (!(c.radius > 0.0) && (s_edge != 0 || t_edge != 0)) {
+      c.radius = edge_radius(grid, rows, cols, s_edge, t_edge, pp.e_s * ws, pp.e_t * wt,
+                             pp.e_ss * ws * ws, pp.e_tt * wt * wt, r_max);
+    }
+    if (c.radius > 0.0) {
+      const double target = (d + 2.0 * c.radius) * (d + 2.0 * c.radius);
+      c.outside_sq = outside_lower_bound(full, strip, work, grid, rows, cols,
+                                         {c.s0, c.s1, c.t0, c.t1}, target, rounding);
+      return c;
+    }
+  }
+  c = PatchCertificate{};
+  return c;
+}
+
+double newton_on_certificate_box(const PreparedModel& model, std::int64_t anchor_patch, float s0,
+                                 float s1, float t0, float t1, const Vec3& p, std::int64_t& patch,
+                                 double& s, double& t, Vec3& foot, Vec3& normal, bool& stationary) {
+  stationary = false;
+  const int surface = model.patch_surface(static_cast<std::size_t>(anchor_patch));
+  const PreparedModel::SpanCell anchor = model.patch_span(static_cast<std::size_t>(anchor_patch));
+  const PreparedModel::SpanCell here = model.patch_span(static_cast<std::size_t>(patch));
+  int i = here.a - anchor.a, j = here.b - anchor.b;
+  LocalBox box;
+  if (model.patch_surface(static_cast<std::size_t>(patch)) != surface ||
+      !span_piece(s0, s1, t0, t1, i, j, box.s0, box.s1, box.t0, box.t1)) {
+    return std::numeric_limits<double>::infinity();
+  }
+  bool settled = false;
+  double f = newton_to_proven_point(model.patch(static_cast<std::size_t>(patch)).patch, p, box.s0,
+                                    box.s1, box.t0, box.t1, s, t, foot, &normal, &settled);
+  if (!settled) return f;
+  // A side counts as touched within 1e-9 of the piece (Newton settles to ~1e-10 of it).
+  constexpr double kTouch = 1e-9;
+  for (int moves = 0; moves < 8; ++moves) {
+    // The neighbouring pieces that touch the point: across a side N continues over.
+    int di = 0, dj = 0;
+    const auto overlaps = [&](int pi, int pj) {
+      LocalBox unused;
+      return span_piece(s0, s1, t0, t1, pi, pj, unused.s0, unused.s1, unused.t0, unused.t1);
+    };
+    if (s <= box.s0 + kTouch && box.s0 == 0.0 && overlaps(i - 1, j)) {
+      di = -1;
+    } else if (s >= box.s1 - kTouch && box.s1 == 1.0 && overlaps(i + 1, j)) {
+      di = 1;
+    }
+    if (t <= box.t0 + kTouch && box.t0 == 0.0 && overlaps(i, j - 1)) {
+      dj = -1;
+    } else if (t >= box.t1 - kTouch && box.t1 == 1.0 && overlaps(i, j + 1)) {
+      dj = 1;
+    }
+    if (di == 0 && dj == 0) {
+      stationary = true;
+      return f;
+    }
+    bool improved = false;
+    // Across one side, or at a corner across either side or diagonally.
+    const int steps[3][2] = {{di, dj}, {di, 0}, {0, dj}};
+    const int count = di != 0 && dj != 0 ? 3 : 1;
+    for (int m = 0; m < count; ++m) {
+      const int* step = steps[m];
+      LocalBox next;
+      if (!span_piece(s0, s1, t0, t1, i + step[0], j + step[1], next.s0, next.s1, next.t0,
+                      next.t1)) {
+        continue;  // a corner piece outside N (N's corner is there)
+      }
+      const std::int64_t k =
+          model.patch_at(surface, anchor.a + i + step[0], anchor.b + j + step[1]);
+      // The same point from the neighbour's side: local 1 becomes 0 across a side, and so on.
+      double ns = step[0] < 0 ? 1.0 : (step[0] > 0 ? 0.0 : s);
+      double nt = step[1] < 0 ? 1.0 : (step[1] > 0 ? 0.0 : t);
+      Vec3 nfoot, nnormal;
+      bool ok = false;
+      const double nf =
+          newton_to_proven_point(model.patch(static_cast<std::size_t>(k)).patch, p, next.s0,
+                                 next.s1, next.t0, next.t1, ns, nt, nfoot, &nnormal, &ok);
+      if (!ok) return f;
+      if (nf < f) {
+        f = nf;
+        s = ns;
+        t = nt;
+        foot = nfoot;
+        normal = nnormal;
+        patch = k;
+        i += step[0];
+        j += step[1];
+        box = next;
+        improved = true;
+        break;
+      }
+    }
+    if (!improved) {
+      stationary = true;
+      return f;
+    }
+  }
+  return f;
+}
+
+SpanCertificate certify_span(const PreparedModel& model, std::size_t patch, const Vec3& a, double s,
+                             double t, double d, double r_max, double half_s, double half_t,
+                             double floor, SurfaceScratch& scratch) {
+  SpanCertificate c;
+  const int surface = model.patch_surface(patch);
+  if (!a.allFinite() || !(r_max > 0.0) || !model.surface_c1(surface)) return c;
+  const PreparedModel::SpanCell at = model.patch_span(patch);
+  // N's limits: the surface's grid, and at most one patch beyond P on every side.
+  const auto exists = [&](int i, int j) {
+    return model.patch_at(surface, at.a + i, at.b + j) >= 0;
+  };
+  const double s_lo = exists(-1, 0) ? -1.0 : 0.0, s_hi = exists(1, 0) ? 2.0 : 1.0;
+  const double t_lo = exists(0, -1) ? -1.0 : 0.0, t_hi = exists(0, 1) ? 2.0 : 1.0;
+  float_range(s, half_s, c.s0, c.s1, s_lo, s_hi);
+  float_range(t, half_t, c.t0, c.t1, t_lo, t_hi);
+  // A foot on the surface's own edge or corner (a patch edge shared with a neighbour is inside N).
+  const int s_edge = s <= 0.0 && s_lo == 0.0 ? 1 : (s >= 1.0 && s_hi == 1.0 ? -1 : 0);
+  const int t_edge = t <= 0.0 && t_lo == 0.0 ? 1 : (t >= 1.0 && t_hi == 1.0 ? -1 : 0);
+  double* full = scratch.grids.data();
+  double* grid = full + SurfaceScratch::kGridCapacity;
+  double* strip = grid + SurfaceScratch::kGridCapacity;
+  double* work = strip + SurfaceScratch::kGridCapacity;
+  struct Piece {
+    const PreparedPatch* pp;
+    LocalBox box;
+  };
+  Piece pieces[SpanCertificate::kMaxPatches];
+  for (int i = -1; i <= 1; ++i) {
+    for (int j = -1; j <= 1; ++j) {
+      LocalBox box;
+      if (!span_piece(c.s0, c.s1, c.t0, c.t1, i, j, box.s0, box.s1, box.t0, box.t1)) continue;
+      const std::int64_t k = model.patch_at(surface, at.a + i, at.b + j);
+      if (k < 0 || model.patch(static_cast<std::size_t>(k)).rational) return SpanCertificate{};
+      pieces[c.count] = {&model.patch(static_cast<std::size_t>(k)), box};
+      c.patches[c.count++] = k;
+    }
+  }
+  // Every piece strictly convex, or (an edge foot) every piece increasing away from the edge: the
+  // same kind of proof on all of them, so that they add up to one on N.
+  const auto radius_over_pieces = [&](bool edge) {
+    double radius = r_max;
+    for (int k = 0; k < c.count && radius > floor; ++k) {
+      const PreparedPatch& pp = *pieces[k].pp;
+      const LocalBox& b = pieces[k].box;
+      const double ws = b.s1 - b.s0, wt = b.t1 - b.t0;
+      pp.numerator(a, full);
+      restrict_grid(full, grid, work, strip, pp.rows, pp.cols, b);
+      radius = edge ? edge_radius(grid, pp.rows, pp.cols, s_edge, t_edge, pp.e_s * ws, pp.e_t * wt,
+                                  pp.e_ss * ws * ws, pp.e_tt * wt * wt, radius)
+                    : grid_convexity_radius(grid, pp.rows, pp.cols, pp.e_ss * ws * ws,
+                                            pp.e_tt * wt * wt, pp.e_st * ws * wt, radius);
+    }
+    return radius;
+  };
+  c.radius = radius_over_pieces(false);
+  if (!(c.radius > 0.0) && (s_edge != 0 || t_edge != 0)) c.radius = radius_over_pieces(true);
+  if (!(c.radius > floor)) return SpanCertificate{};
+  // The overlapped patches outside N: their tiles around the piece, as certify_patch bounds P's.
+  const double target = (d + 2.0 * c.radius) * (d + 2.0 * c.radius);
+  c.outside_sq = target;
+  for (int k = 0; k < c.count; ++k) {
+    const PreparedPatch& pp = *pieces[k].pp;
+    const LocalBox& b = pieces[k].box;
+    if (b.s0 == 0.0 && b.s1 == 1.0 && b.t0 == 0.0 && b.t1 == 1.0) continue;  // all inside N
+    const double reach = pp.sphere.radius + (a - pp.origin).norm();
+    pp.numerator(a, full);
+    c.outside_sq =
+        std::min(c.outside_sq, outside_lower_bound(full, strip, work, grid, pp.rows, pp.cols, b,
+                                                   target, 1e-14 * reach * reach));
+    if (!(c.outside_sq > (d + 2.0 * floor) * (d + 2.0 * floor))) return SpanCertificate{};
+  }
+  return c;
+}
+
+}  // namespace nurbsreg::engine
