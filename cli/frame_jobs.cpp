@@ -202,7 +202,8 @@ ScanSize scan_size(const io::PointCloud& cloud, const engine::PreparedModel& mod
   engine::Aabb box;
   for (const engine::Vec3& p : cloud.points)
     box.extend(p);
-  return {box.diagonal(), model.bounds().diagonal(), model.model().units};
+  // The trimmed faces' box: a face cut from a large surface is as large as the face.
+  return {box.diagonal(), model.geometry_bounds().box.diagonal(), model.model().units};
 }
 
 std::optional<std::string> ScanSize::note(double smaller, double larger) const {
