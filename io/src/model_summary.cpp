@@ -3,6 +3,7 @@
 #include <nlohmann/json.hpp>
 
 #include "nurbsreg/engine/decompose.hpp"
+#include "nurbsreg/engine/prepared_model.hpp"
 #include "text_io.hpp"
 
 namespace nurbsreg::io {
@@ -80,6 +81,15 @@ ModelSummary summarize_model(const engine::Model& model) {
     summary.curves.push_back(std::move(e));
   }
   summary.skipped_faces = model.skipped_faces;
+  // The trimmed geometry's boxes need the prepared form (trim regions, edges).
+  const engine::PreparedModel prepared(model);
+  summary.geometry = prepared.geometry_bounds();
+  for (std::size_t k = 0; k < summary.surfaces.size(); ++k)
+    summary.surfaces[k].geometry = engine::compute_surface_bounds(prepared, static_cast<int>(k));
+  for (EntitySummary& e : summary.curves) {
+    e.geometry.box = e.geometry.witnessed = e.box;
+    e.geometry.exact = false;
+  }
   return summary;
 }
 
@@ -121,11 +131,20 @@ std::string format_model_summary(const ModelSummary& m, const std::string& model
     for (const engine::SkippedFace& f : m.skipped_faces)
       out += "  skipped face " + std::to_string(f.face) + ": " + f.reason + "\n";
   }
-  if (m.box.empty()) {
-    out += "bounding box: empty\n";
+  const engine::ModelBounds& g = m.geometry;
+  if (g.box.empty()) {
+    out += "bounding box: empty (every face is trimmed away)\n";
   } else {
-    out += "bounding box: " + point(m.box.lo) + " .. " + point(m.box.hi) + ", diagonal " +
-           number(m.box.diagonal()) + " " + m.units + "\n";
+    out +=
+        "bounding box: " + point(g.box.lo) + " .. " + point(g.box.hi) + ", diagonal " +
+        number(g.box.diagonal()) + " " + m.units + " (of the faces as trimmed, " +
+        (g.exact ? std::string("exact")
+                 : "proven bound: at most " + number(g.excess) + " " + m.units + " beyond them") +
+        ")\n";
+  }
+  if (!m.box.empty()) {
+    out += "control-point box (untrimmed surfaces): " + point(m.box.lo) + " .. " + point(m.box.hi) +
+           ", diagonal " + number(m.box.diagonal()) + " " + m.units + "\n";
   }
   return out;
 }
@@ -150,7 +169,14 @@ std::string model_summary_to_json(const ModelSummary& m) {
       j["domain"] = {e.domain_u.lo, e.domain_u.hi};
     }
     j["rational"] = e.rational;
-    j["bounding_box"] = box_json(e.box);
+    if (surface) {
+      j["bounding_box"] = box_json(e.geometry.box);
+      j["bounding_box_kind"] = e.geometry.kind();
+      j["bounding_box_excess"] = e.geometry.excess;
+      j["control_point_box"] = box_json(e.box);
+    } else {
+      j["bounding_box"] = box_json(e.box);
+    }
     return j;
   };
   Json surfaces = Json::array();
@@ -167,7 +193,10 @@ std::string model_summary_to_json(const ModelSummary& m) {
                {"curves", std::move(curves)},
                {"bezier_patches", m.bezier_patches},
                {"bezier_curve_pieces", m.bezier_curve_pieces},
-               {"bounding_box", box_json(m.box)},
+               {"bounding_box", box_json(m.geometry.box)},
+               {"bounding_box_kind", m.geometry.kind()},
+               {"bounding_box_excess", m.geometry.excess},
+               {"control_point_box", box_json(m.box)},
                {"trimmed_surfaces", m.trimmed_surfaces},
                {"skipped_faces", std::move(skipped)}};
   return j.dump(2) + "\n";

@@ -8,7 +8,8 @@ ScanSize scan_size(std::span<const engine::Vec3> scan, const engine::PreparedMod
   engine::Aabb box;
   for (const engine::Vec3& p : scan)
     box.extend(p);
-  return {box.diagonal(), model.bounds().diagonal(), model.model().units};
+  // The trimmed faces' box: a face cut from a large surface is as large as the face.
+  return {box.diagonal(), model.geometry_bounds().box.diagonal(), model.model().units};
 }
 
 std::optional<std::string> ScanSize::note(double smaller, double larger) const {

@@ -24,6 +24,7 @@
 #include "nurbsreg/engine/bounds.hpp"
 #include "nurbsreg/engine/curve_projection.hpp"
 #include "nurbsreg/engine/model.hpp"
+#include "nurbsreg/engine/model_bounds.hpp"
 #include "nurbsreg/engine/surface_projection.hpp"
 #include "nurbsreg/engine/trim_region.hpp"
 
@@ -159,6 +160,10 @@ class PreparedModel {
 
   // Box around every control point of the model (contains the whole model).
   const Aabb& bounds() const { return bounds_; }
+  // The proven box of the model's actual geometry: trimmed faces as trimmed, their edges, the
+  // curves (model_bounds.hpp). The size of the model for users: `info`, scan-size checks,
+  // size-derived defaults. Computed on first use (thread-safe, milliseconds), shared by copies.
+  const ModelBounds& geometry_bounds() const;
   // A number no other PreparedModel of this process has (copies share it, as they share the
   // geometry): warm certificates carry it, so one made for another model is never trusted.
   std::uint32_t serial() const { return serial_; }
@@ -209,6 +214,11 @@ class PreparedModel {
   std::vector<BoundingSphere> piece_spheres_;
   std::shared_ptr<const Bvh> piece_bvh_;
   Aabb bounds_;
+  struct GeometryBounds {
+    std::once_flag once;
+    ModelBounds bounds;
+  };
+  std::shared_ptr<GeometryBounds> geometry_bounds_ = std::make_shared<GeometryBounds>();
   std::uint32_t serial_ = 0;
 };
 

@@ -4,10 +4,12 @@
 // patches (pieces for curves) the engine will cache; and a bounding box. For CAD models also
 // each face's trimming (loops, curves) and orientation, and the faces that were skipped.
 //
-// The box is the union of the Bézier patches' control-point boxes: by the convex-hull property
-// of rational Bézier patches with positive weights it contains the model, and it is usually much
-// tighter than the NURBS control net's box (for the exact sphere and circle it is exact).
-// summarize_model decomposes every entity once (allocates; load-time code). Thread-safe.
+// Two boxes. `box` (per entity and overall) is the union of the Bézier patches' control-point
+// boxes of the UNTRIMMED surfaces: it contains the model but, for a CAD face cut from a large
+// surface, can be many times its size. `geometry` (per surface and overall) is the proven box of
+// the trimmed faces, their edges and the curves (engine/model_bounds.hpp), exact or a proven
+// bound at most `excess` beyond them: the model's size that `info` reports as its bounding box.
+// summarize_model prepares the model once (allocates; load-time code). Thread-safe.
 
 #include <cstddef>
 #include <string>
@@ -15,6 +17,7 @@
 
 #include "nurbsreg/engine/bounds.hpp"
 #include "nurbsreg/engine/model.hpp"
+#include "nurbsreg/engine/model_bounds.hpp"
 
 namespace nurbsreg::io {
 
@@ -30,6 +33,7 @@ struct EntitySummary {
   engine::ParamInterval domain_u;
   engine::ParamInterval domain_v;  // curves: [0, 0]
   engine::Aabb box;
+  engine::ModelBounds geometry;  // surfaces: the trimmed face's box; curves: equal to `box`
   // Surfaces (CAD faces): trimming and orientation. Curves: 0 and false.
   std::size_t trim_loops = 0;
   std::size_t trim_curves = 0;
@@ -42,7 +46,8 @@ struct ModelSummary {
   std::vector<EntitySummary> curves;
   std::size_t bezier_patches = 0;       // over all surfaces
   std::size_t bezier_curve_pieces = 0;  // over all curves
-  engine::Aabb box;                     // over everything
+  engine::Aabb box;                     // over everything (control points, untrimmed)
+  engine::ModelBounds geometry;         // over everything: trimmed faces, edges, curves
   std::size_t trimmed_surfaces = 0;
   std::vector<engine::SkippedFace> skipped_faces;  // CAD faces that could not be converted
 };
@@ -56,8 +61,10 @@ std::string format_model_summary(const ModelSummary& summary, const std::string&
 
 // The same as a JSON object (for scripts): {"units", "surfaces": [...], "curves": [...],
 // "bezier_patches", "bezier_curve_pieces", "bounding_box": {"min": [..], "max": [..]},
+// "bounding_box_kind": "exact" | "proven bound", "bounding_box_excess", "control_point_box",
 // "trimmed_surfaces", "skipped_faces": [{"face", "reason"}]}; each surface also has "trimmed",
-// "trim_loops", "trim_curves" and "reversed".
+// "trim_loops", "trim_curves" and "reversed", and its "bounding_box" is its trimmed face's (with
+// "bounding_box_kind", "bounding_box_excess" and "control_point_box").
 std::string model_summary_to_json(const ModelSummary& summary);
 
 }  // namespace nurbsreg::io
