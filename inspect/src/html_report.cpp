@@ -105,7 +105,7 @@ std::string summary(const InspectionReport& r) {
               fmt::format("{} above, {} below",
                           number("above", double(s.above), fmt::format("{}", s.above)),
                           number("below", double(s.below), fmt::format("{}", s.below))));
-  out += card("Mean ± σ",
+  out += card("Mean ± std",
               number("mean", s.mean, signed_text(s.mean)) + " ± " +
                   number("std", s.std, fmt::format("{:.4f}", s.std)),
               "rms " + number("rms", s.rms, fmt::format("{:.4f}", s.rms)) + " " + escape(r.units));
@@ -135,7 +135,7 @@ std::string summary(const InspectionReport& r) {
 std::string histogram_svg(const InspectionReport& r) {
   const Histogram& h = r.stats.histogram;
   const ColourScale& sc = r.scale;
-  constexpr double W = 720, H = 280, left = 56, right = 16, top = 16, bottom = 44;
+  constexpr double W = 720, H = 290, left = 56, right = 16, top = 26, bottom = 44;
   const double pw = W - left - right, ph = H - top - bottom;
   std::size_t peak = 1;
   for (const std::size_t c : h.counts)
@@ -174,23 +174,29 @@ std::string histogram_svg(const InspectionReport& r) {
   }
   for (int k = 0; k <= 6; ++k) {
     const double d = h.low + (h.high - h.low) * k / 6.0;
-    out += fmt::format(
-        "<text class=\"tick\" x=\"{:.2f}\" y=\"{}\" text-anchor=\"middle\">{:+.3g}</text>\n",
-        x_of(d), top + ph + 16, d);
+    const std::string label =
+        std::abs(d) < 1e-9 * (h.high - h.low) ? std::string("0") : fmt::format("{:+.3g}", d);
+    out +=
+        fmt::format("<text class=\"tick\" x=\"{:.2f}\" y=\"{}\" text-anchor=\"middle\">{}</text>\n",
+                    x_of(d), top + ph + 16, label);
   }
   out += fmt::format("<text class=\"tick\" x=\"{}\" y=\"{}\" text-anchor=\"end\">{}</text>\n",
                      left - 6, top + 10, peak);
   out += fmt::format("<text class=\"tick\" x=\"{}\" y=\"{}\" text-anchor=\"end\">0</text>\n",
                      left - 6, top + ph);
   out += fmt::format(
+      "<text class=\"axis-label\" transform=\"translate(14 {}) rotate(-90)\" "
+      "text-anchor=\"middle\">points</text>\n",
+      top + ph / 2);
+  out += fmt::format(
       "<text class=\"axis-label\" x=\"{}\" y=\"{}\" text-anchor=\"middle\">signed deviation ({}); "
       "shaded: tolerance band [{:+g}, {:+g}]</text>\n",
       left + pw / 2, H - 6, escape(r.units), sc.band.lower, sc.band.upper);
-  out += fmt::format("<text class=\"tick\" x=\"{}\" y=\"{}\">&lt; {:+g}: {}</text>\n", left + 4,
-                     top + 12, h.low, h.under);
-  out +=
-      fmt::format("<text class=\"tick\" x=\"{}\" y=\"{}\" text-anchor=\"end\">≥ {:+g}: {}</text>\n",
-                  left + pw - 4, top + 12, h.high, h.over);
+  // What lies beyond the histogram's range (drawn in the saturated end colours on the map).
+  out += fmt::format(
+      "<text class=\"tick\" x=\"{}\" y=\"{}\">◀ {} below {:+g}</text>\n<text class=\"tick\" "
+      "x=\"{}\" y=\"{}\" text-anchor=\"end\">{} above {:+g} ▶</text>\n",
+      left + 4, top - 10, h.under, h.low, left + pw, top - 10, h.over, h.high);
   out += "</svg>\n";
   return out;
 }

@@ -158,7 +158,7 @@ int splat_size(const Frame& f, std::size_t points) {
   if (points == 0 || covered == 0) return 2;
   const double spacing =
       std::sqrt(static_cast<double>(covered) / (0.5 * static_cast<double>(points)));
-  return std::clamp(static_cast<int>(std::ceil(spacing)), 1, 5);
+  return std::clamp(static_cast<int>(std::ceil(1.3 * spacing)), 1, 6);
 }
 
 void set_rgb(cairo_t* cr, const Rgb& c) {
@@ -194,25 +194,26 @@ void draw_legend(cairo_t* cr, const InspectionReport& r, int x0, int height) {
        12.5);
   // The bar: value linear from lower_limit (bottom) to upper_limit (top), with saturated end
   // boxes for what lies beyond.
-  const double bar_x = x0 + 28, bar_w = 34, top = y + 34, bar_h = 420, box = 22;
+  const double bar_x = x0 + 28, bar_w = 34, top = y + 34, bar_h = 420, box = 20, gap = 12;
+  const double bar_top = top + box + gap;
   const auto value_y = [&](double d) {
-    return top + box + bar_h * (sc.upper_limit - d) / (sc.upper_limit - sc.lower_limit);
+    return bar_top + bar_h * (sc.upper_limit - d) / (sc.upper_limit - sc.lower_limit);
   };
   set_rgb(cr, sc.colour(sc.upper_limit));
-  cairo_rectangle(cr, bar_x, top, bar_w, box - 2);
+  cairo_rectangle(cr, bar_x, top, bar_w, box);
   cairo_fill(cr);
   set_rgb(cr, sc.colour(sc.lower_limit));
-  cairo_rectangle(cr, bar_x, top + box + bar_h + 2, bar_w, box - 2);
+  cairo_rectangle(cr, bar_x, bar_top + bar_h + gap, bar_w, box);
   cairo_fill(cr);
   for (int k = 0; k < static_cast<int>(bar_h); ++k) {
     const double d = sc.upper_limit - (k + 0.5) / bar_h * (sc.upper_limit - sc.lower_limit);
     set_rgb(cr, sc.colour(d));
-    cairo_rectangle(cr, bar_x, top + box + k, bar_w, 1.0);
+    cairo_rectangle(cr, bar_x, bar_top + k, bar_w, 1.0);
     cairo_fill(cr);
   }
   cairo_set_source_rgb(cr, 0.2, 0.2, 0.2);
   cairo_set_line_width(cr, 1.0);
-  cairo_rectangle(cr, bar_x + 0.5, top + box + 0.5, bar_w - 1, bar_h - 1);
+  cairo_rectangle(cr, bar_x + 0.5, bar_top + 0.5, bar_w - 1, bar_h - 1);
   cairo_stroke(cr);
   const auto tick = [&](double d, const std::string& label, bool bold) {
     const double ty = value_y(d);
@@ -222,8 +223,9 @@ void draw_legend(cairo_t* cr, const InspectionReport& r, int x0, int height) {
     cairo_stroke(cr);
     text(cr, bar_x + bar_w + 12, ty + 4.5, label, 13, bold);
   };
-  text(cr, bar_x + bar_w + 12, top + 15, fmt::format("> {:+g}", sc.upper_limit), 13);
-  text(cr, bar_x + bar_w + 12, top + box + bar_h + 17, fmt::format("< {:+g}", sc.lower_limit), 13);
+  text(cr, bar_x + bar_w + 12, top + box / 2 + 4.5, fmt::format("> {:+g}", sc.upper_limit), 13);
+  text(cr, bar_x + bar_w + 12, bar_top + bar_h + gap + box / 2 + 4.5,
+       fmt::format("< {:+g}", sc.lower_limit), 13);
   tick(sc.upper_limit, fmt::format("{:+g}", sc.upper_limit), false);
   tick(sc.lower_limit, fmt::format("{:+g}", sc.lower_limit), false);
   tick(sc.band.upper, fmt::format("{:+g}  upper tolerance", sc.band.upper), true);
@@ -236,7 +238,7 @@ void draw_legend(cairo_t* cr, const InspectionReport& r, int x0, int height) {
       value_y(sc.band.lower) - value_y(sc.band.upper) > 40)
     tick(0.0, "0", false);
 
-  y = top + 2 * box + bar_h + 46;
+  y = bar_top + bar_h + gap + box + 46;
   const double lx = x0 + 24;
   cairo_set_source_rgb(cr, 0.1, 0.1, 0.12);
   text(cr, lx, y, r.passed() ? "PASS" : "FAIL", 22, true);
@@ -250,9 +252,9 @@ void draw_legend(cairo_t* cr, const InspectionReport& r, int x0, int height) {
                   percent(s.points ? double(s.above) / double(s.points) : NAN),
                   percent(s.points ? double(s.below) / double(s.points) : NAN)),
       fmt::format("points             {}", s.points),
-      fmt::format("mean / std         {:+.4g} / {:.4g}", s.mean, s.std),
-      fmt::format("min / max          {:+.4g} / {:+.4g}", s.min, s.max),
-      fmt::format("p5 / p95           {:+.4g} / {:+.4g}", s.p5, s.p95),
+      fmt::format("mean / std         {:+.4f} / {:.4f}", s.mean, s.std),
+      fmt::format("min / max          {:+.4f} / {:+.4f}", s.min, s.max),
+      fmt::format("p5 / p95           {:+.4f} / {:+.4f}", s.p5, s.p95),
   };
   for (const std::string& line : lines) {
     cairo_select_font_face(cr, "DejaVu Sans Mono", CAIRO_FONT_SLANT_NORMAL,

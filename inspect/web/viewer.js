@@ -48,20 +48,22 @@ function drawLegend() {
   const [lo, hi] = view.limits, [bandLo, bandHi] = view.band;
   const canvas = document.createElement('canvas');
   const scale = window.devicePixelRatio || 1;
-  const w = 210, h = 330;
+  const w = 210, h = 360;
   canvas.width = w * scale; canvas.height = h * scale;
   canvas.style.width = w + 'px'; canvas.style.height = h + 'px';
   const g = canvas.getContext('2d');
   g.scale(scale, scale);
-  g.fillStyle = 'rgba(255,255,255,0.88)';
+  g.fillStyle = 'rgba(255,255,255,0.9)';
   g.fillRect(0, 0, w, h);
   g.fillStyle = '#222'; g.font = 'bold 13px sans-serif';
   g.fillText(`Signed deviation (${view.units})`, 10, 18);
-  const x = 14, top = 48, barH = 240, barW = 22, box = 14;
+  // The bar is linear in the deviation between the limits; the boxes above and below it hold
+  // the saturated colours of everything beyond.
+  const x = 14, top = 56, barH = 240, barW = 22, box = 14, gap = 8;
   const y = (d) => top + barH * (hi - d) / (hi - lo);
   const rgb = (k) => `rgb(${ramp[3 * k]},${ramp[3 * k + 1]},${ramp[3 * k + 2]})`;
-  g.fillStyle = rgb(255); g.fillRect(x, top - box - 4, barW, box);
-  g.fillStyle = rgb(0); g.fillRect(x, top + barH + 4, barW, box);
+  g.fillStyle = rgb(255); g.fillRect(x, top - gap - box, barW, box);
+  g.fillStyle = rgb(0); g.fillRect(x, top + barH + gap, barW, box);
   for (let k = 0; k < barH; ++k) {
     const d = hi - (k + 0.5) / barH * (hi - lo);
     g.fillStyle = rgb(Math.min(255, Math.max(0, Math.round((d - lo) / (hi - lo) * 255))));
@@ -74,15 +76,16 @@ function drawLegend() {
     g.font = (bold ? 'bold ' : '') + '12px sans-serif';
     g.fillText(label, x + barW + 9, y(d) + 4);
   };
-  const s = (d) => (d >= 0 ? '+' : '') + Number(d.toPrecision(3));
-  g.fillText('> ' + s(hi), x + barW + 9, top - 6);
-  g.fillText('< ' + s(lo), x + barW + 9, top + barH + 15);
+  const s = (d) => (d === 0 ? '' : d > 0 ? '+' : '') + Number(d.toPrecision(3));
+  g.fillText('> ' + s(hi), x + barW + 9, top - gap - box / 2 + 4);
+  g.fillText('< ' + s(lo), x + barW + 9, top + barH + gap + box / 2 + 4);
   tick(hi, s(hi)); tick(lo, s(lo));
   tick(bandHi, s(bandHi) + '  upper tol.', true);
   tick(bandLo, s(bandLo) + '  lower tol.', true);
+  if (bandLo < 0 && bandHi > 0 && y(bandLo) - y(bandHi) > 36) tick(0, '0');
   g.font = '11px sans-serif'; g.fillStyle = '#555';
   g.fillText(`scale ${view.scheme}, saturated beyond`, 10, h - 26);
-  g.fillText(`[${s(lo)}, ${s(hi)}]`, 10, h - 12);
+  g.fillText(`[${s(lo)}, ${s(hi)}] ${view.units}`, 10, h - 12);
   $('legend').appendChild(canvas);
 }
 drawLegend();
@@ -129,11 +132,15 @@ if (meshIndex.length > 0) {
     polygonOffset: true, polygonOffsetFactor: 2, polygonOffsetUnits: 2 }));
   scene.add(model);
 }
-scene.add(new THREE.AmbientLight(0xffffff, 0.55));
+scene.add(new THREE.AmbientLight(0xffffff, 0.45));
 const camera = new THREE.OrthographicCamera(-1, 1, 1, -1, -1, 1);
 const light = new THREE.DirectionalLight(0xffffff, 0.9);
-light.position.set(0.3, 0.5, 1);
+// A headlight: from above-left of the eye towards what it looks at (the target moves with the
+// camera too, so the light direction is fixed in view space).
+light.position.set(-0.3, 0.5, 0);
+light.target.position.set(0, 0, -1);
 camera.add(light);
+camera.add(light.target);
 scene.add(camera);
 
 // The frame of the scan (the model when there is no point).
@@ -143,15 +150,23 @@ else if (model) box.setFromObject(model);
 const centre = box.getCenter(new THREE.Vector3());
 const radius = Math.max(box.getSize(new THREE.Vector3()).length() / 2, 1e-9);
 const target = centre.clone();
-let halfHeight = radius;
+// The box's extent across and up the first view (what the PNG frames too).
+const eye = new THREE.Vector3(...view.eye), up0 = new THREE.Vector3(...view.up);
+const right0 = new THREE.Vector3().crossVectors(up0, eye).normalize();
+let extentX = 1e-9, extentY = 1e-9;
+for (let c = 0; c < 8; ++c) {
+  const corner = new THREE.Vector3(c & 1 ? box.max.x : box.min.x, c & 2 ? box.max.y : box.min.y,
+                                   c & 4 ? box.max.z : box.min.z).sub(centre);
+  extentX = Math.max(extentX, Math.abs(corner.dot(right0)));
+  extentY = Math.max(extentY, Math.abs(corner.dot(up0)));
+}
 
 function resetView() {
   target.copy(centre);
-  camera.up.set(...view.up);
-  camera.position.copy(centre).addScaledVector(new THREE.Vector3(...view.eye), 4 * radius);
+  camera.up.copy(up0);
+  camera.position.copy(centre).addScaledVector(eye, 4 * radius);
   camera.lookAt(target);
   camera.zoom = 1;
-  halfHeight = radius * 1.05;
   resize();
 }
 
@@ -159,6 +174,8 @@ function resize() {
   const w = container.clientWidth, h = container.clientHeight;
   renderer.setSize(w, h, false);
   const aspect = w / Math.max(h, 1);
+  // Room for the legend on the right: frame the part in the left 80 % of the width.
+  const halfHeight = 1.08 * Math.max(extentY, extentX / (0.8 * aspect));
   camera.left = -halfHeight * aspect; camera.right = halfHeight * aspect;
   camera.top = halfHeight; camera.bottom = -halfHeight;
   camera.near = 0.01 * radius; camera.far = 10 * radius;
@@ -179,9 +196,10 @@ function requestRender() {
 
 // Point size: about the points' spacing on the screen at the first view.
 function defaultPointSize() {
-  const h = container.clientHeight || 600;
-  const area = Math.PI * (radius / (2 * halfHeight) * h) ** 2;  // pixels of the scan's frame
-  return Math.min(6, Math.max(1.5, Math.sqrt(area / Math.max(count, 1)) * 1.1));
+  const pixelsPerUnit = container.clientHeight / (camera.top - camera.bottom);
+  // The scan's frame on the screen, about half of it covered by the surface seen from the front.
+  const area = 4 * extentX * extentY * pixelsPerUnit ** 2 * 0.5;
+  return Math.min(6, Math.max(1.5, Math.sqrt(area / Math.max(count, 1)) * 1.2));
 }
 
 // ---- orbit, pan, zoom ----
@@ -200,7 +218,7 @@ canvas.addEventListener('pointermove', (e) => {
   const offset = camera.position.clone().sub(target);
   const right = new THREE.Vector3().crossVectors(camera.up, offset).normalize();
   if (drag.pan) {
-    const perPixel = (2 * halfHeight / camera.zoom) / container.clientHeight;
+    const perPixel = ((camera.top - camera.bottom) / camera.zoom) / container.clientHeight;
     const move = right.multiplyScalar(dx * perPixel).addScaledVector(camera.up, dy * perPixel);
     target.add(move); camera.position.add(move);
   } else {

@@ -22,7 +22,7 @@ struct InspectionOptions {
   double min_inside = 0.99;
   std::size_t viewer_points = 300'000;
   bool model_mesh = true;  // the model's faces in grey in the report and the picture
-  std::size_t mesh_vertices = 200'000;
+  std::size_t mesh_vertices = 100'000;
   int histogram_bins = 64;
   PictureOptions picture;
 };
