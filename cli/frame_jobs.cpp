@@ -157,6 +157,34 @@ void warn_if_unconverged(const std::string& scan, const icp::IcpResult& result,
                scan, args.max_iterations);
 }
 
+io::AlignmentReport alignment_report(const registration::AlignmentResult& frame,
+                                     const io::PointCloud& cloud, const IcpArgs& args,
+                                     const Stopwatch& clock) {
+  const icp::IcpResult& result = frame.icp;
+  io::AlignmentReport report;
+  report.pose = result.T_model_scan.matrix();
+  report.rms = result.rms;
+  report.iterations = result.iterations;
+  // A degenerate scan converges within the directions it constrains; the termination text
+  // names the free ones.
+  report.converged = result.converged() || result.termination == icp::IcpTermination::degenerate;
+  report.inliers = result.inliers;
+  report.points = result.points;
+  report.skipped_points = cloud.skipped_nonfinite;
+  report.seconds = clock.seconds();
+  report.method = args.method;
+  report.termination = std::string(icp::to_string(result.termination)) + ": " + result.message;
+  if (result.degeneracy.degenerate()) {
+    report.termination += "; free directions: " + result.degeneracy.describe();
+  }
+  int k = 0;
+  for (const icp::IcpIteration& it : result.log) {
+    report.history.push_back(
+        {++k, it.rms, it.inliers, it.rotation_step, it.translation_step, it.seconds});
+  }
+  return report;
+}
+
 void write_align_outputs(const registration::AlignmentResult& frame,
                          const engine::ProjectionResults& proj, const io::PointCloud& cloud,
                          const IcpArgs& args, const AlignOutputs& outputs, const Stopwatch& clock) {
@@ -187,27 +215,7 @@ void write_align_outputs(const registration::AlignmentResult& frame,
     io::write_point_table(outputs.aligned, table);
   }
   if (!outputs.report.empty()) {
-    io::AlignmentReport report;
-    report.pose = result.T_model_scan.matrix();
-    report.rms = result.rms;
-    report.iterations = result.iterations;
-    // A degenerate scan converges within the directions it constrains; the termination text
-    // names the free ones.
-    report.converged = result.converged() || result.termination == icp::IcpTermination::degenerate;
-    report.inliers = result.inliers;
-    report.points = result.points;
-    report.skipped_points = cloud.skipped_nonfinite;
-    report.seconds = clock.seconds();
-    report.method = args.method;
-    report.termination = std::string(icp::to_string(result.termination)) + ": " + result.message;
-    if (result.degeneracy.degenerate()) {
-      report.termination += "; free directions: " + result.degeneracy.describe();
-    }
-    int k = 0;
-    for (const icp::IcpIteration& it : result.log) {
-      report.history.push_back(
-          {++k, it.rms, it.inliers, it.rotation_step, it.translation_step, it.seconds});
-    }
+    const io::AlignmentReport report = alignment_report(frame, cloud, args, clock);
     io::write_alignment_report(outputs.report, report);
   }
 }

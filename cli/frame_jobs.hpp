@@ -23,6 +23,7 @@
 #include "nurbsreg/engine/projection.hpp"
 #include "nurbsreg/icp/icp.hpp"
 #include "nurbsreg/icp/model_finder.hpp"
+#include "nurbsreg/io/alignment_report.hpp"
 #include "nurbsreg/io/point_cloud.hpp"
 #include "nurbsreg/registration/alignment.hpp"
 
@@ -93,6 +94,11 @@ registration::AlignmentResult align_frame(registration::Aligner& aligner,
 // scan; nothing otherwise.
 void warn_if_unconverged(const std::string& scan, const icp::IcpResult& result,
                          const IcpArgs& args);
+
+// The alignment report (CONTRACT.md §2) of an aligned frame; "seconds" is read from `clock`.
+io::AlignmentReport alignment_report(const registration::AlignmentResult& frame,
+                                     const io::PointCloud& cloud, const IcpArgs& args,
+                                     const Stopwatch& clock);
 
 // Writes the requested outputs of an aligned frame; `projections` are the final ones
 // (finder.last_results() right after align_frame). The report's "seconds" is read from `clock`

@@ -13,7 +13,17 @@ packages=(
   # library); OpenCASCADE also reads STEP/IGES.
   libocct-foundation-dev libocct-modeling-data-dev libocct-modeling-algorithms-dev
   libocct-data-exchange-dev libsisl-dev
+  # inspect: the PNG and its legend (cairo, DejaVu fonts); npm fetches three.js for the HTML
+  # report at build time (inspect/web/package-lock.json); its tests open the report in headless
+  # Chromium and read the PLY with Open3D; bench/inspect compares with CloudCompare's C2M.
+  libcairo2-dev fonts-dejavu-core chromium python3-open3d cloudcompare
 )
+
+# Node.js and npm (inspect's build step): Debian's packages, unless a node with npm is already
+# installed (e.g. from NodeSource, whose nodejs package bundles npm and conflicts with Debian's).
+if ! command -v npm >/dev/null 2>&1; then
+  packages+=(nodejs npm)
+fi
 
 missing=()
 for p in "${packages[@]}"; do
