@@ -13,6 +13,9 @@ packages=(
   # library); OpenCASCADE also reads STEP/IGES.
   libocct-foundation-dev libocct-modeling-data-dev libocct-modeling-algorithms-dev
   libocct-data-exchange-dev libsisl-dev
+  # The Python package (python/): built for and tested with Debian's /usr/bin/python3; Open3D
+  # for the interop tests.
+  pybind11-dev python3-dev python3-numpy python3-pytest python3-open3d
 )
 
 missing=()
