@@ -1,0 +1,108 @@
+"""Python call overhead of nurbsreg (bench/README.md, "Python"): in one run,
+
+1. project 1,000,000 points of the example panel through nurbsreg.project and through the C++ API
+   (build/bench/python/python_baseline on the same file), rounds alternating between the two so
+   that the shared machine's load falls on both alike;
+2. two Python threads projecting at once against the same two frames one after the other (the
+   GIL is released during a call), with threads=1 per call and with all threads;
+3. aligning a 1,000,000-point scan from Python (nurbsreg.align), with ICP's own time beside it.
+
+    PYTHONPATH=build/python /usr/bin/python3 bench/python/bench_python.py [--rounds 3]
+
+Bounded: about a minute on two cores. Prints a table; medians over the rounds.
+"""
+
+import argparse
+import json
+import pathlib
+import statistics
+import subprocess
+import tempfile
+import threading
+import time
+
+import numpy as np
+
+import nurbsreg
+
+ROOT = pathlib.Path(__file__).resolve().parents[2]
+
+
+def timed(call):
+    start = time.perf_counter()
+    result = call()
+    return time.perf_counter() - start, result
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--rounds", type=int, default=3)
+    parser.add_argument("--points", type=int, default=1_000_000)
+    parser.add_argument("--build", default=str(ROOT / "build"))
+    args = parser.parse_args()
+    model_path = ROOT / "examples" / "panel.json"
+    model = nurbsreg.load_model(model_path)
+    baseline = pathlib.Path(args.build) / "bench" / "python" / "python_baseline"
+
+    with tempfile.TemporaryDirectory() as tmp:
+        # Scan-like points: area samples with 0.05 mm noise, in the model frame (no pose).
+        scan = nurbsreg.synth(model, args.points, noise=0.05, seed=1)
+        path = pathlib.Path(tmp) / "points.pcd"
+        nurbsreg.write_point_cloud(path, scan.points, double_precision=True)
+        points = nurbsreg.read_point_cloud(path).points
+        nurbsreg.project(model, points[:10000])  # the projector pool's scratch
+
+        python_s, cpp_fresh, cpp_reused = [], [], []
+        for _ in range(args.rounds):
+            done = subprocess.run([str(baseline), str(model_path), str(path), "3"],
+                                  capture_output=True, text=True, check=True)
+            cpp = json.loads(done.stdout)
+            cpp_fresh += cpp["fresh"]
+            cpp_reused += cpp["reused"]
+            for _ in range(3):
+                python_s.append(timed(lambda: nurbsreg.project(model, points))[0])
+        py, fresh, reused = (statistics.median(v) for v in (python_s, cpp_fresh, cpp_reused))
+        print(f"project {len(points):,} points (panel, all threads), median of "
+              f"{len(python_s)} calls each, alternating rounds:")
+        print(f"  nurbsreg.project (Python)         {py:7.3f} s  {len(points) / py / 1e6:5.2f} M points/s")
+        print(f"  Projector::project, fresh results {fresh:7.3f} s  ratio Python / C++ {py / fresh:5.3f}")
+        print(f"  Projector::project, reused        {reused:7.3f} s  ratio Python / C++ {py / reused:5.3f}")
+
+        # Two frames, each projected on one thread or on all, one after the other or in two
+        # Python threads at once.
+        frames = [points[: len(points) // 2], points[len(points) // 2:]]
+        for threads in (1, None):
+            serial_s, parallel_s = [], []
+            for _ in range(args.rounds):
+                serial_s.append(timed(lambda: [nurbsreg.project(model, f, threads=threads)
+                                               for f in frames])[0])
+
+                def both():
+                    workers = [threading.Thread(target=nurbsreg.project, args=(model, f),
+                                                kwargs={"threads": threads}) for f in frames]
+                    for w in workers:
+                        w.start()
+                    for w in workers:
+                        w.join()
+
+                parallel_s.append(timed(both)[0])
+            s, p = statistics.median(serial_s), statistics.median(parallel_s)
+            label = "threads=1" if threads == 1 else "all threads"
+            print(f"two frames of {len(frames[0]):,} points, {label}: one after the other "
+                  f"{s:6.3f} s, two Python threads at once {p:6.3f} s (speed-up {s / p:4.2f})")
+
+        # A 1 M-point scan moved by a few degrees and millimetres.
+        moved = nurbsreg.synth(model, args.points, noise=0.02, pose=(3, -2, 4, 3, -2, 2), seed=7)
+        align_s = []
+        for _ in range(args.rounds):
+            seconds, result = timed(lambda: nurbsreg.align(model, moved.points))
+            align_s.append((seconds, result.seconds))
+        wall, icp = statistics.median(a for a, _ in align_s), statistics.median(b for _, b in align_s)
+        error = np.abs(result.T_model_scan - moved.T_model_scan).max()
+        print(f"align {len(moved.points):,} points from Python: {wall:6.3f} s "
+              f"(ICP's own time {icp:6.3f} s), {result.iterations} iterations, rms "
+              f"{result.rms:.4f}, max |T - T_true| {error:.1e}")
+
+
+if __name__ == "__main__":
+    main()

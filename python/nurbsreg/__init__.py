@@ -1,0 +1,231 @@
+"""nurbsreg: exact closest points on NURBS CAD models and ICP alignment of scans to them.
+
+The same library calls as the ``nurbsreg`` command line, so the same numbers::
+
+    import numpy as np, nurbsreg
+    model = nurbsreg.load_model("examples/panel.json")       # JSON, STEP or IGES
+    r = nurbsreg.project(model, np.array([[10.0, 20, 5], [50, 50, 30]]))
+    r.distance, r.foot, r.entity, r.u, r.v, r.normal       # NumPy arrays, one row per point
+    scan = nurbsreg.read_point_cloud("scan.pcd").points    # (N, 3) float64
+    a = nurbsreg.align(model, scan)                         # ICP on exact projections
+    a.T_model_scan, a.rms, a.fitness, a.deviation
+
+Points are (N, 3) float64 or float32 arrays of any memory layout. Long calls release the GIL
+(other Python threads run meanwhile) and stop on Ctrl-C. ``threads=`` limits a call's worker
+threads (None: all hardware threads); results never depend on it.
+"""
+
+import math as _math
+import os as _os
+import warnings as _warnings
+from dataclasses import dataclass as _dataclass
+
+import numpy as _np
+
+from . import _core
+from ._errors import AlignmentError, InputError, NurbsregWarning, OutputError
+
+__all__ = [
+    "AlignmentError", "AlignmentResult", "Aligner", "InputError", "Model", "NurbsregWarning",
+    "OutputError", "PointCloud", "ProjectionResult", "SyntheticScan", "align", "load_model",
+    "project", "read_point_cloud", "synth", "write_point_cloud", "STATUS_OK", "STATUS_SKIPPED",
+    "STATUS_NO_GEOMETRY", "STATUS_BEYOND_MAX_DISTANCE",
+]
+__version__ = _core.__version__
+
+_core._register_types(InputError, OutputError)
+
+Model = _core.Model
+ProjectionResult = _core.ProjectionResult
+AlignmentResult = _core.AlignmentResult
+
+#: ProjectionResult.status values.
+STATUS_OK = 0
+STATUS_SKIPPED = 1  # the point had a NaN or infinite coordinate
+STATUS_NO_GEOMETRY = 2  # the model has nothing of the requested target kind
+STATUS_BEYOND_MAX_DISTANCE = 3
+
+
+def _warn_all(messages):
+    for message in messages:
+        _warnings.warn(message, NurbsregWarning, stacklevel=3)
+
+
+def load_model(path):
+    """Load a model: the project's JSON (``.json``), STEP (``.step``/``.stp``) or IGES
+    (``.iges``/``.igs``, every face as an exact trimmed NURBS surface via OpenCASCADE).
+
+    The model is prepared once (Bézier patches, bounds, hierarchy) and is then immutable: share
+    it between threads and calls. ``model.info()`` gives what ``nurbsreg info --json`` prints
+    (faces, patches, bounding box, skipped faces); ``model.units`` the length unit.
+
+    Raises InputError (a ValueError) naming the file and the problem, as the CLI does; warns
+    (NurbsregWarning) when faces of a CAD file could not be converted.
+    """
+    model = _core.load_model(_os.fspath(path))
+    _warn_all(model.warnings)
+    return model
+
+
+def project(model, points, *, target="surfaces", threads=None, certify=False, hints=None):
+    """Exact closest point on ``model`` of every row of ``points``, as ``nurbsreg project``.
+
+    points: (N, 3) float64 or float32 array, C- or Fortran-ordered or strided: read in place,
+        no copy (a list of points is converted to float64 first). Rows with a NaN or infinite
+        coordinate are skipped (status STATUS_SKIPPED, NaN results) and counted
+        (``result.skipped``).
+    target: "surfaces" or "curves".
+    threads: worker threads for this call (None or 0: all hardware threads).
+    certify: also make a warm-start certificate for every point, so that a later frame near
+        this one, projected with ``hints=`` this result, skips most searches.
+    hints: a ProjectionResult of the same model and length (e.g. the previous frame): speeds up
+        the search; the answer is the same closest point (equal to a cold search's up to
+        Newton's tolerance: within 1e-9 mm on the 100 mm example panel).
+
+    Returns a ProjectionResult: read-only NumPy views of the engine's own arrays (no copy),
+    ``foot`` (N, 3), ``distance``, ``signed_distance``, ``entity`` (int32, -1 if none), ``u``,
+    ``v``, ``normal`` (N, 3), ``status`` (uint8, STATUS_*), ``on_trim_edge``. Identical for any
+    thread count and to the CLI's rows. The GIL is released while it runs; Ctrl-C stops it.
+    """
+    result = _core.project(model, points, target, threads, bool(certify), hints)
+    _warn_all(result.warnings)
+    return result
+
+
+class Aligner:
+    """ICP of scans to one model on exact projections, as ``nurbsreg align``; one Aligner keeps
+    its warm state (per-point arrays, projection hints) from frame to frame, so a sequence of
+    frames aligns faster than fresh calls of :func:`align`.
+
+    The options are the CLI's, by the same names: ``method`` ("point-to-plane" or
+    "point-to-point"), ``max_iterations`` (per stage), ``max_distance`` (reject correspondences
+    farther apart, model units), ``keep_fraction`` (trimmed ICP), ``kernel`` ("none", "huber",
+    "tukey", "geman-mcclure"), ``kernel_scale`` (0: from the MAD), ``coarse`` (increasing
+    subsample sizes). Bad values raise ValueError naming the option. One ``align`` at a time per
+    Aligner (calls from other threads wait); use one Aligner per thread to run in parallel.
+    """
+
+    def __init__(self, model, *, method="point-to-plane", max_iterations=50,
+                 max_distance=_math.inf, keep_fraction=1.0, kernel="none", kernel_scale=0.0,
+                 coarse=()):
+        self._aligner = _core.Aligner(model, method, int(max_iterations), float(max_distance),
+                                      float(keep_fraction), kernel, float(kernel_scale),
+                                      [int(n) for n in coarse])
+
+    @property
+    def model(self):
+        """The model scans are aligned to."""
+        return self._aligner.model
+
+    def align(self, scan, init=None, *, distances=False, threads=None):
+        """Align one scan: the rigid pose ``T_model_scan`` (model_point = T * scan_point).
+
+        scan: (N, 3) float64 or float32 array (any layout; copied only when it is not C-ordered
+            float64 or has NaN/infinite rows, which are skipped and counted).
+        init: starting pose, a 4x4 rigid matrix (checked and made exactly orthonormal as the
+            CLI's ``--init``); None: the identity.
+        distances: also return the exact signed distance of every aligned point
+            (``result.signed_distance``, NaN for skipped rows).
+        threads: worker threads for this call (None or 0: all).
+
+        Returns an AlignmentResult: ``T_model_scan`` (4x4), ``converged``, ``termination``,
+        ``iterations``, ``rms``, ``inliers``, ``points``, ``fitness`` (inliers / points),
+        ``covariance`` (6x6, twist (omega, v) in the model frame), ``degeneracy`` (free
+        directions), ``history`` (one dict per iteration), ``deviation`` (mean, rms, median,
+        p95, p99, max of |d| within max_distance), ``aligned`` (the scan moved onto the model,
+        by input row), ``report()`` (the fields of ``align --report``).
+
+        Raises AlignmentError (with ``.result``) when no pose could be found, as the CLI exits
+        1; warns (NurbsregWarning) where the CLI warns. Releases the GIL; Ctrl-C stops it.
+        """
+        result = self._aligner.align(scan, init, bool(distances), threads)
+        if result.failure is not None:
+            raise AlignmentError("scan: " + result.failure, result)
+        _warn_all(result.warnings)
+        return result
+
+
+def align(model, scan, *, init=None, distances=False, threads=None, **icp_options):
+    """Align ``scan`` to ``model`` once: ``Aligner(model, **icp_options).align(scan, init)``.
+
+    See :class:`Aligner` for the options and :meth:`Aligner.align` for the result. For frame
+    after frame keep one Aligner instead.
+    """
+    return Aligner(model, **icp_options).align(scan, init, distances=distances, threads=threads)
+
+
+def _fitness(self):
+    """Inliers / points (0 when there are no points)."""
+    return self.inliers / self.points if self.points else 0.0
+
+
+def _report(self):
+    """The alignment report as ``nurbsreg align --report`` writes it (dict; ``seconds`` is
+    ICP's own time here)."""
+    import json
+    return json.loads(self.report_json())
+
+
+AlignmentResult.fitness = property(_fitness)
+AlignmentResult.report = _report
+
+
+@_dataclass
+class PointCloud:
+    """A point-cloud file as arrays: ``points`` (N, 3) float64, the finite points in file order;
+    ``index`` (N,) uint64, each point's 0-based position in the file; ``skipped`` points dropped
+    for a NaN or infinite coordinate; ``total`` points in the file; ``width`` x ``height`` of an
+    organised scan (unorganised: total x 1)."""
+
+    points: _np.ndarray
+    index: _np.ndarray
+    skipped: int
+    total: int
+    width: int
+    height: int
+
+
+def read_point_cloud(path):
+    """Read a PCD (ascii, binary, binary_compressed), PLY (ascii, binary) or XYZ/TXT/CSV file,
+    as the CLI does. Raises InputError naming the file (and line or field)."""
+    return PointCloud(**_core.read_point_cloud(_os.fspath(path)))
+
+
+def write_point_cloud(path, points, *, encoding="binary", double_precision=False):
+    """Write points by extension: .pcd (``encoding`` "binary", "ascii" or "binary_compressed"),
+    .ply (binary), .xyz/.txt, .csv; float32 coordinates unless ``double_precision``. Atomic
+    (no partial file); raises OutputError (an OSError) on failure."""
+    if isinstance(points, PointCloud):
+        points = points.points
+    _core.write_point_cloud(_os.fspath(path), points, encoding, bool(double_precision))
+
+
+@_dataclass
+class SyntheticScan:
+    """A synthetic scan: ``points`` (N, 3) in the scan frame, ``T_model_scan`` (4x4, the pose
+    an alignment must recover), and per point ``on_model`` (False for outliers), the source
+    ``surface`` and its exact ``uv`` (N, 2) before noise."""
+
+    points: _np.ndarray
+    T_model_scan: _np.ndarray
+    on_model: _np.ndarray
+    surface: _np.ndarray
+    uv: _np.ndarray
+
+
+def synth(model, points, *, noise=0.0, pose=None, seed=1, outliers=0.0, view_fraction=1.0,
+          view_direction=(0.0, 0.0, 1.0)):
+    """A synthetic scan of ``model`` as ``nurbsreg synth``: ``points`` area-uniform samples,
+    Gaussian ``noise`` (sigma, model units) along the normal, scanner ``pose`` (rx, ry, rz
+    degrees about x, y, z, then tx, ty, tz: scan_point = pose * model_point), ``seed``, a
+    fraction of ``outliers``, a partial view (``view_fraction`` of the model seen from
+    ``view_direction``). Same options, same points as the CLI."""
+    if pose is not None:
+        pose = [float(x) for x in pose]
+        if len(pose) != 6:
+            raise ValueError("pose: expected 6 numbers (rx ry rz tx ty tz), got %d" % len(pose))
+    direction = [float(x) for x in view_direction]
+    if len(direction) != 3:
+        raise ValueError("view_direction: expected 3 numbers, got %d" % len(direction))
+    return SyntheticScan(**_core.synth(model, int(points), float(noise), pose, int(seed),
+                                       float(outliers), float(view_fraction), direction))

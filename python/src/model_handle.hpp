@@ -1,0 +1,62 @@
+#pragma once
+// A loaded model as Python holds it: the prepared model (built once, immutable, shared by every
+// call and by the Aligners made from it) and a pool of Projectors, so that project() calls from
+// several Python threads at once each get their own (one call at a time per Projector) and keep
+// its per-thread scratch for later calls.
+
+#include <memory>
+#include <mutex>
+#include <string>
+#include <vector>
+
+#include "nurbsreg/engine/prepared_model.hpp"
+#include "nurbsreg/engine/projection.hpp"
+
+namespace nurbsreg::python {
+
+class ModelHandle {
+ public:
+  ModelHandle(std::string path, engine::Model model)
+      : path_(std::move(path)), prepared_(std::move(model)) {}
+
+  const std::string& path() const { return path_; }
+  const engine::PreparedModel& prepared() const { return prepared_; }
+  const engine::Model& model() const { return prepared_.model(); }
+
+  // A Projector for one call, returned to the pool when the lease ends. Thread-safe.
+  class Lease {
+   public:
+    Lease(ModelHandle& owner, std::unique_ptr<engine::Projector> projector)
+        : owner_(owner), projector_(std::move(projector)) {}
+    ~Lease() { owner_.give_back(std::move(projector_)); }
+    Lease(const Lease&) = delete;
+    Lease& operator=(const Lease&) = delete;
+    engine::Projector& operator*() const { return *projector_; }
+
+   private:
+    ModelHandle& owner_;
+    std::unique_ptr<engine::Projector> projector_;
+  };
+  Lease lease_projector() {
+    std::lock_guard lock(mutex_);
+    if (idle_.empty()) return Lease(*this, std::make_unique<engine::Projector>(prepared_));
+    std::unique_ptr<engine::Projector> p = std::move(idle_.back());
+    idle_.pop_back();
+    return Lease(*this, std::move(p));
+  }
+
+ private:
+  void give_back(std::unique_ptr<engine::Projector> projector) {
+    std::lock_guard lock(mutex_);
+    idle_.push_back(std::move(projector));
+  }
+
+  std::string path_;
+  const engine::PreparedModel prepared_;
+  std::mutex mutex_;
+  std::vector<std::unique_ptr<engine::Projector>> idle_;
+};
+
+using ModelPtr = std::shared_ptr<ModelHandle>;
+
+}  // namespace nurbsreg::python

@@ -1,0 +1,55 @@
+"""Shared fixtures of the Python package's tests: the `nurbsreg` binary to compare with (ctest
+sets NURBSREG_BINARY, NURBSREG_EXAMPLES_DIR and PYTHONPATH; see tests/CMakeLists.txt)."""
+
+import csv
+import os
+import pathlib
+import subprocess
+
+import numpy as np
+import pytest
+
+ROOT = pathlib.Path(__file__).resolve().parents[2]
+EXAMPLES = pathlib.Path(os.environ.get("NURBSREG_EXAMPLES_DIR", ROOT / "examples"))
+BINARY = pathlib.Path(os.environ.get("NURBSREG_BINARY", ROOT / "build" / "bin" / "nurbsreg"))
+PANEL = EXAMPLES / "panel.json"
+SHARED = pathlib.Path(os.environ.get("NURBSREG_SHARED_DIR", ROOT.parent / "shared"))
+
+
+def run_cli(*args, check=True):
+    """Runs the CLI; returns the CompletedProcess (text)."""
+    done = subprocess.run([str(BINARY), *map(str, args)], capture_output=True, text=True)
+    if check and done.returncode != 0:
+        raise AssertionError(f"nurbsreg {' '.join(map(str, args))} exited {done.returncode}:\n"
+                             f"{done.stderr}")
+    return done
+
+
+def read_csv_columns(path):
+    """A CSV table with a header line as {name: float64 array}; the CLI prints shortest
+    round-trip numbers, so float() gives back the exact doubles."""
+    with open(path, newline="") as f:
+        rows = list(csv.reader(f))
+    header, body = rows[0], rows[1:]
+    return {name: np.array([float(r[k]) for r in body]) for k, name in enumerate(header)}
+
+
+def read_pose_file(path):
+    return np.array([[float(x) for x in line.split()] for line in open(path) if line.strip()])
+
+
+@pytest.fixture(scope="session")
+def panel():
+    import nurbsreg
+    return nurbsreg.load_model(PANEL)
+
+
+@pytest.fixture(scope="session")
+def panel_scan(tmp_path_factory):
+    """A 20,000-point noisy scan of the panel written by the CLI (float32 PCD), moved by a few
+    degrees and millimetres, with its true pose."""
+    d = tmp_path_factory.mktemp("scan")
+    scan, pose = d / "scan.pcd", d / "true_pose.txt"
+    run_cli("synth", "--model", PANEL, "--points", 20000, "--noise", 0.02, "--seed", 3,
+            "--pose", "2 -1 3 2 -1 1", "--out", scan, "--out-pose", pose)
+    return scan, read_pose_file(pose)
