@@ -387,7 +387,9 @@ const PcdField* PcdData::find(std::string_view name) const {
   return nullptr;
 }
 
-PcdData read_pcd_data(const std::string& path) { return parse_pcd_data(path, read_file(path)); }
+PcdData read_pcd_data(const std::string& path) {
+  return parse_pcd_data(path, read_file(path));
+}
 
 PcdData parse_pcd_data(const std::string& path, const std::string& data) {
   static_assert(std::endian::native == std::endian::little,
@@ -416,7 +418,9 @@ PcdData parse_pcd_data(const std::string& path, const std::string& data) {
   return out;
 }
 
-void read_pcd(const std::string& path, PointCloud& cloud) { parse_pcd(path, read_file(path), cloud); }
+void read_pcd(const std::string& path, PointCloud& cloud) {
+  parse_pcd(path, read_file(path), cloud);
+}
 
 void parse_pcd(const std::string& path, const std::string& data, PointCloud& cloud) {
   const PcdData pcd = parse_pcd_data(path, data);

@@ -372,7 +372,9 @@ void read_binary(const std::string& path, const std::string& data, const Header&
 
 }  // namespace
 
-void read_ply(const std::string& path, PointCloud& cloud) { parse_ply(path, read_file(path), cloud); }
+void read_ply(const std::string& path, PointCloud& cloud) {
+  parse_ply(path, read_file(path), cloud);
+}
 
 void parse_ply(const std::string& path, const std::string& data, PointCloud& cloud) {
   const Header header = parse_header(path, data);

@@ -143,6 +143,25 @@ TEST_F(Serve, AlignAndProjectAnswerAsTheCli) {
   EXPECT_EQ(server.terminate(30), 0);
 }
 
+TEST_F(Serve, CurlAsInTheReadme) {
+  ServerProcess server("--model " + kPanel, path("log_curl.txt"));
+  ASSERT_GT(server.port(), 0);
+  const std::string url = "http://127.0.0.1:" + std::to_string(server.port());
+  // Expect: 100-continue, as curl sends by itself for bodies over 1 MB.
+  const std::string out = path("curl_answer.json");
+  const std::string command = "curl -s --max-time 120 -o " + out + " -w '%{http_code}' " +
+                              "-H 'Expect: 100-continue' -X POST --data-binary @" +
+                              path("big.pcd") + " -H 'Content-Type: application/octet-stream' '" +
+                              url + "/v1/align?model=panel&session=cam1' > " +
+                              path("curl_status.txt");
+  ASSERT_EQ(std::system(command.c_str()), 0);
+  EXPECT_EQ(read_text(path("curl_status.txt")), "200");
+  const Json answer = Json::parse(read_text(out));
+  EXPECT_EQ(answer.at("session"), "cam1");
+  EXPECT_EQ(answer.at("points"), 60000);
+  EXPECT_EQ(answer.at("converged"), true);
+}
+
 TEST_F(Serve, BadRequestsGetAnErrorNamingTheProblem) {
   ServerProcess server("--model " + kPanel, path("log_bad.txt"));
   ASSERT_GT(server.port(), 0);
