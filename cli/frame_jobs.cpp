@@ -9,18 +9,13 @@
 #include <span>
 
 #include "nurbsreg/io/alignment_report.hpp"
+#include "nurbsreg/io/alignment_result_report.hpp"
 #include "nurbsreg/io/point_table.hpp"
 #include "nurbsreg/io/pose.hpp"
+#include "nurbsreg/io/projected_cloud.hpp"
 #include "nurbsreg/io/projection_results.hpp"
 
 namespace nurbsreg::cli {
-namespace {
-
-// Frames are projected in blocks so long runs show progress; the block size keeps logging to a
-// few lines a second without costing parallelism.
-constexpr std::size_t kProgressBlock = 1 << 18;
-
-}  // namespace
 
 engine::ProjectionTarget parse_projection_target(const std::string& target) {
   if (target == "surfaces") return engine::ProjectionTarget::surfaces;
@@ -41,64 +36,23 @@ void check_projection_target(const engine::Model& model, engine::ProjectionTarge
 ProjectFrameResult project_frame(engine::Projector& projector, const io::PointCloud& cloud,
                                  engine::ProjectionTarget target, const std::string& out,
                                  bool log_progress) {
-  engine::ProjectionOptions options;
-  options.target = target;
-  engine::ProjectionResults results;
-  // No certificates: the blocks are projected without hints and without certifying.
-  results.resize(cloud.size(), /*feet=*/true, /*certificates=*/false);
-  engine::ProjectionResults block;
-  const Stopwatch compute;
-  for (std::size_t begin = 0; begin < cloud.size(); begin += kProgressBlock) {
-    const std::size_t end = std::min(cloud.size(), begin + kProgressBlock);
-    const std::span<const engine::Vec3> part(cloud.points.data() + begin, end - begin);
-    projector.project(engine::PointView::of(part), options, block);
-    results.copy_from(block, begin);
-    if (log_progress && cloud.size() > kProgressBlock) {
-      spdlog::info("projected {}/{} points ({:.0f} points/s)", end, cloud.size(),
-                   static_cast<double>(end) / compute.seconds());
-    }
+  io::ProjectProgress progress;
+  if (log_progress && cloud.size() > io::kProjectBlock) {
+    progress = [](std::size_t done, std::size_t total, double seconds) {
+      spdlog::info("projected {}/{} points ({:.0f} points/s)", done, total,
+                   static_cast<double>(done) / seconds);
+    };
   }
+  const io::ProjectedCloud projected = io::project_cloud(projector, cloud, target, progress);
+  io::write_projection_results(out, projected.columns(cloud));
   ProjectFrameResult summary;
-  summary.compute_seconds = compute.seconds();
+  summary.compute_seconds = projected.compute_seconds;
   summary.points = cloud.size();
   summary.skipped = cloud.skipped_nonfinite;
-
-  std::vector<double> normal_x(cloud.size());
-  std::vector<double> normal_y(cloud.size());
-  std::vector<double> normal_z(cloud.size());
-  double min_d = std::numeric_limits<double>::infinity();
-  double max_d = 0.0;
-  double sum_d = 0.0;
-  double sum_sq = 0.0;
-  for (std::size_t i = 0; i < cloud.size(); ++i) {
-    normal_x[i] = results.normal[i].x();
-    normal_y[i] = results.normal[i].y();
-    normal_z[i] = results.normal[i].z();
-    min_d = std::min(min_d, results.distance[i]);
-    max_d = std::max(max_d, results.distance[i]);
-    sum_d += results.distance[i];
-    sum_sq += results.distance[i] * results.distance[i];
-  }
-  io::ProjectionColumns columns;
-  columns.index = cloud.source_index;
-  columns.point = cloud.points;
-  columns.foot = results.foot;
-  columns.distance = results.distance;
-  columns.entity = results.entity;
-  columns.u = results.u;
-  columns.v = results.v;
-  if (target == engine::ProjectionTarget::surfaces) {
-    columns.extra = {{"signed_distance", results.signed_distance},
-                     {"normal_x", normal_x},
-                     {"normal_y", normal_y},
-                     {"normal_z", normal_z}};
-  }
-  io::write_projection_results(out, columns);
-  const double n = static_cast<double>(cloud.size());
-  summary.min_distance = cloud.size() ? min_d : 0.0;
-  summary.max_distance = max_d;
-  summary.mean_distance = cloud.size() ? sum_d / n : 0.0;
-  summary.rms_distance = cloud.size() ? std::sqrt(sum_sq / n) : 0.0;
+  summary.min_distance = projected.min_distance;
+  summary.max_distance = projected.max_distance;
+  summary.mean_distance = projected.mean_distance;
+  summary.rms_distance = projected.rms_distance;
   return summary;
 }
 
@@ -160,29 +114,8 @@ void warn_if_unconverged(const std::string& scan, const icp::IcpResult& result,
 io::AlignmentReport alignment_report(const registration::AlignmentResult& frame,
                                      const io::PointCloud& cloud, const IcpArgs& args,
                                      const Stopwatch& clock) {
-  const icp::IcpResult& result = frame.icp;
-  io::AlignmentReport report;
-  report.pose = result.T_model_scan.matrix();
-  report.rms = result.rms;
-  report.iterations = result.iterations;
-  // A degenerate scan converges within the directions it constrains; the termination text
-  // names the free ones.
-  report.converged = result.converged() || result.termination == icp::IcpTermination::degenerate;
-  report.inliers = result.inliers;
-  report.points = result.points;
-  report.skipped_points = cloud.skipped_nonfinite;
-  report.seconds = clock.seconds();
-  report.method = args.method;
-  report.termination = std::string(icp::to_string(result.termination)) + ": " + result.message;
-  if (result.degeneracy.degenerate()) {
-    report.termination += "; free directions: " + result.degeneracy.describe();
-  }
-  int k = 0;
-  for (const icp::IcpIteration& it : result.log) {
-    report.history.push_back(
-        {++k, it.rms, it.inliers, it.rotation_step, it.translation_step, it.seconds});
-  }
-  return report;
+  return io::make_alignment_report(frame, *icp::parse_icp_method(args.method),
+                                   cloud.skipped_nonfinite, clock.seconds());
 }
 
 void write_align_outputs(const registration::AlignmentResult& frame,

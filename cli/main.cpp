@@ -48,6 +48,7 @@ int main(int argc, char** argv) {
   nurbsreg::cli::add_modify_command(app);
   nurbsreg::cli::add_batch_command(app);
   nurbsreg::cli::add_inspect_command(app);
+  nurbsreg::cli::add_serve_command(app);
 
   try {
     app.parse(argc, argv);

@@ -9,6 +9,8 @@ packages=(
   libpcl-dev libflann-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   libcli11-dev nlohmann-json3-dev
+  # `nurbsreg serve` (HTTP) and its tests' and README's client.
+  libcpp-httplib-dev curl
   # Peers measured side by side in bench/ (SISL is AGPL: bench only, never linked into the
   # library); OpenCASCADE also reads STEP/IGES.
   libocct-foundation-dev libocct-modeling-data-dev libocct-modeling-algorithms-dev

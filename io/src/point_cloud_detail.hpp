@@ -28,6 +28,9 @@ std::string lower_extension(const std::string& path);
 void read_pcd(const std::string& path, PointCloud& cloud);
 void read_ply(const std::string& path, PointCloud& cloud);
 void read_text(const std::string& path, PointCloud& cloud);
+// The same for bytes already in memory (a service's request body); `path` only labels errors.
+void parse_pcd(const std::string& path, const std::string& data, PointCloud& cloud);
+void parse_ply(const std::string& path, const std::string& data, PointCloud& cloud);
 
 // A PCD file's fields and values, as read by read_pcd_data (header checked, body complete).
 struct PcdField {
@@ -57,6 +60,7 @@ struct PcdData {
 };
 
 PcdData read_pcd_data(const std::string& path);
+PcdData parse_pcd_data(const std::string& path, const std::string& data);
 
 // A token from the file for an error message: quoted, at most 40 characters, control and
 // non-ASCII bytes shown as '?' so that the message stays one printable line.

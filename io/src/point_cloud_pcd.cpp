@@ -388,9 +388,12 @@ const PcdField* PcdData::find(std::string_view name) const {
 }
 
 PcdData read_pcd_data(const std::string& path) {
+  return parse_pcd_data(path, read_file(path));
+}
+
+PcdData parse_pcd_data(const std::string& path, const std::string& data) {
   static_assert(std::endian::native == std::endian::little,
                 "PCD binary data is little-endian; big-endian hosts would need byte swaps");
-  const std::string data = read_file(path);
   const Prescan h = prescan_header(path, data);
   PcdData out;
   out.width = static_cast<std::uint32_t>(h.width);
@@ -416,7 +419,11 @@ PcdData read_pcd_data(const std::string& path) {
 }
 
 void read_pcd(const std::string& path, PointCloud& cloud) {
-  const PcdData pcd = read_pcd_data(path);
+  parse_pcd(path, read_file(path), cloud);
+}
+
+void parse_pcd(const std::string& path, const std::string& data, PointCloud& cloud) {
+  const PcdData pcd = parse_pcd_data(path, data);
   std::array<const PcdField*, 3> axis{};
   for (int a = 0; a < 3; ++a) {
     const std::string name(1, static_cast<char>('x' + a));

@@ -373,7 +373,10 @@ void read_binary(const std::string& path, const std::string& data, const Header&
 }  // namespace
 
 void read_ply(const std::string& path, PointCloud& cloud) {
-  const std::string data = read_file(path);
+  parse_ply(path, read_file(path), cloud);
+}
+
+void parse_ply(const std::string& path, const std::string& data, PointCloud& cloud) {
   const Header header = parse_header(path, data);
   const VertexLayout layout = find_vertex(path, header);
   if (header.format == Format::ascii) {

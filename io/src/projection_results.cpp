@@ -258,38 +258,41 @@ std::optional<TableFormat> table_format_for(const std::string& path) {
 
 void write_projection_csv(const std::string& path, const ProjectionColumns& c) {
   require_valid(path, c);
-  write_atomically(path, [&](std::ostream& out) {
-    std::string buffer;
-    for (std::size_t k = 0; k < kContractColumns; ++k) {
-      if (k > 0) buffer += ',';
-      buffer += kProjectionColumnNames[k];
-    }
-    for (const ExtraColumn& e : c.extra)
-      buffer += ',' + e.name;
-    buffer += '\n';
-    out.write(buffer.data(), static_cast<std::streamsize>(buffer.size()));
-    stream_rows_parallel(out, c.rows(), [&c](std::string& b, std::size_t r) {
-      text_detail::append_integer(b, static_cast<std::int64_t>(row_index(c, r)));
-      for (const engine::Vec3* p : {&c.point[r], &c.foot[r]}) {
-        for (int k = 0; k < 3; ++k) {
-          b += ',';
-          text_detail::append_number(b, (*p)[k]);
-        }
-      }
-      b += ',';
-      text_detail::append_number(b, c.distance[r]);
-      b += ',';
-      text_detail::append_integer(b, c.entity[r]);
-      b += ',';
-      text_detail::append_number(b, c.u[r]);
-      b += ',';
-      text_detail::append_number(b, c.v[r]);
-      for (const ExtraColumn& e : c.extra) {
+  write_atomically(path, [&](std::ostream& out) { write_projection_csv(out, c); });
+}
+
+void write_projection_csv(std::ostream& out, const ProjectionColumns& c) {
+  require_valid("projection table", c);
+  std::string buffer;
+  for (std::size_t k = 0; k < kContractColumns; ++k) {
+    if (k > 0) buffer += ',';
+    buffer += kProjectionColumnNames[k];
+  }
+  for (const ExtraColumn& e : c.extra)
+    buffer += ',' + e.name;
+  buffer += '\n';
+  out.write(buffer.data(), static_cast<std::streamsize>(buffer.size()));
+  stream_rows_parallel(out, c.rows(), [&c](std::string& b, std::size_t r) {
+    text_detail::append_integer(b, static_cast<std::int64_t>(row_index(c, r)));
+    for (const engine::Vec3* p : {&c.point[r], &c.foot[r]}) {
+      for (int k = 0; k < 3; ++k) {
         b += ',';
-        text_detail::append_number(b, e.values[r]);
+        text_detail::append_number(b, (*p)[k]);
       }
-      b += '\n';
-    });
+    }
+    b += ',';
+    text_detail::append_number(b, c.distance[r]);
+    b += ',';
+    text_detail::append_integer(b, c.entity[r]);
+    b += ',';
+    text_detail::append_number(b, c.u[r]);
+    b += ',';
+    text_detail::append_number(b, c.v[r]);
+    for (const ExtraColumn& e : c.extra) {
+      b += ',';
+      text_detail::append_number(b, e.values[r]);
+    }
+    b += '\n';
   });
 }
 

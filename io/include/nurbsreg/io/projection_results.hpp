@@ -17,6 +17,7 @@
 // All functions are thread-safe (no shared state); they allocate per call, never per row.
 
 #include <cstdint>
+#include <iosfwd>
 #include <optional>
 #include <span>
 #include <string>
@@ -79,6 +80,9 @@ std::optional<TableFormat> table_format_for(const std::string& path);
 // is never left half-written.
 void write_projection_csv(const std::string& path, const ProjectionColumns& columns);
 void write_projection_pcd(const std::string& path, const ProjectionColumns& columns);
+// The CSV file's bytes to any stream (the service's response body); OutputError on invalid
+// columns. The stream's own failures are the caller's to check.
+void write_projection_csv(std::ostream& out, const ProjectionColumns& columns);
 // Dispatches on table_format_for(path); an unknown extension is an OutputError.
 void write_projection_results(const std::string& path, const ProjectionColumns& columns);
 

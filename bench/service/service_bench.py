@@ -1,0 +1,259 @@
+#!/usr/bin/env python3
+"""Throughput and latency of `nurbsreg serve` against `nurbsreg batch` on the same frames.
+
+For each model (the freeform panel and a real part, NIST CTC-02), in the same run:
+  1. synthesise --distinct frames of --points points (moved and noisy scans, binary PCD);
+  2. `nurbsreg batch` over clients x frames of them (symlinks to the distinct files);
+  3. `nurbsreg serve` on a loopback ephemeral port, --clients concurrent keep-alive clients
+     (http.client) posting --frames frames each to /v1/align, after one warm-up frame each;
+and prints frames/s, points/s, the ratio to batch, p50/p95/p99 latency and the server's
+resident memory (VmRSS, and the peak VmHWM) after the warm-up and at the end.
+
+Bounded: it stops by itself (--max-seconds per stage; a stage cut short says so), and the
+server is always killed at the end. The machine is shared: use fewer frames (--frames) there.
+
+  bench/service/service_bench.py [--frames 100] [--clients 8] [--points 100000]
+                                 [--models panel,nist] [--threads 0]
+  bench/service/service_bench.py --soak 3000 [--points 5000]   # memory over many requests
+
+--soak N: N small frames (--points each, default here 5000) from --clients clients to one
+server, the resident memory sampled every N/10 frames: it must stay flat.
+"""
+import argparse
+import http.client
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+MODELS = {
+    "panel": (os.path.join(ROOT, "examples", "panel.json"), 0.02),
+    "nist": (os.path.join(ROOT, "..", "shared", "data", "real", "nist",
+                          "nist_ctc_02_asme1_ap242-1.stp"), 0.01),
+}
+
+
+def run(cmd, **kw):
+    return subprocess.run(cmd, check=True, **kw)
+
+
+def proc_status(pid):
+    fields = {}
+    with open(f"/proc/{pid}/status") as f:
+        for line in f:
+            key, _, value = line.partition(":")
+            if key in ("VmRSS", "VmHWM"):
+                fields[key] = int(value.split()[0]) * 1024
+    return fields
+
+
+def percentile(values, q):
+    ordered = sorted(values)
+    return ordered[min(len(ordered) - 1, int(q * (len(ordered) - 1) + 0.5))] if ordered else float("nan")
+
+
+def synth_frames(binary, model, noise, points, distinct, out_dir):
+    files = []
+    for i in range(distinct):
+        pose = f"{0.01 * (i % 3)} {-0.01 * (i % 2)} {0.015} {0.2 * (i % 4)} 0.3 -0.2"
+        path = os.path.join(out_dir, f"distinct_{i:03d}.pcd")
+        run([binary, "-q", "synth", "--model", model, "--points", str(points), "--noise", str(noise),
+             "--seed", str(i + 1), "--pose", pose, "--out", path])
+        files.append(path)
+    return files
+
+
+def bench_batch(binary, model, files, total, threads, work, max_seconds):
+    scans = os.path.join(work, "batch_scans")
+    out = os.path.join(work, "batch_out")
+    os.makedirs(scans)
+    for k in range(total):
+        os.symlink(files[k % len(files)], os.path.join(scans, f"frame_{k:05d}.pcd"))
+    start = time.monotonic()
+    try:
+        run([binary, "-q", "batch", "--model", model, "--scans", scans, "--out", out,
+             "--threads", str(threads)], stdout=subprocess.DEVNULL, timeout=max_seconds)
+        done = total
+    except subprocess.TimeoutExpired:
+        done = sum(1 for name in os.listdir(out) if name.endswith(".done.csv"))
+    return done, time.monotonic() - start
+
+
+def bench_serve(binary, model, files, clients, frames, threads, max_seconds, log):
+    server = subprocess.Popen(
+        [binary, "serve", "--model", model, "--id", "m", "--port", "0", "--threads", str(threads),
+         "--max-inflight", str(clients), "--connections", str(clients + 2)],
+        stdout=subprocess.PIPE, stderr=log, text=True)
+    try:
+        line = server.stdout.readline()
+        if not line.startswith("listening on "):
+            raise RuntimeError("server did not start: " + line)
+        port = int(line.rsplit(":", 1)[1])
+        bodies = [open(f, "rb").read() for f in files]
+        headers = {"Content-Type": "application/octet-stream"}
+        latencies = [[] for _ in range(clients)]
+        failures = []
+        deadline = [None]
+        barrier = threading.Barrier(clients + 1)
+
+        def client(c):
+            conn = http.client.HTTPConnection("127.0.0.1", port, timeout=300)
+            def frame(k):
+                t = time.monotonic()
+                conn.request("POST", "/v1/align?model=m", bodies[k % len(bodies)], headers)
+                answer = conn.getresponse()
+                text = answer.read()
+                if answer.status != 200:
+                    failures.append(f"{answer.status}: {text[:200]!r}")
+                return time.monotonic() - t
+            frame(c)  # warm-up: first touch of the aligner's buffers
+            barrier.wait()
+            for k in range(frames):
+                if time.monotonic() > deadline[0]:
+                    break
+                latencies[c].append(frame(c * frames + k))
+            conn.close()
+
+        threads_ = [threading.Thread(target=client, args=(c,)) for c in range(clients)]
+        for t in threads_:
+            t.start()
+        deadline[0] = time.monotonic() + 1e9
+        barrier.wait()
+        memory_start = proc_status(server.pid)
+        start = time.monotonic()
+        deadline[0] = start + max_seconds
+        for t in threads_:
+            t.join()
+        seconds = time.monotonic() - start
+        memory_end = proc_status(server.pid)
+        return [x for per in latencies for x in per], seconds, memory_start, memory_end, failures
+    finally:
+        server.terminate()
+        try:
+            server.wait(timeout=60)
+        except subprocess.TimeoutExpired:
+            server.kill()
+            server.wait()
+
+
+def soak(binary, frames, clients, points, work):
+    model, noise = MODELS["panel"]
+    files = synth_frames(binary, model, noise, points, 4, work)
+    bodies = [open(f, "rb").read() for f in files]
+    server = subprocess.Popen([binary, "-q", "serve", "--model", model, "--id", "m", "--port", "0",
+                               "--max-inflight", str(clients)],
+                              stdout=subprocess.PIPE, text=True)
+    try:
+        port = int(server.stdout.readline().rsplit(":", 1)[1])
+        done = [0]
+        lock = threading.Lock()
+        samples = []
+        step = max(1, frames // 10)
+
+        def client(c):
+            conn = http.client.HTTPConnection("127.0.0.1", port, timeout=300)
+            k = c
+            while True:
+                with lock:
+                    if done[0] >= frames:
+                        return
+                    done[0] += 1
+                    n = done[0]
+                # Alternate plain frames, session frames (a few sessions) and projections.
+                path = ["/v1/align?model=m", f"/v1/align?model=m&session=s{k % 5}",
+                        "/v1/project?model=m"][k % 3]
+                conn.request("POST", path, bodies[k % len(bodies)],
+                             {"Content-Type": "application/octet-stream"})
+                answer = conn.getresponse()
+                answer.read()
+                if answer.status != 200:
+                    raise RuntimeError(f"{path}: {answer.status}")
+                if n % step == 0:
+                    with lock:
+                        samples.append((n, proc_status(server.pid)["VmRSS"]))
+                k += clients
+        threads_ = [threading.Thread(target=client, args=(c,)) for c in range(clients)]
+        for t in threads_:
+            t.start()
+        for t in threads_:
+            t.join()
+        samples.sort()
+        print(f"soak: {frames} requests ({points} points, align / session align / project), "
+              f"{clients} clients; resident MB after n requests:")
+        print("  " + "  ".join(f"{n}: {rss / 2**20:.1f}" for n, rss in samples))
+        first, last = samples[0][1], samples[-1][1]
+        print(f"  first sample -> last: {100 * (last - first) / first:+.1f}%")
+    finally:
+        server.terminate()
+        server.wait(timeout=60)
+
+
+def main():
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--frames", type=int, default=100, help="frames per client")
+    p.add_argument("--clients", type=int, default=8)
+    p.add_argument("--points", type=int, default=100000)
+    p.add_argument("--distinct", type=int, default=8, help="distinct synthetic frames per model")
+    p.add_argument("--models", default="panel,nist")
+    p.add_argument("--threads", type=int, default=0)
+    p.add_argument("--max-seconds", type=float, default=900, help="per stage")
+    p.add_argument("--binary", default=os.path.join(ROOT, "build", "bin", "nurbsreg"))
+    p.add_argument("--soak", type=int, default=0, help="memory soak: this many small requests")
+    a = p.parse_args()
+    if a.soak:
+        with tempfile.TemporaryDirectory(prefix="nurbsreg-service-soak-") as work:
+            soak(a.binary, a.soak, a.clients, a.points if a.points != 100000 else 5000, work)
+        return 0
+    rows = []
+    with tempfile.TemporaryDirectory(prefix="nurbsreg-service-bench-") as work:
+        log = open(os.path.join(work, "serve.log"), "w")
+        for name in a.models.split(","):
+            model, noise = MODELS[name]
+            model_work = os.path.join(work, name)
+            os.makedirs(model_work)
+            print(f"[{name}] synthesising {a.distinct} frames of {a.points} points ...", flush=True)
+            files = synth_frames(a.binary, model, noise, a.points, a.distinct, model_work)
+            total = a.clients * a.frames
+            print(f"[{name}] batch over {total} frames ...", flush=True)
+            batch_done, batch_seconds = bench_batch(a.binary, model, files, total, a.threads,
+                                                    model_work, a.max_seconds)
+            print(f"[{name}] serve: {a.clients} clients x {a.frames} frames ...", flush=True)
+            latencies, seconds, m0, m1, failures = bench_serve(
+                a.binary, model, files, a.clients, a.frames, a.threads, a.max_seconds, log)
+            if failures:
+                print(f"[{name}] {len(failures)} failed frames, first: {failures[0]}")
+            served = len(latencies)
+            batch_fps = batch_done / batch_seconds
+            serve_fps = served / seconds
+            rows.append({
+                "model": name, "frames": served, "batch_frames": batch_done,
+                "serve_fps": serve_fps, "batch_fps": batch_fps,
+                "serve_pps": serve_fps * a.points, "batch_pps": batch_fps * a.points,
+                "ratio": serve_fps / batch_fps,
+                "p50": percentile(latencies, 0.5), "p95": percentile(latencies, 0.95),
+                "p99": percentile(latencies, 0.99),
+                "rss_start": m0["VmRSS"], "rss_end": m1["VmRSS"],
+                "hwm_start": m0["VmHWM"], "hwm_end": m1["VmHWM"],
+                "cut_short": served < total or batch_done < total, "failed": len(failures)})
+    print()
+    print(f"{a.clients} clients, {a.points} points a frame, threads {a.threads or 'all'}, "
+          f"{os.cpu_count()} hardware threads")
+    print("| model | frames (serve/batch) | serve frames/s | batch frames/s | serve/batch | "
+          "serve Mpoints/s | p50 ms | p95 ms | p99 ms | RSS start -> end MB | peak RSS start -> end MB |")
+    print("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |")
+    for r in rows:
+        print(f"| {r['model']} | {r['frames']}/{r['batch_frames']}{' (cut short)' if r['cut_short'] else ''} "
+              f"| {r['serve_fps']:.2f} | {r['batch_fps']:.2f} | {r['ratio']:.2f} | {r['serve_pps'] / 1e6:.2f} "
+              f"| {1e3 * r['p50']:.0f} | {1e3 * r['p95']:.0f} | {1e3 * r['p99']:.0f} "
+              f"| {r['rss_start'] / 2**20:.0f} -> {r['rss_end'] / 2**20:.0f} "
+              f"| {r['hwm_start'] / 2**20:.0f} -> {r['hwm_end'] / 2**20:.0f} |")
+    print(json.dumps(rows))
+    return 1 if any(r["failed"] for r in rows) else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

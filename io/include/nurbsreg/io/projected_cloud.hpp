@@ -1,0 +1,44 @@
+#pragma once
+// A whole cloud projected onto a prepared model and laid out as the contract's projection table
+// (CONTRACT.md §2 "Projection results"): what `project`, `batch --mode project` and the service's
+// POST /v1/project compute, by one function, so that a cloud gives the same rows everywhere.
+//
+// project_cloud projects in blocks of kProjectBlock points (progress between blocks) without
+// hints or certificates, so the rows depend on neither the block size nor the thread count.
+// Surfaces add the columns signed_distance, normal_x, normal_y, normal_z. Thread safety: one
+// call at a time per Projector; allocates the results (not per point).
+
+#include <cstddef>
+#include <functional>
+#include <vector>
+
+#include "nurbsreg/engine/projection.hpp"
+#include "nurbsreg/io/point_cloud.hpp"
+#include "nurbsreg/io/projection_results.hpp"
+
+namespace nurbsreg::io {
+
+inline constexpr std::size_t kProjectBlock = std::size_t{1} << 18;
+
+struct ProjectedCloud {
+  engine::ProjectionTarget target = engine::ProjectionTarget::surfaces;
+  engine::ProjectionResults results;  // with feet and normals, in cloud order
+  std::vector<double> normal_x, normal_y, normal_z;
+  double compute_seconds = 0.0;  // projection only
+  // Distance statistics over the cloud's points (0 for an empty cloud).
+  double min_distance = 0.0;
+  double mean_distance = 0.0;
+  double rms_distance = 0.0;
+  double max_distance = 0.0;
+
+  // Views for the table writers; `cloud` must be the projected one and outlive the views.
+  ProjectionColumns columns(const PointCloud& cloud) const;
+};
+
+// Called after each block with the points done so far and the seconds spent.
+using ProjectProgress = std::function<void(std::size_t done, std::size_t total, double seconds)>;
+
+ProjectedCloud project_cloud(engine::Projector& projector, const PointCloud& cloud,
+                             engine::ProjectionTarget target, const ProjectProgress& progress = {});
+
+}  // namespace nurbsreg::io

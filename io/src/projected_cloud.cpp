@@ -1,0 +1,76 @@
+#include "nurbsreg/io/projected_cloud.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <span>
+
+namespace nurbsreg::io {
+
+ProjectedCloud project_cloud(engine::Projector& projector, const PointCloud& cloud,
+                             engine::ProjectionTarget target, const ProjectProgress& progress) {
+  ProjectedCloud out;
+  out.target = target;
+  engine::ProjectionOptions options;
+  options.target = target;
+  // No certificates: the blocks are projected without hints and without certifying.
+  out.results.resize(cloud.size(), /*feet=*/true, /*certificates=*/false);
+  engine::ProjectionResults block;
+  const auto start = std::chrono::steady_clock::now();
+  const auto seconds = [&] {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  };
+  for (std::size_t begin = 0; begin < cloud.size(); begin += kProjectBlock) {
+    const std::size_t end = std::min(cloud.size(), begin + kProjectBlock);
+    const std::span<const engine::Vec3> part(cloud.points.data() + begin, end - begin);
+    projector.project(engine::PointView::of(part), options, block);
+    out.results.copy_from(block, begin);
+    if (progress) progress(end, cloud.size(), seconds());
+  }
+  out.compute_seconds = seconds();
+
+  const engine::ProjectionResults& r = out.results;
+  out.normal_x.resize(cloud.size());
+  out.normal_y.resize(cloud.size());
+  out.normal_z.resize(cloud.size());
+  double min_d = std::numeric_limits<double>::infinity();
+  double max_d = 0.0;
+  double sum_d = 0.0;
+  double sum_sq = 0.0;
+  for (std::size_t i = 0; i < cloud.size(); ++i) {
+    out.normal_x[i] = r.normal[i].x();
+    out.normal_y[i] = r.normal[i].y();
+    out.normal_z[i] = r.normal[i].z();
+    min_d = std::min(min_d, r.distance[i]);
+    max_d = std::max(max_d, r.distance[i]);
+    sum_d += r.distance[i];
+    sum_sq += r.distance[i] * r.distance[i];
+  }
+  const double n = static_cast<double>(cloud.size());
+  out.min_distance = cloud.size() ? min_d : 0.0;
+  out.max_distance = max_d;
+  out.mean_distance = cloud.size() ? sum_d / n : 0.0;
+  out.rms_distance = cloud.size() ? std::sqrt(sum_sq / n) : 0.0;
+  return out;
+}
+
+ProjectionColumns ProjectedCloud::columns(const PointCloud& cloud) const {
+  ProjectionColumns c;
+  c.index = cloud.source_index;
+  c.point = cloud.points;
+  c.foot = results.foot;
+  c.distance = results.distance;
+  c.entity = results.entity;
+  c.u = results.u;
+  c.v = results.v;
+  if (target == engine::ProjectionTarget::surfaces) {
+    c.extra = {{"signed_distance", results.signed_distance},
+               {"normal_x", normal_x},
+               {"normal_y", normal_y},
+               {"normal_z", normal_z}};
+  }
+  return c;
+}
+
+}  // namespace nurbsreg::io

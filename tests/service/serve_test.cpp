@@ -1,0 +1,415 @@
+// End-to-end tests of `nurbsreg serve`: the real server on an ephemeral loopback port, real HTTP
+// clients (httplib's), answers compared with the CLI's, and the service's limits. Every server
+// is started by its test and killed at its end (ServerProcess); every client call has a
+// timeout.
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <thread>
+#include <vector>
+
+#include "nurbsreg/io/pose.hpp"
+#include "support/run_command.hpp"
+#include "support/server_process.hpp"
+
+// After Eigen: glibc's <resolv.h>, which httplib includes, defines a macro `_res` that Eigen
+// uses as a parameter name.
+#include <httplib.h>
+
+namespace nurbsreg::test {
+namespace {
+
+using Json = nlohmann::json;
+const std::string kPanel = std::string(NURBSREG_EXAMPLES_DIR) + "/panel.json";
+const std::string kSphere = std::string(NURBSREG_EXAMPLES_DIR) + "/sphere.json";
+constexpr const char* kPcd = "application/octet-stream";
+
+class Serve : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    dir_ = new ScratchDir("serve");
+    // A moved and noisy panel scan (binary PCD), a larger one, and an ascii copy.
+    for (const auto& [name, points] : {std::pair{"scan.pcd", 5000}, {"big.pcd", 60000}}) {
+      const CommandResult r =
+          run_nurbsreg("synth --model " + kPanel + " --points " + std::to_string(points) +
+                           " --noise 0.01 --pose \"0.02 -0.01 0.03 0.5 -0.3 0.2\" --seed 7 --out " +
+                           (*dir_ / name),
+                       dir_->path());
+      ASSERT_EQ(r.status, 0) << r.err;
+    }
+    const CommandResult ascii =
+        run_nurbsreg("synth --model " + kPanel + " --points 2000 --seed 8 --out " +
+                         (*dir_ / "ascii.pcd") + " --noise 0.01",
+                     dir_->path());
+    ASSERT_EQ(ascii.status, 0) << ascii.err;
+  }
+  static void TearDownTestSuite() {
+    delete dir_;
+    dir_ = nullptr;
+  }
+  static std::string path(const std::string& name) { return *dir_ / name; }
+  static std::string bytes(const std::string& name) { return read_text(path(name)); }
+
+  static std::unique_ptr<httplib::Client> client(int port) {
+    auto c = std::make_unique<httplib::Client>("127.0.0.1", port);
+    c->set_connection_timeout(10);
+    c->set_read_timeout(120);
+    c->set_write_timeout(60);
+    return c;
+  }
+  // The CLI's report for `scan` (`align --report`) with extra options.
+  static Json cli_report(const std::string& scan, const std::string& options = "") {
+    const std::string report = path("cli_report.json");
+    const CommandResult r = run_nurbsreg(
+        "align --model " + kPanel + " --scan " + path(scan) + " --report " + report + options,
+        dir_->path());
+    EXPECT_EQ(r.status, 0) << r.err;
+    return Json::parse(read_text(report));
+  }
+  static void expect_same_alignment(const Json& served, const Json& cli) {
+    for (const char* field : {"pose", "rms", "iterations", "converged", "inliers", "points",
+                              "skipped_points", "method", "termination"}) {
+      EXPECT_EQ(served.at(field), cli.at(field)) << field;
+    }
+    ASSERT_EQ(served.at("history").size(), cli.at("history").size());
+    for (std::size_t k = 0; k < cli.at("history").size(); ++k) {
+      for (const char* field : {"rms", "inliers", "rotation_step", "translation_step"}) {
+        EXPECT_EQ(served["history"][k].at(field), cli["history"][k].at(field)) << field << k;
+      }
+    }
+  }
+  static ScratchDir* dir_;
+};
+ScratchDir* Serve::dir_ = nullptr;
+
+TEST_F(Serve, AlignAndProjectAnswerAsTheCli) {
+  ServerProcess server("--model " + kPanel, path("log_equal.txt"));
+  ASSERT_GT(server.port(), 0) << read_text(path("log_equal.txt"));
+  auto c = client(server.port());
+  const auto health = c->Get("/healthz");
+  ASSERT_TRUE(health);
+  EXPECT_EQ(health->status, 200);
+  const auto models = c->Get("/v1/models");
+  ASSERT_TRUE(models);
+  EXPECT_EQ(Json::parse(models->body).at(0).at("id"), "panel");
+
+  // Without init: from the identity, as `align` without --init.
+  const auto aligned = c->Post("/v1/align?model=panel", bytes("scan.pcd"), kPcd);
+  ASSERT_TRUE(aligned);
+  ASSERT_EQ(aligned->status, 200) << aligned->body;
+  expect_same_alignment(Json::parse(aligned->body), cli_report("scan.pcd"));
+
+  // With init (16 numbers, row-major) against `align --init` of the same matrix, and an ICP
+  // override against the same CLI option.
+  Eigen::Matrix4d init = Eigen::Matrix4d::Identity();
+  init(0, 3) = 0.4;
+  init(1, 3) = -0.2;
+  io::write_pose(path("init.txt"), init);
+  std::string numbers;
+  for (int r = 0; r < 4; ++r) {
+    for (int k = 0; k < 4; ++k)
+      numbers += (numbers.empty() ? "" : ",") + std::to_string(init(r, k));
+  }
+  const auto with_init = c->Post(("/v1/align?model=panel&max_iterations=7&init=" + numbers).c_str(),
+                                 bytes("scan.pcd"), kPcd);
+  ASSERT_TRUE(with_init);
+  ASSERT_EQ(with_init->status, 200) << with_init->body;
+  expect_same_alignment(Json::parse(with_init->body),
+                        cli_report("scan.pcd", " --max-iterations 7 --init " + path("init.txt")));
+
+  // Projection: the CSV bytes of `project --out r.csv`, for a binary and an ascii PCD body.
+  for (const auto& [scan, type] : {std::pair{"scan.pcd", kPcd}, {"ascii.pcd", "text/plain"}}) {
+    const auto projected = c->Post("/v1/project?model=panel", bytes(scan), type);
+    ASSERT_TRUE(projected);
+    ASSERT_EQ(projected->status, 200) << projected->body;
+    const CommandResult r = run_nurbsreg(
+        "project --model " + kPanel + " --points " + path(scan) + " --out " + path("cli.csv"),
+        dir_->path());
+    ASSERT_EQ(r.status, 0) << r.err;
+    EXPECT_EQ(projected->body, read_text(path("cli.csv"))) << scan;
+    EXPECT_EQ(projected->get_header_value("Content-Type"), "text/csv");
+  }
+
+  const auto metrics = c->Get("/metrics");
+  ASSERT_TRUE(metrics);
+  EXPECT_NE(metrics->body.find("nurbsreg_requests_total{endpoint=\"align\",status=\"200\"} 2"),
+            std::string::npos)
+      << metrics->body;
+  EXPECT_NE(metrics->body.find("nurbsreg_points_total{endpoint=\"project\"} 7000"),
+            std::string::npos);
+  EXPECT_EQ(server.terminate(30), 0);
+}
+
+TEST_F(Serve, CurlAsInTheReadme) {
+  ServerProcess server("--model " + kPanel, path("log_curl.txt"));
+  ASSERT_GT(server.port(), 0);
+  const std::string url = "http://127.0.0.1:" + std::to_string(server.port());
+  // Expect: 100-continue, as curl sends by itself for bodies over 1 MB.
+  const std::string out = path("curl_answer.json");
+  const std::string command = "curl -s --max-time 120 -o " + out + " -w '%{http_code}' " +
+                              "-H 'Expect: 100-continue' -X POST --data-binary @" +
+                              path("big.pcd") + " -H 'Content-Type: application/octet-stream' '" +
+                              url + "/v1/align?model=panel&session=cam1' > " +
+                              path("curl_status.txt");
+  ASSERT_EQ(std::system(command.c_str()), 0);
+  EXPECT_EQ(read_text(path("curl_status.txt")), "200");
+  const Json answer = Json::parse(read_text(out));
+  EXPECT_EQ(answer.at("session"), "cam1");
+  EXPECT_EQ(answer.at("points"), 60000);
+  EXPECT_EQ(answer.at("converged"), true);
+}
+
+TEST_F(Serve, BadRequestsGetAnErrorNamingTheProblem) {
+  ServerProcess server("--model " + kPanel, path("log_bad.txt"));
+  ASSERT_GT(server.port(), 0);
+  auto c = client(server.port());
+  const std::string scan = bytes("scan.pcd");
+  const auto error_of = [&](const httplib::Result& r, int status) {
+    EXPECT_TRUE(r);
+    if (!r) return std::string();
+    EXPECT_EQ(r->status, status) << r->body;
+    EXPECT_EQ(r->get_header_value("Content-Type"), "application/json");
+    return Json::parse(r->body).at("error").get<std::string>();
+  };
+  EXPECT_NE(
+      error_of(c->Post("/v1/align?model=panel", scan.substr(0, 2000), kPcd), 400).find("truncated"),
+      std::string::npos);
+  EXPECT_NE(error_of(c->Post("/v1/align?model=panel", scan, "image/png"), 400)
+                .find("Content-Type \"image/png\""),
+            std::string::npos);
+  EXPECT_NE(error_of(c->Post("/v1/align?model=hood", scan, kPcd), 404).find("\"hood\""),
+            std::string::npos);
+  EXPECT_NE(error_of(c->Post("/v1/align", scan, kPcd), 400).find("model"), std::string::npos);
+  EXPECT_NE(error_of(c->Post("/v1/align?model=panel&init=1,0,0", scan, kPcd), 400).find("init"),
+            std::string::npos);
+  EXPECT_NE(
+      error_of(c->Post("/v1/align?model=panel&init=2,0,0,0,0,1,0,0,0,0,1,0,0,0,0,1", scan, kPcd),
+               400)
+          .find("orthonormal"),
+      std::string::npos);
+  EXPECT_NE(error_of(c->Post("/v1/align?model=panel&max_iterations=x", scan, kPcd), 400)
+                .find("max_iterations"),
+            std::string::npos);
+  EXPECT_NE(error_of(c->Post("/v1/align?model=panel", "", kPcd), 400).find("request body"),
+            std::string::npos);
+  EXPECT_NE(
+      error_of(c->Post("/v1/project?model=panel&target=curves", scan, kPcd), 400).find("no curves"),
+      std::string::npos);
+  EXPECT_NE(error_of(c->Get("/v2/nothing"), 404).find("no such endpoint"), std::string::npos);
+  // The service is still there and still right after all of that.
+  const auto ok = c->Post("/v1/align?model=panel", scan, kPcd);
+  ASSERT_TRUE(ok);
+  EXPECT_EQ(ok->status, 200);
+}
+
+TEST_F(Serve, SessionsStartFromThePreviousPose) {
+  ServerProcess server("--model " + kPanel + " --model " + kSphere + " --max-sessions 2",
+                       path("log_sessions.txt"));
+  ASSERT_GT(server.port(), 0);
+  auto c = client(server.port());
+  const std::string scan = bytes("scan.pcd");
+  const auto first = c->Post("/v1/align?model=panel&session=cam-1", scan, kPcd);
+  ASSERT_TRUE(first);
+  ASSERT_EQ(first->status, 200) << first->body;
+  const Json a = Json::parse(first->body);
+  EXPECT_EQ(a.at("frame"), 1);
+  EXPECT_EQ(a.at("init"), "identity");
+  const auto second = c->Post("/v1/align?model=panel&session=cam-1", scan, kPcd);
+  ASSERT_TRUE(second);
+  ASSERT_EQ(second->status, 200);
+  const Json b = Json::parse(second->body);
+  EXPECT_EQ(b.at("frame"), 2);
+  EXPECT_EQ(b.at("init"), "session");
+  // From the converged pose the same frame needs no more iterations, and its first iteration's
+  // RMS is already the converged one's order (not the identity's).
+  EXPECT_LE(b.at("iterations").get<int>(), a.at("iterations").get<int>());
+  EXPECT_LT(b["history"][0]["rms"].get<double>(), 0.5 * a["history"][0]["rms"].get<double>());
+  // A session belongs to its model.
+  const auto other = c->Post("/v1/align?model=sphere&session=cam-1", scan, kPcd);
+  ASSERT_TRUE(other);
+  EXPECT_EQ(other->status, 409);
+  // Bounded: a third session evicts the least recently used idle one (cam-1 starts afresh).
+  for (const char* id : {"cam-2", "cam-3"}) {
+    const auto r =
+        c->Post((std::string("/v1/align?model=panel&session=") + id).c_str(), scan, kPcd);
+    ASSERT_TRUE(r);
+    EXPECT_EQ(r->status, 200);
+  }
+  const auto again = c->Post("/v1/align?model=panel&session=cam-1", scan, kPcd);
+  ASSERT_TRUE(again);
+  EXPECT_EQ(Json::parse(again->body).at("frame"), 1);
+  const auto metrics = c->Get("/metrics");
+  ASSERT_TRUE(metrics);
+  EXPECT_NE(metrics->body.find("nurbsreg_sessions 2"), std::string::npos);
+}
+
+TEST_F(Serve, ConcurrentClientsGetTheSerialAnswer) {
+  ServerProcess server("--model " + kPanel + " --max-inflight 8", path("log_concurrent.txt"));
+  ASSERT_GT(server.port(), 0);
+  const std::string scan = bytes("scan.pcd");
+  const auto serial = client(server.port())->Post("/v1/align?model=panel", scan, kPcd);
+  ASSERT_TRUE(serial);
+  const Json expected = Json::parse(serial->body);
+  constexpr int kClients = 4, kFrames = 3;
+  std::vector<std::string> answers(kClients * kFrames);
+  std::vector<int> statuses(kClients * kFrames, -1);
+  std::vector<std::thread> clients;
+  for (int t = 0; t < kClients; ++t) {
+    clients.emplace_back([&, t] {
+      auto c = client(server.port());
+      for (int f = 0; f < kFrames; ++f) {
+        const auto r = c->Post("/v1/align?model=panel", scan, kPcd);
+        if (!r) continue;
+        statuses[t * kFrames + f] = r->status;
+        answers[t * kFrames + f] = r->body;
+      }
+    });
+  }
+  for (std::thread& t : clients)
+    t.join();
+  for (std::size_t k = 0; k < answers.size(); ++k) {
+    ASSERT_EQ(statuses[k], 200) << answers[k];
+    const Json j = Json::parse(answers[k]);
+    EXPECT_EQ(j.at("pose"), expected.at("pose"));
+    EXPECT_EQ(j.at("rms"), expected.at("rms"));
+  }
+}
+
+TEST_F(Serve, OverloadIs503WithRetryAfterAndBigBodiesAre413) {
+  ServerProcess server("--model " + kPanel + " --max-inflight 1 --max-body 1000000",
+                       path("log_overload.txt"));
+  ASSERT_GT(server.port(), 0);
+  const std::string scan = bytes("big.pcd");  // 720 kB: under the limit
+  constexpr int kClients = 6;
+  std::vector<int> statuses(kClients, -1);
+  std::vector<std::string> retry_after(kClients);
+  std::vector<std::thread> clients;
+  for (int t = 0; t < kClients; ++t) {
+    clients.emplace_back([&, t] {
+      const auto r = client(server.port())->Post("/v1/align?model=panel", scan, kPcd);
+      if (!r) return;
+      statuses[t] = r->status;
+      retry_after[t] = r->get_header_value("Retry-After");
+    });
+  }
+  for (std::thread& t : clients)
+    t.join();
+  int ok = 0, busy = 0;
+  for (int t = 0; t < kClients; ++t) {
+    EXPECT_TRUE(statuses[t] == 200 || statuses[t] == 503) << statuses[t];
+    if (statuses[t] == 200) ++ok;
+    if (statuses[t] == 503) {
+      ++busy;
+      EXPECT_EQ(retry_after[t], "1");
+    }
+  }
+  EXPECT_GE(ok, 1);
+  EXPECT_GE(busy, 1);
+  // Over --max-body: 413 from Content-Length, and the connection's next request still works.
+  auto c = client(server.port());
+  const auto big = c->Post("/v1/align?model=panel", scan + scan, kPcd);
+  ASSERT_TRUE(big);
+  EXPECT_EQ(big->status, 413);
+  EXPECT_NE(big->body.find("--max-body"), std::string::npos);
+  const auto health = client(server.port())->Get("/healthz");
+  ASSERT_TRUE(health);
+  EXPECT_EQ(health->status, 200);
+}
+
+TEST_F(Serve, TokenIsRequiredWhenSet) {
+  std::ofstream(path("token.txt")) << "s3cret-token\n";
+  ServerProcess server("--model " + kPanel + " --token-file " + path("token.txt"),
+                       path("log_token.txt"));
+  ASSERT_GT(server.port(), 0);
+  auto c = client(server.port());
+  const std::string scan = bytes("scan.pcd");
+  const auto none = c->Post("/v1/align?model=panel", scan, kPcd);
+  ASSERT_TRUE(none);
+  EXPECT_EQ(none->status, 401);
+  const auto models = c->Get("/v1/models");
+  ASSERT_TRUE(models);
+  EXPECT_EQ(models->status, 401);
+  const auto wrong =
+      c->Post("/v1/align?model=panel", {{"Authorization", "Bearer s3cret-tokeX"}}, scan, kPcd);
+  ASSERT_TRUE(wrong);
+  EXPECT_EQ(wrong->status, 401);
+  const auto right =
+      c->Post("/v1/align?model=panel", {{"Authorization", "Bearer s3cret-token"}}, scan, kPcd);
+  ASSERT_TRUE(right);
+  EXPECT_EQ(right->status, 200) << right->body;
+  const auto health = c->Get("/healthz");  // probes need no token
+  ASSERT_TRUE(health);
+  EXPECT_EQ(health->status, 200);
+}
+
+TEST_F(Serve, ModelsLoadFromBelowTheRootOnly) {
+  namespace fs = std::filesystem;
+  const fs::path root = fs::path(path("root"));
+  fs::create_directories(root / "parts");
+  fs::copy_file(kPanel, root / "parts" / "door.json", fs::copy_options::overwrite_existing);
+  fs::copy_file(kSphere, path("outside.json"), fs::copy_options::overwrite_existing);
+  fs::remove(root / "parts" / "escape.json");
+  fs::create_symlink(path("outside.json"), root / "parts" / "escape.json");
+  ServerProcess server("--model " + kPanel + " --model-root " + root.string(),
+                       path("log_root.txt"));
+  ASSERT_GT(server.port(), 0);
+  auto c = client(server.port());
+  const auto load = [&](const std::string& body) {
+    return c->Post("/v1/models", body, "application/json");
+  };
+  for (const std::string& bad :
+       {std::string("../outside.json"), std::string("parts/../../outside.json"),
+        path("outside.json"), std::string("parts/escape.json"), std::string("/etc/passwd")}) {
+    const auto r = load(Json{{"path", bad}}.dump());
+    ASSERT_TRUE(r);
+    EXPECT_EQ(r->status, 403) << bad << ": " << r->body;
+  }
+  const auto missing = load(Json{{"path", "parts/none.json"}}.dump());
+  ASSERT_TRUE(missing);
+  EXPECT_EQ(missing->status, 404);
+  const auto good = load(Json{{"path", "parts/door.json"}, {"id", "door"}}.dump());
+  ASSERT_TRUE(good);
+  ASSERT_EQ(good->status, 201) << good->body;
+  const auto aligned = c->Post("/v1/align?model=door", bytes("scan.pcd"), kPcd);
+  ASSERT_TRUE(aligned);
+  EXPECT_EQ(aligned->status, 200);
+  const auto twice = load(Json{{"path", "parts/door.json"}, {"id", "door"}}.dump());
+  ASSERT_TRUE(twice);
+  EXPECT_EQ(twice->status, 409);
+}
+
+TEST_F(Serve, SigtermAnswersTheRequestsInFlightAndExitsZero) {
+  ServerProcess server("--model " + kPanel + " --max-inflight 4", path("log_term.txt"));
+  ASSERT_GT(server.port(), 0);
+  const std::string scan = bytes("big.pcd");
+  constexpr int kClients = 3;
+  std::vector<int> statuses(kClients, -1);
+  std::vector<std::thread> clients;
+  for (int t = 0; t < kClients; ++t) {
+    clients.emplace_back([&, t] {
+      const auto r = client(server.port())->Post("/v1/align?model=panel", scan, kPcd);
+      if (r) statuses[t] = r->status;
+    });
+  }
+  // Wait until all three frames are being computed (accepted: their bodies have been read).
+  auto c = client(server.port());
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
+  while (std::chrono::steady_clock::now() < deadline) {
+    const auto m = c->Get("/metrics");
+    if (m && m->body.find("nurbsreg_in_flight 3\n") != std::string::npos) break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  c.reset();
+  const int exit_status = server.terminate(120);
+  for (std::thread& t : clients)
+    t.join();
+  EXPECT_EQ(exit_status, 0);
+  for (int t = 0; t < kClients; ++t)
+    EXPECT_EQ(statuses[t], 200) << t;
+}
+
+}  // namespace
+}  // namespace nurbsreg::test
