@@ -9,6 +9,10 @@
 // goes on the outermost function that inlines a hot loop, never on a tiny function called
 // millions of times (each call goes through the ifunc and cannot be inlined).
 //
+// The attribute goes on the definition only: the defining translation unit exports the ifunc under
+// the function's own name, and other units call it through a plain declaration (a declaration
+// with the attribute would make them emit a resolver of their own, for clones they cannot see).
+//
 // The clones give bit-identical results: both evaluate the same IEEE operations in the same
 // order. Floating-point contraction (a * b + c -> FMA, which x86-64-v3 has) is turned off for
 // every nurbsreg target (-ffp-contract=off, cmake/NurbsregTarget.cmake; GCC contracts by default

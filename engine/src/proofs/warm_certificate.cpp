@@ -4,6 +4,9 @@
 #include <cmath>
 #include <limits>
 
+#include "surface/derivative_bounds.hpp"
+#include "surface/patch_newton.hpp"
+
 namespace nurbsreg::engine {
 namespace {
 

@@ -12,21 +12,6 @@
 
 namespace nurbsreg::engine {
 
-// Defined in surface_clipping.cpp beside the clipping's convexity test, which it shares: the
-// largest r <= r_max (bisection, rounded down) such that the test holds on the coefficient grid
-// `n` (F_a on some box) for every q with |q - a| <= r, given bounds on the norms of the box's E
-// second differences (s, t, mixed); 0 when it fails at a itself. Polynomial patches only.
-double grid_convexity_radius(const double* n, int rows, int cols, double e_ss, double e_tt,
-                             double e_st, double r_max);
-
-// newton_on_patch for a caller that proves its KKT point the answer by other means (a
-// certificate's N, where F is strictly convex; the model's reach bounds): a Newton step below
-// 1e-10 of the parameter range counts as converged without being taken, which saves the last
-// evaluation (the point is then that close to the minimiser, F within ~|H| 1e-20 of it).
-double newton_to_proven_point(const BezierPatch& patch, const Vec3& p, double s0, double s1,
-                              double t0, double t1, double& s, double& t, Vec3& foot, Vec3* normal,
-                              bool* converged);
-
 struct PatchCertificate {
   // N in P's local parameters, as floats (compact in hints); every test was made on exactly
   // these values.

@@ -1,0 +1,72 @@
+#include "surface/coefficient_bounds.hpp"
+
+#include <algorithm>
+#include <limits>
+
+#include "platform/cpu_dispatch.hpp"
+#include "platform/vector_lanes.hpp"
+
+namespace nurbsreg::engine {
+
+NURBSREG_HOT_CLONES
+CoefficientRange coefficient_range(const double* n, const double* d, int count, bool rational) {
+  CoefficientRange r{std::numeric_limits<double>::infinity(),
+                     -std::numeric_limits<double>::infinity(), 0};
+  if (!rational) {
+    // The minimum and maximum only, in vector lanes (order-independent; a NaN is ignored as
+    // below). The index of the minimum is wanted only where a box ends in Newton: arg = -1, and
+    // first_index_of finds it then (the first index holding the minimum, as the strict test
+    // below keeps).
+    SlotRange<kLanes> lanes;
+    int k = 0;
+    for (; k + kLanes <= count; k += kLanes)
+      lanes.add(0, load_lanes(n + k));
+    Iv range = lanes.reduce();
+    for (; k < count; ++k) {
+      range.lo = std::min(range.lo, n[k]);
+      range.hi = std::max(range.hi, n[k]);
+    }
+    r.lo = range.lo;
+    r.hi = range.hi;
+    r.arg = -1;
+    return r;
+  }
+  for (int k = 0; k < count; ++k) {
+    const double f = rational ? n[k] / d[k] : n[k];
+    if (f < r.lo) {
+      r.lo = f;
+      r.arg = k;
+    }
+    r.hi = std::max(r.hi, f);
+  }
+  return r;
+}
+
+NURBSREG_HOT_CLONES
+int boundary_edge(const double* f, int rows, int cols) {
+  auto row_below = [&](int r) {
+    const double* edge = f + r * cols;
+    for (int i = 0; i < rows; ++i) {
+      for (int j = 0; j < cols; ++j) {
+        if (f[i * cols + j] < edge[j]) return false;
+      }
+    }
+    return true;
+  };
+  auto col_below = [&](int c) {
+    for (int i = 0; i < rows; ++i) {
+      const double edge = f[i * cols + c];
+      for (int j = 0; j < cols; ++j) {
+        if (f[i * cols + j] < edge) return false;
+      }
+    }
+    return true;
+  };
+  if (row_below(0)) return 0;
+  if (row_below(rows - 1)) return 1;
+  if (col_below(0)) return 2;
+  if (col_below(cols - 1)) return 3;
+  return -1;
+}
+
+}  // namespace nurbsreg::engine

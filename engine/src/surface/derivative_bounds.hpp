@@ -1,0 +1,260 @@
+#pragma once
+// Internal: Bézier bounds on the derivatives of the squared distance F on a box of a patch, and
+// the two proofs built on them: strict convexity (the clipping's termination test, the warm
+// certificates' radius) and a proven sign of F_s or F_t (the monotone edge test).
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include "nurbsreg/engine/surface_projection.hpp"
+#include "platform/cpu_dispatch.hpp"
+#include "platform/vector_lanes.hpp"
+
+namespace nurbsreg::engine {
+namespace {
+
+// Ranges of the Bernstein coefficients of the first and second partial derivatives of a scalar
+// tensor Bernstein polynomial of degree (rows - 1, cols - 1) on the local box (differenced
+// coefficients; by the convex hull property each derivative lies in its range).
+struct DerivativeRanges {
+  Iv v, s, t, ss, st, tt;
+};
+
+[[maybe_unused]] DerivativeRanges derivative_ranges(const double* a, int rows, int cols) {
+  const double inf = std::numeric_limits<double>::infinity();
+  DerivativeRanges r{{inf, -inf}, {inf, -inf}, {inf, -inf}, {inf, -inf}, {inf, -inf}, {inf, -inf}};
+  auto grow = [](Iv& iv, double x) {
+    iv.lo = std::min(iv.lo, x);
+    iv.hi = std::max(iv.hi, x);
+  };
+  const int m = rows - 1, n = cols - 1;
+  for (int i = 0; i < rows; ++i) {
+    const double* row = a + i * cols;
+    for (int j = 0; j < cols; ++j) {
+      grow(r.v, row[j]);
+      if (i + 1 < rows) grow(r.s, m * (row[cols + j] - row[j]));
+      if (j + 1 < cols) grow(r.t, n * (row[j + 1] - row[j]));
+      if (i + 2 < rows)
+        grow(r.ss, m * (m - 1) * (row[2 * cols + j] - 2.0 * row[cols + j] + row[j]));
+      if (j + 2 < cols) grow(r.tt, n * (n - 1) * (row[j + 2] - 2.0 * row[j + 1] + row[j]));
+      if (i + 1 < rows && j + 1 < cols) {
+        grow(r.st, m * n * (row[cols + j + 1] - row[cols + j] - row[j + 1] + row[j]));
+      }
+    }
+  }
+  // Degree 0 in a direction: the derivative is identically zero.
+  for (Iv* iv : {&r.s, &r.t, &r.ss, &r.st, &r.tt}) {
+    if (iv->lo > iv->hi) *iv = {0.0, 0.0};
+  }
+  return r;
+}
+
+// Bounds used by the termination and edge tests, from Bézier bounds (differenced coefficients).
+// Polynomial patch (D == 1): the ranges of F's own first and second derivatives.
+// Rational patch, F = N / D: bounding F's derivatives through the quotient rule by interval
+// arithmetic works but is loose (F_s D_s and F D_ss terms). We use instead the polynomials
+//   G_c = N - c D,   c in [c_lo, c_hi] = [min f_ij, max f_ij] (contains F's range on the box),
+// whose coefficients are affine in c, so the union of the ranges at c_lo and c_hi bounds them for
+// every c. The returned ranges are those of G_c's derivatives over all such c. Why they suffice:
+//  - sign of F_s: at any x, F_s(x) = (G_c)_s(x) / D(x) with c = F(x); so (G_c)_s > 0 for all c
+//    proves F_s > 0 on the box (the edge test).
+//  - convexity: if every G_c is strictly convex on the box, F is strictly quasi-convex there and a
+//    KKT point x* of F on the box is its global minimiser: grad F(x*) = grad G_m(x*) / D with
+//    m = F(x*), so x* is a KKT point of the convex G_m, hence G_m >= G_m(x*) = 0 on the box,
+//    i.e. F >= m. A box-constrained Newton (descent to a KKT point) therefore finds the minimum.
+// For D == 1 both readings coincide.
+struct FDerivatives {
+  Iv s, t, ss, tt, st;
+};
+
+[[maybe_unused]] Iv hull(Iv a, Iv b) {
+  return {std::min(a.lo, b.lo), std::max(a.hi, b.hi)};
+}
+
+[[maybe_unused]] FDerivatives f_derivatives(const double* n_grid, const double* d_grid, int rows,
+                                            int cols, bool rational, Iv f_range) {
+  if (!rational) {
+    const DerivativeRanges n = derivative_ranges(n_grid, rows, cols);
+    return {n.s, n.t, n.ss, n.tt, n.st};
+  }
+  double shifted[SurfaceScratch::kGridCapacity];
+  FDerivatives r{};
+  for (int end = 0; end < 2; ++end) {
+    const double c = end == 0 ? f_range.lo : f_range.hi;
+    for (int k = 0; k < rows * cols; ++k)
+      shifted[k] = n_grid[k] - c * d_grid[k];
+    const DerivativeRanges g = derivative_ranges(shifted, rows, cols);
+    if (end == 0) {
+      r = {g.s, g.t, g.ss, g.tt, g.st};
+    } else {
+      r = {hull(r.s, g.s), hull(r.t, g.t), hull(r.ss, g.ss), hull(r.tt, g.tt), hull(r.st, g.st)};
+    }
+  }
+  return r;
+}
+
+// Termination test (DESIGN.md): min F_ss > 0, min F_tt > 0 and min F_ss min F_tt > max F_st^2
+// imply a positive definite Hessian on the whole box (of F, or of every G_c for a rational patch),
+// hence a unique minimiser on the box that a descent method (box-constrained Newton) finds.
+[[maybe_unused]] bool convex(const FDerivatives& f) {
+  // A relative margin keeps rounding in the differences from faking convexity.
+  const double margin = 1e-12 * (std::abs(f.ss.hi) + std::abs(f.tt.hi) + std::abs(f.st.hi));
+  const double a = f.ss.lo - margin, b = f.tt.lo - margin;
+  const double c = std::max(std::abs(f.st.lo), std::abs(f.st.hi)) + margin;
+  return a > 0.0 && b > 0.0 && a * b > c * c;
+}
+
+// Monotonicity edge test, valid for rational patches too (see f_derivatives for the sign of F_s
+// through G_c): if F_s > 0 on the whole box, every
+// point (s, t) has F(s, t) > F(s0, t), so the box's minimum lies on its edge s = s0 (and so on).
+// This replaces seed 001's Theorem 2 where that does not hold (rational F). Returns the edge as in
+// boundary_edge, or -1.
+[[maybe_unused]] int monotone_edge(const FDerivatives& f) {
+  const double margin_s = 1e-12 * std::max(std::abs(f.s.lo), std::abs(f.s.hi));
+  const double margin_t = 1e-12 * std::max(std::abs(f.t.lo), std::abs(f.t.hi));
+  if (f.s.lo > margin_s) return 0;
+  if (f.s.hi < -margin_s) return 1;
+  if (f.t.lo > margin_t) return 2;
+  if (f.t.hi < -margin_t) return 3;
+  return -1;
+}
+
+// second_derivative_ranges for a fixed grid (R, C): the same differences (element-wise, in the
+// same order of operations) and the same minima and maxima (they do not depend on the order they
+// are taken in), with the columns of a row in vector lanes (vector_lanes below) and one
+// horizontal pass per derivative.
+template <int R, int C>
+[[gnu::always_inline]] inline bool second_derivative_ranges_fixed(const double* a, FDerivatives& f);
+
+// Polynomial F (D == 1) only: the ranges of F's own second derivatives on the box (f.ss, f.tt,
+// f.st; the first-derivative ranges are left alone), computed in one pass per derivative with an
+// exit as soon as min F_ss <= 0 or min F_tt <= 0 (false): `convex` then fails whatever the margin
+// is, and so does any widening of the ranges (grid_convexity_radius). The same values as
+// derivative_ranges. Inlined: it then runs in its callers' own (possibly AVX2) code.
+[[gnu::always_inline]] inline bool second_derivative_ranges(const double* a, int rows, int cols,
+                                                            FDerivatives& f) {
+  if (rows < 3 || cols < 3) return false;  // F_ss or F_tt identically zero
+  // The grids of bicubic and biquadratic patches (and their mixes) get unrolled code.
+  if (rows == 7 && cols == 7) return second_derivative_ranges_fixed<7, 7>(a, f);
+  if (rows == 5 && cols == 5) return second_derivative_ranges_fixed<5, 5>(a, f);
+  if (rows == 5 && cols == 7) return second_derivative_ranges_fixed<5, 7>(a, f);
+  if (rows == 7 && cols == 5) return second_derivative_ranges_fixed<7, 5>(a, f);
+  double ss_lo = std::numeric_limits<double>::infinity(), ss_hi = -ss_lo;
+  for (int i = 0; i + 2 < rows; ++i) {
+    const double* r0 = a + i * cols;
+    const double* r1 = r0 + cols;
+    const double* r2 = r1 + cols;
+    for (int j = 0; j < cols; ++j) {
+      const double x = r2[j] - 2.0 * r1[j] + r0[j];
+      ss_lo = std::min(ss_lo, x);
+      ss_hi = std::max(ss_hi, x);
+    }
+    if (!(ss_lo > 0.0)) return false;
+  }
+  double tt_lo = std::numeric_limits<double>::infinity(), tt_hi = -tt_lo;
+  for (int i = 0; i < rows; ++i) {
+    const double* r = a + i * cols;
+    for (int j = 0; j + 2 < cols; ++j) {
+      const double x = r[j + 2] - 2.0 * r[j + 1] + r[j];
+      tt_lo = std::min(tt_lo, x);
+      tt_hi = std::max(tt_hi, x);
+    }
+    if (!(tt_lo > 0.0)) return false;
+  }
+  double st_lo = std::numeric_limits<double>::infinity(), st_hi = -st_lo;
+  for (int i = 0; i + 1 < rows; ++i) {
+    const double* r0 = a + i * cols;
+    const double* r1 = r0 + cols;
+    for (int j = 0; j + 1 < cols; ++j) {
+      const double x = r1[j + 1] - r1[j] - r0[j + 1] + r0[j];
+      st_lo = std::min(st_lo, x);
+      st_hi = std::max(st_hi, x);
+    }
+  }
+  // The same scaling as derivative_ranges.
+  const int m = rows - 1, n = cols - 1;
+  const double ks = double(m) * (m - 1), kt = double(n) * (n - 1), kst = double(m) * n;
+  f.ss = {ks * ss_lo, ks * ss_hi};
+  f.tt = {kt * tt_lo, kt * tt_hi};
+  f.st = {kst * st_lo, kst * st_hi};
+  return true;
+}
+
+template <int R, int C>
+[[gnu::always_inline]] inline bool second_derivative_ranges_fixed(const double* a,
+                                                                  FDerivatives& f) {
+  static_assert(R >= 3 && C >= 3);
+  constexpr int m = R - 1, n = C - 1;
+  // F_ss: second differences down the columns, all C columns.
+  SlotRange<C> ss;
+  for (int i = 0; i + 2 < R; ++i) {
+    const double* r0 = a + i * C;
+    const double* r1 = r0 + C;
+    const double* r2 = r1 + C;
+    for (int v = 0; v < SlotRange<C>::kVec; ++v) {
+      const int j = v * kLanes;
+      ss.add(v, load_lanes(r2 + j) - 2.0 * load_lanes(r1 + j) + load_lanes(r0 + j));
+    }
+    for (int k = 0; k < SlotRange<C>::kRest; ++k) {
+      const int j = SlotRange<C>::kVec * kLanes + k;
+      ss.add_scalar(k, r2[j] - 2.0 * r1[j] + r0[j]);
+    }
+  }
+  const Iv ss_range = ss.reduce();
+  if (!(ss_range.lo > 0.0)) return false;
+  // F_tt: second differences along the rows, C - 2 per row.
+  SlotRange<C - 2> tt;
+  for (int i = 0; i < R; ++i) {
+    const double* r = a + i * C;
+    for (int v = 0; v < SlotRange<C - 2>::kVec; ++v) {
+      const int j = v * kLanes;
+      tt.add(v, load_lanes(r + j + 2) - 2.0 * load_lanes(r + j + 1) + load_lanes(r + j));
+    }
+    for (int k = 0; k < SlotRange<C - 2>::kRest; ++k) {
+      const int j = SlotRange<C - 2>::kVec * kLanes + k;
+      tt.add_scalar(k, r[j + 2] - 2.0 * r[j + 1] + r[j]);
+    }
+  }
+  const Iv tt_range = tt.reduce();
+  if (!(tt_range.lo > 0.0)) return false;
+  // F_st: mixed differences, (R - 1) x (C - 1).
+  SlotRange<C - 1> st;
+  for (int i = 0; i + 1 < R; ++i) {
+    const double* r0 = a + i * C;
+    const double* r1 = r0 + C;
+    for (int v = 0; v < SlotRange<C - 1>::kVec; ++v) {
+      const int j = v * kLanes;
+      st.add(v, load_lanes(r1 + j + 1) - load_lanes(r1 + j) - load_lanes(r0 + j + 1) +
+                    load_lanes(r0 + j));
+    }
+    for (int k = 0; k < SlotRange<C - 1>::kRest; ++k) {
+      const int j = SlotRange<C - 1>::kVec * kLanes + k;
+      st.add_scalar(k, r1[j + 1] - r1[j] - r0[j + 1] + r0[j]);
+    }
+  }
+  const Iv st_range = st.reduce();
+  // The same scaling as derivative_ranges.
+  const double ks = double(m) * (m - 1), kt = double(n) * (n - 1), kst = double(m) * n;
+  f.ss = {ks * ss_range.lo, ks * ss_range.hi};
+  f.tt = {kt * tt_range.lo, kt * tt_range.hi};
+  f.st = {kst * st_range.lo, kst * st_range.hi};
+  return true;
+}
+
+}  // namespace
+
+// Polynomial F (D == 1) only: the termination test of `convex` on F's own second derivatives,
+// with an exit as soon as a bound shows it fails. Same result as convex(f_derivatives(...)) for a
+// polynomial patch; the first-derivative ranges are not needed there (monotone_edge is used for
+// rational patches only).
+bool convex_polynomial(const double* a, int rows, int cols);
+
+// The largest r <= r_max (bisection, rounded down) such that the convexity test holds on the
+// coefficient grid `n` (F_a on some box) for every q with |q - a| <= r, given bounds on the norms
+// of the box's E second differences (s, t, mixed); 0 when it fails at a itself. Polynomial
+// patches only (warm certificates, proofs/warm_certificate.cpp).
+double grid_convexity_radius(const double* n, int rows, int cols, double e_ss, double e_tt,
+                             double e_st, double r_max);
+
+}  // namespace nurbsreg::engine
