@@ -271,10 +271,19 @@ class Projector {
   WarmCertificate make_certificate(const Vec3& p, const SurfaceHit& best, std::int64_t patch,
                                    std::int64_t edge, const OtherItems& others,
                                    ThreadState& state) const;
-  // Projects points order[begin, end) (or begin .. end - 1 when order is empty).
+  // Projects points order[begin, end) (or begin .. end - 1 when order is empty): per point the
+  // input checks, then project_surface_point or project_curve_point (point_projection.cpp).
   void project_range(PointView points, const ProjectionOptions& options, ProjectionResults& out,
                      HintView hints, std::span<const std::uint32_t> order, std::size_t begin,
                      std::size_t end, ThreadState& state) const;
+  // One finite point's answer written to `out` (its certificate too), or the status to write
+  // as missing (beyond_max_distance).
+  ProjectionStatus project_surface_point(const Vec3& p, const ProjectionHint* hint, std::size_t i,
+                                         const ProjectionOptions& options, double certificate_cap,
+                                         ProjectionResults& out, ThreadState& state) const;
+  ProjectionStatus project_curve_point(const Vec3& p, const ProjectionHint* hint, std::size_t i,
+                                       const ProjectionOptions& options, ProjectionResults& out,
+                                       ThreadState& state) const;
   const PreparedModel& model_;
   std::unique_ptr<Impl> impl_;
 };

@@ -1,0 +1,100 @@
+#pragma once
+// Internal: what the parts of Projector (projection.cpp: frames; surface_search.cpp: the search
+// and the certificates it makes; point_projection.cpp: one point's steps) share: the per-thread
+// state, the frame-wide state and what a certifying search learns of the other items.
+
+#include <tbb/enumerable_thread_specific.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+
+#include "model/prepared_model_internals.hpp"
+#include "nurbsreg/engine/projection.hpp"
+#include "projection/spatial_order.hpp"
+
+namespace nurbsreg::engine {
+
+struct Projector::ThreadState {
+  SurfaceScratch surface_scratch;
+  SurfaceProjectionStats surface_stats;
+  CurveProjectionStats curve_stats;
+  Bvh::Scratch bvh_scratch;
+  ProjectionCounters counters;
+};
+
+struct Projector::Impl {
+  tbb::enumerable_thread_specific<ThreadState> states;
+  // The frame's processing order (ProjectionOptions::locality_order), reused across frames.
+  FrameVector<std::uint32_t> order;
+  SpatialOrderScratch order_scratch;
+};
+
+// What a certifying search learns of the items other than its answer, so that the certificate
+// needs no second search: the walk prunes at (d + margin)^2 instead of d^2 (d: the best distance
+// so far) and clips each item it visits against that threshold, so every item ends up either
+// with its exact minimum recorded or proven at least (d_final + margin)^2 away (pruned, or
+// clipped without a point below the threshold, which never falls below the final one). Kept:
+// the kSlots smallest minima of distinct items (patch index, or -1 - edge piece), enough for "the
+// nearest item other than those of a certificate's box N" (N spans up to 3 x 3 patches).
+struct Projector::OtherItems {
+  static constexpr std::int64_t kNone = std::numeric_limits<std::int64_t>::min();
+  static constexpr int kSlots = 12;
+  double margin = 0.0;
+  // Ascending by minimum; unused slots at the end (kNone, infinity).
+  std::int64_t item[kSlots];
+  double minimum[kSlots];
+
+  OtherItems() {
+    std::fill(std::begin(item), std::end(item), kNone);
+    std::fill(std::begin(minimum), std::end(minimum), std::numeric_limits<double>::infinity());
+  }
+  double threshold(double best_sq) const {
+    const double d = std::sqrt(best_sq) + margin;
+    return d * d;
+  }
+  void add(std::int64_t id, double value) {
+    int k = 0;
+    while (k < kSlots && item[k] != id && item[k] != kNone)
+      ++k;
+    if (k < kSlots && item[k] == id) {
+      if (!(value < minimum[k])) return;
+    } else {
+      // A new item: it takes the last slot if it beats what is there (an item pushed out had a
+      // minimum at least the last slot's, which only decreases: the last slot's minimum stays a
+      // lower bound for every item not kept).
+      k = kSlots - 1;
+      if (!(value < minimum[k])) return;
+      item[k] = id;
+    }
+    minimum[k] = value;
+    for (; k > 0 && minimum[k] < minimum[k - 1]; --k) {
+      std::swap(item[k], item[k - 1]);
+      std::swap(minimum[k], minimum[k - 1]);
+    }
+  }
+  // A lower bound of the minimum of every item for which `excluded(id)` is false: the smallest
+  // recorded minimum of such an item, or the last slot's when every slot is excluded (infinity:
+  // none below the threshold).
+  template <typename Excluded>
+  double excluding(Excluded&& excluded) const {
+    for (int k = 0; k < kSlots; ++k) {
+      if (item[k] == kNone || !excluded(item[k])) return minimum[k];
+    }
+    return minimum[kSlots - 1];
+  }
+  double excluding(std::int64_t id) const {
+    return excluding([id](std::int64_t x) { return x == id; });
+  }
+};
+
+// The mark of a point for which no certificate could be made (WarmCertificate::kTried).
+inline WarmCertificate tried_at(const Vec3& p) {
+  WarmCertificate tried;
+  tried.anchor = p.cast<float>();
+  tried.patch = WarmCertificate::kTried;
+  return tried;
+}
+
+}  // namespace nurbsreg::engine
