@@ -15,6 +15,7 @@
 #include <cstdint>
 #include <limits>
 
+#include "bernstein/de_casteljau.hpp"
 #include "nurbsreg/engine/types.hpp"
 
 namespace nurbsreg::engine {
@@ -52,36 +53,18 @@ struct RationalBernstein {
   }
 };
 
-// de Casteljau at s = 1/2 on the homogeneous scalars (num, den) together: both halves are
+// de Casteljau at s = 1/2 on the homogeneous scalars num and den: both halves are
 // again rational Bernstein functions of the same degree. `left` or `right` may alias `from`.
 inline void split_half(const RationalBernstein& from, RationalBernstein& left,
                        RationalBernstein& right) {
   const int m = from.degree;
-  double wn[kMaxBernsteinDegree + 1];
-  double wd[kMaxBernsteinDegree + 1];
-  for (int k = 0; k <= m; ++k) {
-    wn[k] = from.num[k];
-    wd[k] = from.den[k];
-  }
   const double a = from.a;
   const double b = from.b;
   const double mid = 0.5 * (a + b);
   const int depth = from.depth + 1;
   const bool speculative = from.speculative;
-  right.num[m] = from.num[m];  // end values are shared (safe when right or left is `from`)
-  right.den[m] = from.den[m];
-  left.num[0] = from.num[0];
-  left.den[0] = from.den[0];
-  for (int r = 1; r <= m; ++r) {
-    for (int k = 0; k <= m - r; ++k) {
-      wn[k] = 0.5 * (wn[k] + wn[k + 1]);
-      wd[k] = 0.5 * (wd[k] + wd[k + 1]);
-    }
-    left.num[r] = wn[0];
-    left.den[r] = wd[0];
-    right.num[m - r] = wn[m - r];
-    right.den[m - r] = wd[m - r];
-  }
+  halve(from.num.data(), 1, m, left.num.data(), right.num.data());  // left or right may be `from`
+  halve(from.den.data(), 1, m, left.den.data(), right.den.data());
   left.degree = right.degree = m;
   left.a = a;
   left.b = mid;

@@ -1,5 +1,7 @@
 #include "nurbsreg/engine/bezier.hpp"
 
+#include "bernstein/de_casteljau.hpp"
+
 #include <cassert>
 
 namespace nurbsreg::engine {
@@ -45,17 +47,8 @@ void rational_curve_derivatives(const Vec4* a, int order, Vec3* out) {
 
 void de_casteljau_split(const Vec4* points, int stride, int n, double t, Vec4* left, Vec4* right,
                         int out_stride) {
-  Vec4 work[kMaxDegree + 1];
-  for (int i = 0; i <= n; ++i)
-    work[i] = points[i * stride];
-  left[0] = work[0];
-  right[n * out_stride] = work[n];
-  for (int r = 1; r <= n; ++r) {
-    for (int i = 0; i <= n - r; ++i)
-      work[i] = (1.0 - t) * work[i] + t * work[i + 1];
-    left[r * out_stride] = work[0];
-    right[(n - r) * out_stride] = work[n - r];
-  }
+  de_casteljau(points, stride, n, left, right, out_stride,
+               [t](const Vec4& x, const Vec4& y) -> Vec4 { return (1.0 - t) * x + t * y; });
 }
 
 void bernstein(int n, double t, double* values) {

@@ -14,6 +14,7 @@
 #include <array>
 #include <cmath>
 
+#include "bernstein/de_casteljau.hpp"
 #include "nurbsreg/engine/surface_projection.hpp"
 
 namespace nurbsreg::engine {
@@ -39,34 +40,13 @@ void split(const Net& in, bool along_u, Net& low, Net& high) {
   high = in;
   const int stride = in.dv + 1;
   if (along_u) {
-    for (int j = 0; j <= in.dv; ++j) {
-      Vec4 work[kNetSide];
-      for (int i = 0; i <= in.du; ++i)
-        work[i] = in.cw[i * stride + j];
-      low.cw[j] = work[0];
-      high.cw[in.du * stride + j] = work[in.du];
-      for (int r = 1; r <= in.du; ++r) {
-        for (int i = 0; i <= in.du - r; ++i)
-          work[i] = 0.5 * (work[i] + work[i + 1]);
-        low.cw[r * stride + j] = work[0];
-        high.cw[(in.du - r) * stride + j] = work[in.du - r];
-      }
-    }
+    for (int j = 0; j <= in.dv; ++j)
+      halve(in.cw.data() + j, stride, in.du, low.cw.data() + j, high.cw.data() + j);
     low.s1 = high.s0 = 0.5 * (in.s0 + in.s1);
   } else {
-    for (int i = 0; i <= in.du; ++i) {
-      Vec4 work[kNetSide];
-      for (int j = 0; j <= in.dv; ++j)
-        work[j] = in.cw[i * stride + j];
-      low.cw[i * stride] = work[0];
-      high.cw[i * stride + in.dv] = work[in.dv];
-      for (int r = 1; r <= in.dv; ++r) {
-        for (int j = 0; j <= in.dv - r; ++j)
-          work[j] = 0.5 * (work[j] + work[j + 1]);
-        low.cw[i * stride + r] = work[0];
-        high.cw[i * stride + in.dv - r] = work[in.dv - r];
-      }
-    }
+    for (int i = 0; i <= in.du; ++i)
+      halve(in.cw.data() + i * stride, 1, in.dv, low.cw.data() + i * stride,
+            high.cw.data() + i * stride);
     low.t1 = high.t0 = 0.5 * (in.t0 + in.t1);
   }
 }

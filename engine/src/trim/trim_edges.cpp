@@ -13,6 +13,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "bernstein/binomial_table.hpp"
 #include "nurbsreg/engine/decompose.hpp"
 #include "nurbsreg/engine/trim_region.hpp"
 
@@ -21,11 +22,10 @@ namespace {
 
 constexpr int kMaxProduct = 2 * kMaxDegree;
 
+constexpr BinomialTable<kMaxProduct> kBinomials;
+
 double binomial(int n, int k) {
-  double r = 1.0;
-  for (int i = 1; i <= k; ++i)
-    r = r * (n - k + i) / i;
-  return r;
+  return kBinomials.c[n][k];
 }
 
 // Bernstein coefficients of the product of polynomials of degrees m and n given in Bernstein

@@ -22,6 +22,8 @@
 #include <stdexcept>
 #include <string>
 
+#include "bernstein/binomial_table.hpp"
+#include "bernstein/de_casteljau.hpp"
 #include "nurbsreg/engine/decompose.hpp"
 #include "nurbsreg/engine/trim_region.hpp"
 
@@ -30,6 +32,7 @@ namespace {
 
 using Piece = TrimRegion::Piece;
 
+constexpr BinomialTable<kMaxDegree> kBinomials;
 constexpr int kMaxSplitDepth = 48;    // monotone splitting during construction
 constexpr int kMaxSearchDepth = 64;   // crossing_u (construction)
 constexpr int kMaxSearchSteps = 200;  // crossing search per query
@@ -45,31 +48,14 @@ double euclid_v(const Vec3& p) {
   return p.y() / p.z();
 }
 
-// de Casteljau at 1/2 on homogeneous 2-D points; left/right may not alias a.
-void halve(const Vec3* a, int n, Vec3* left, Vec3* right) {
-  Vec3 work[kMaxDegree + 1];
-  for (int i = 0; i <= n; ++i)
-    work[i] = a[i];
-  left[0] = work[0];
-  right[n] = work[n];
-  for (int r = 1; r <= n; ++r) {
-    for (int i = 0; i <= n - r; ++i)
-      work[i] = 0.5 * (work[i] + work[i + 1]);
-    left[r] = work[0];
-    right[n - r] = work[n - r];
-  }
-}
-
 Piece make_piece(const Vec3* cw, int degree) {
   Piece p;
   p.degree = degree;
   p.u_lo = std::numeric_limits<double>::infinity();
   p.u_hi = -p.u_lo;
-  double binomial = 1.0;  // C(degree, i)
   for (int i = 0; i <= degree; ++i) {
     p.cw[i] = cw[i];
-    p.cb[i] = binomial * cw[i];
-    binomial = binomial * (degree - i) / (i + 1);
+    p.cb[i] = kBinomials.c[degree][i] * cw[i];
     const double u = euclid_u(cw[i]);
     p.u_lo = std::min(p.u_lo, u);
     p.u_hi = std::max(p.u_hi, u);
@@ -186,7 +172,7 @@ double crossing_u(const Piece& p, double v) {
   for (int i = 0; i <= n; ++i)
     a[i] = p.cw[i];
   for (int depth = 0; depth < kMaxSearchDepth; ++depth) {
-    halve(a, n, left, right);
+    halve(a, 1, n, left, right);
     const Vec3& mid = left[n];
     const bool in_left = increasing ? v * mid.z() < mid.y() : v * mid.z() > mid.y();
     const Vec3* half = in_left ? left : right;
@@ -489,7 +475,7 @@ void TrimRegion::mark_piece(const Vec3* a, int n, std::int32_t piece, int depth,
     return;
   }
   Vec3 left[kMaxDegree + 1], right[kMaxDegree + 1];
-  halve(a, n, left, right);
+  halve(a, 1, n, left, right);
   mark_piece(left, n, piece, depth + 1, eps_u, eps_v, rows);
   mark_piece(right, n, piece, depth + 1, eps_u, eps_v, rows);
 }
