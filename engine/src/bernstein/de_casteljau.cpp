@@ -1,5 +1,7 @@
 #include "bernstein/de_casteljau.hpp"
 
+#include "platform/cpu_dispatch.hpp"
+
 namespace nurbsreg::engine {
 
 NURBSREG_HOT_CLONES

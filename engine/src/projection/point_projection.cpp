@@ -353,10 +353,10 @@ void write_surface_answer(const PreparedModel& model, const ProjectionOptions& o
 
 }  // namespace
 
-ProjectionStatus Projector::project_surface_point(const Vec3& p, const ProjectionHint* hint,
-                                                  std::size_t i, const ProjectionOptions& options,
-                                                  double certificate_cap, ProjectionResults& out,
-                                                  ThreadState& state) const {
+// Inlined into project_range, its only caller.
+[[gnu::always_inline]] inline ProjectionStatus Projector::project_surface_point(
+    const Vec3& p, const ProjectionHint* hint, std::size_t i, const ProjectionOptions& options,
+    double certificate_cap, ProjectionResults& out, ThreadState& state) const {
   const std::size_t entities = model_.model().surfaces.size();
   const double limit_sq = options.max_distance * options.max_distance;
   SurfacePoint point;
@@ -426,9 +426,10 @@ ProjectionStatus Projector::project_surface_point(const Vec3& p, const Projectio
   return ProjectionStatus::ok;
 }
 
-ProjectionStatus Projector::project_curve_point(const Vec3& p, const ProjectionHint* hint,
-                                                std::size_t i, const ProjectionOptions& options,
-                                                ProjectionResults& out, ThreadState& state) const {
+// Inlined into project_range, its only caller.
+[[gnu::always_inline]] inline ProjectionStatus Projector::project_curve_point(
+    const Vec3& p, const ProjectionHint* hint, std::size_t i, const ProjectionOptions& options,
+    ProjectionResults& out, ThreadState& state) const {
   const Model& model = model_.model();
   CurveHit best;
   int best_curve = -1;

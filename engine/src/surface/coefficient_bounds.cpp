@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <limits>
 
+#include "platform/cpu_dispatch.hpp"
 #include "platform/vector_lanes.hpp"
 
 namespace nurbsreg::engine {

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "platform/cpu_dispatch.hpp"
 #include "surface/patch_derivatives.hpp"
 
 namespace nurbsreg::engine {

@@ -1,5 +1,5 @@
 // The cached squared-distance coefficients of a patch (prepare_patch, PreparedPatch::numerator)
-// and the clipping's per-thread scratch and counters.
+// and the clipping's per-thread scratch.
 
 #include <algorithm>
 #include <cassert>
@@ -20,19 +20,6 @@ double binomial(int n, int k) {
 }
 
 }  // namespace
-
-void SurfaceProjectionStats::add(const SurfaceProjectionStats& o) {
-  subdivisions += o.subdivisions;
-  newton_iterations += o.newton_iterations;
-  depth_limit_hits += o.depth_limit_hits;
-  patches_visited += o.patches_visited;
-  eliminations += o.eliminations;
-  convex_terminations += o.convex_terminations;
-  boundary_reductions += o.boundary_reductions;
-  resolution_terminations += o.resolution_terminations;
-  region_drops += o.region_drops;
-  region_rejections += o.region_rejections;
-}
 
 SurfaceScratch::SurfaceScratch()
     : grids(static_cast<std::size_t>(kStackCapacity + 1) * 2 * kGridCapacity),

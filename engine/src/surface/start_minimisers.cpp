@@ -6,6 +6,7 @@
 #include "bernstein/bernstein_values.hpp"
 #include "bernstein/binomial_table.hpp"
 #include "nurbsreg/engine/types.hpp"
+#include "platform/cpu_dispatch.hpp"
 #include "platform/vector_lanes.hpp"
 
 namespace nurbsreg::engine {

@@ -553,6 +553,20 @@ template <bool kTrim>
 
 }  // namespace
 
+// Here, not beside the scratch: inlined into project_onto_patch (once per patch visit).
+void SurfaceProjectionStats::add(const SurfaceProjectionStats& o) {
+  subdivisions += o.subdivisions;
+  newton_iterations += o.newton_iterations;
+  depth_limit_hits += o.depth_limit_hits;
+  patches_visited += o.patches_visited;
+  eliminations += o.eliminations;
+  convex_terminations += o.convex_terminations;
+  boundary_reductions += o.boundary_reductions;
+  resolution_terminations += o.resolution_terminations;
+  region_drops += o.region_drops;
+  region_rejections += o.region_rejections;
+}
+
 NURBSREG_HOT_CLONES
 bool project_onto_patch(const PreparedPatch& pp, const Vec3& p, SurfaceHit& best,
                         SurfaceScratch& scratch, SurfaceProjectionStats* stats, double guess_s,
