@@ -14,5 +14,6 @@ void add_synth_command(CLI::App& app);
 void add_align_command(CLI::App& app);
 void add_modify_command(CLI::App& app);
 void add_batch_command(CLI::App& app);
+void add_convert_command(CLI::App& app);
 
 }  // namespace nurbsreg::cli
