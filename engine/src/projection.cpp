@@ -283,6 +283,8 @@ void Projector::search_surfaces(const Vec3& p, SurfaceSearch& search, std::int64
           ++state.counters.patches_visited;
           if (k < patch_items) {
             const std::uint32_t patch = model_.item_patch(k);
+            state.counters.trimmed_patches_visited += model_.patch_region(patch) != nullptr;
+            state.counters.rational_patches_visited += model_.patch(patch).rational;
             if (static_cast<std::int64_t>(patch) == skip_patch) return;
             const bool guessed = static_cast<std::int64_t>(patch) == guess_patch;
             if constexpr (kCertifying) {
@@ -312,6 +314,7 @@ void Projector::search_surfaces(const Vec3& p, SurfaceSearch& search, std::int64
           // A trim edge of a face (the loops' points, which the trimmed clipping leaves to the
           // edges): the curve projector, exact on the piece.
           const std::size_t e = k - patch_items;
+          ++state.counters.edge_pieces_visited;
           CurveHit hit;
           hit.distance_sq = kCertifying ? a : best.distance_sq;
           if (project_onto_piece(model_.edge_piece(e), p, hit, &state.curve_stats)) {
@@ -813,6 +816,11 @@ void Projector::project(PointView points, const ProjectionOptions& options, Proj
       counters->certified += s.counters.certified;
       counters->reach_proven += s.counters.reach_proven;
       counters->certificates_made += s.counters.certificates_made;
+      counters->edge_pieces_visited += s.counters.edge_pieces_visited;
+      counters->trimmed_patches_visited += s.counters.trimmed_patches_visited;
+      counters->rational_patches_visited += s.counters.rational_patches_visited;
+      counters->region_drops += static_cast<std::uint64_t>(s.surface_stats.region_drops);
+      counters->region_rejections += static_cast<std::uint64_t>(s.surface_stats.region_rejections);
     }
   }
 }
@@ -831,6 +839,8 @@ void Projector::project_serial(PointView points, const ProjectionOptions& option
     counters->subdivisions = static_cast<std::uint64_t>(state.surface_stats.subdivisions) +
                              static_cast<std::uint64_t>(state.curve_stats.subdivisions);
     counters->newton_iterations = static_cast<std::uint64_t>(state.surface_stats.newton_iterations);
+    counters->region_drops = static_cast<std::uint64_t>(state.surface_stats.region_drops);
+    counters->region_rejections = static_cast<std::uint64_t>(state.surface_stats.region_rejections);
   }
 }
 
