@@ -16,5 +16,6 @@ void add_modify_command(CLI::App& app);
 void add_batch_command(CLI::App& app);
 void add_inspect_command(CLI::App& app);
 void add_serve_command(CLI::App& app);
+void add_convert_command(CLI::App& app);
 
 }  // namespace nurbsreg::cli

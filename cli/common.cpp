@@ -73,8 +73,18 @@ std::unique_ptr<tbb::global_control> limit_threads(int threads) {
                                                static_cast<std::size_t>(threads));
 }
 
+namespace {
+bool model_cache_disabled = false;  // the application's --no-cache, set before any load
+}  // namespace
+
+void disable_model_cache() {
+  model_cache_disabled = true;
+}
+
 engine::Model load_model_file(const std::string& path) {
-  engine::Model model = io::read_model_file(path);
+  io::ModelFileOptions options;
+  if (model_cache_disabled) options.cache.enabled = false;
+  engine::Model model = io::read_model_file(path, options);
   warn_about_missing_faces(path, model);
   return model;
 }

@@ -30,7 +30,10 @@ class FramesFailed : public std::runtime_error {
 std::unique_ptr<tbb::global_control> limit_threads(int threads);
 
 // Reads a model file (JSON; CAD formats when supported), throwing io::InputError naming the file.
+// STEP/IGES files go through the model cache (io/model_cache.hpp) unless disabled.
 engine::Model load_model_file(const std::string& path);
+// --no-cache: load_model_file converts CAD files every time (called once, from main).
+void disable_model_cache();
 
 class Stopwatch {
  public:

@@ -39,7 +39,14 @@ int main(int argc, char** argv) {
   bool quiet = false;
   app.add_flag("-v,--verbose", verbose, "More log output (debug level) on stderr");
   app.add_flag("-q,--quiet", quiet, "Only warnings and errors on stderr");
-  app.parse_complete_callback([&] { set_up_logging(verbose, quiet); });
+  bool no_cache = false;
+  app.add_flag("--no-cache", no_cache,
+               "Convert STEP/IGES files again instead of using the model cache (also: "
+               "NURBSREG_NO_CACHE=1)");
+  app.parse_complete_callback([&] {
+    set_up_logging(verbose, quiet);
+    if (no_cache) nurbsreg::cli::disable_model_cache();
+  });
 
   nurbsreg::cli::add_info_command(app);
   nurbsreg::cli::add_project_command(app);
@@ -49,6 +56,7 @@ int main(int argc, char** argv) {
   nurbsreg::cli::add_batch_command(app);
   nurbsreg::cli::add_inspect_command(app);
   nurbsreg::cli::add_serve_command(app);
+  nurbsreg::cli::add_convert_command(app);
 
   try {
     app.parse(argc, argv);

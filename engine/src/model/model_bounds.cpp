@@ -37,13 +37,15 @@ struct Item {
   const TrimRegion* region = nullptr;
   int surface = -1;
   RegionClass cls = RegionClass::inside;
-  double slack = 0.0;  // rounding margin of the control points' coordinates
+  bool rational = false;  // weights not all equal
+  double slack = 0.0;     // rounding margin of the control points' coordinates
 };
 
 struct Node {
   double upper = 0.0;
   std::uint32_t item = 0;
-  double a0 = 0.0, a1 = 1.0, b0 = 0.0, b1 = 1.0;  // local box (curves: [a0, a1])
+  // Local box (curves: [a0, a1]); a side of zero width makes an iso segment, two a point.
+  double a0 = 0.0, a1 = 1.0, b0 = 0.0, b1 = 1.0;
   RegionClass cls = RegionClass::inside;
   bool split_a = true;  // patches: split along s (else t)
   bool frozen = false;  // its upper bound is attained (a monotone curve's end point)
@@ -181,6 +183,7 @@ class BoundsSearch {
       if (cls == RegionClass::outside) continue;
       Item it;
       it.patch = &model.patch(i).patch;
+      it.rational = model.patch(i).rational;
       it.surface = s;
       it.cls = cls;
       it.region = cls == RegionClass::boundary ? model.surface_region(s) : nullptr;
@@ -220,53 +223,44 @@ class BoundsSearch {
         Node n;
         n.item = k;
         n.cls = items_[k].cls;
-        evaluate(n, axis, sign);
-        heap.push(n);
+        if (evaluate(n, axis, sign)) heap.push(n);
       }
       std::size_t nodes = 0;
       double side = -std::numeric_limits<double>::infinity();
       while (!heap.empty()) {
         const Node top = heap.top();
         const double best = sign > 0 ? witnessed_.hi[axis] : -witnessed_.lo[axis];
-        if (top.upper - best <= tolerance || top.frozen ||
-            nodes >= options_.max_nodes_per_direction) {
-          if (nodes >= options_.max_nodes_per_direction && top.upper - best > tolerance)
-            result.budget_spent = true;
+        if (top.upper - best <= tolerance || top.frozen) {
+          side = top.upper;
+          break;
+        }
+        if (nodes >= options_.max_nodes_per_direction) {
+          result.budget_spent = true;
           side = top.upper;
           break;
         }
         heap.pop();
-        const Item& it = items_[top.item];
+        // Split across the longer side (a side of zero width is an iso segment: along the other).
+        const bool along_a = items_[top.item].curve != nullptr || top.b1 == top.b0 ||
+                             (top.a1 > top.a0 && top.split_a);
+        const double width = along_a ? top.a1 - top.a0 : top.b1 - top.b0;
+        if (!(width > kMinWidth)) {
+          side = top.upper;  // cannot be refined: its bound is final
+          break;
+        }
         Node child[2] = {top, top};
-        if (it.curve != nullptr || top.split_a) {
-          if (!(top.a1 - top.a0 > kMinWidth)) {
-            side = top.upper;  // cannot be refined: its bound is final
-            break;
-          }
-          const double mid = 0.5 * (top.a0 + top.a1);
-          child[0].a1 = mid;
-          child[1].a0 = mid;
+        if (along_a) {
+          child[0].a1 = child[1].a0 = 0.5 * (top.a0 + top.a1);
         } else {
-          if (!(top.b1 - top.b0 > kMinWidth)) {
-            side = top.upper;
-            break;
-          }
-          const double mid = 0.5 * (top.b0 + top.b1);
-          child[0].b1 = mid;
-          child[1].b0 = mid;
+          child[0].b1 = child[1].b0 = 0.5 * (top.b0 + top.b1);
         }
         for (Node& c : child) {
-          if (it.patch != nullptr && c.cls == RegionClass::boundary) {
-            c.cls = classify(it, c);
-            if (c.cls == RegionClass::outside) continue;
-          }
           ++nodes;
-          evaluate(c, axis, sign);
-          heap.push(c);
+          if (evaluate(c, axis, sign)) heap.push(c);
         }
       }
       result.nodes += nodes;
-      // Every node left lies below `side`; every node dropped holds no geometry.
+      // Every node left lies below `side`; every node dropped holds no geometry above it.
       sides[d] = side;
     }
     if (!witnessed_.empty() && std::isfinite(sides[0])) {
@@ -292,6 +286,11 @@ class BoundsSearch {
   }
 
  private:
+  struct LoopBox {
+    LoopPiece piece;
+    double u0, u1, v0, v1;  // its control points' box
+  };
+
   // Margin for the rounding of restricted control points and their division by w: a few ulps of
   // the largest coordinate per de Casteljau step, times the spread of the weights (a rational
   // point is a ratio of two rounded sums).
@@ -312,31 +311,89 @@ class BoundsSearch {
     items_.push_back(it);
   }
 
-  // The class of a boundary sub-patch: the region's grid first, then (where the grid cannot
-  // tell) the exact test against the loop pieces: a box no loop piece meets is uniformly in or
-  // out, and its centre says which.
+  const std::vector<LoopBox>& loops(int surface) {
+    std::optional<std::vector<LoopBox>>& l = loops_[static_cast<std::size_t>(surface)];
+    if (!l) {
+      l.emplace();
+      for (const LoopPiece& p :
+           loop_pieces(model_.model().surfaces[static_cast<std::size_t>(surface)])) {
+        LoopBox b{p, INFINITY, -INFINITY, INFINITY, -INFINITY};
+        for (int i = 0; i <= p.degree; ++i) {
+          const double u = p.cw[i].x() / p.cw[i].z(), v = p.cw[i].y() / p.cw[i].z();
+          b.u0 = std::min(b.u0, u);
+          b.u1 = std::max(b.u1, u);
+          b.v0 = std::min(b.v0, v);
+          b.v1 = std::max(b.v1, v);
+        }
+        l->push_back(b);
+      }
+    }
+    return *l;
+  }
+
+  // The class of a sub-box (possibly of zero width: an iso segment or a point) of a boundary
+  // patch: the region's grid first, then (where the grid cannot tell) the exact test against the
+  // loop pieces: a box no loop piece meets is uniformly in or out, and its centre says which.
   RegionClass classify(const Item& it, const Node& n) {
     const BezierPatch& bp = *it.patch;
     const double u0 = bp.param_u.to_parent(n.a0), u1 = bp.param_u.to_parent(n.a1);
     const double v0 = bp.param_v.to_parent(n.b0), v1 = bp.param_v.to_parent(n.b1);
     const RegionClass grid = it.region->classify(u0, u1, v0, v1);
     if (grid != RegionClass::boundary) return grid;
-    std::optional<std::vector<LoopPiece>>& loops = loops_[static_cast<std::size_t>(it.surface)];
-    if (!loops) loops = loop_pieces(model_.model().surfaces[static_cast<std::size_t>(it.surface)]);
-    const double scale =
-        std::max({std::abs(u0), std::abs(u1), std::abs(v0), std::abs(v1), u1 - u0, v1 - v0});
+    const double scale = std::max({std::abs(u0), std::abs(u1), std::abs(v0), std::abs(v1),
+                                   bp.param_u.width(), bp.param_v.width()});
     const double tiny = 1e-13 * scale;
-    for (const LoopPiece& p : *loops) {
-      if (piece_meets(p.cw.data(), p.degree, u0 - tiny, u1 + tiny, v0 - tiny, v1 + tiny, tiny, 0))
+    const double lu = u0 - tiny, hu = u1 + tiny, lv = v0 - tiny, hv = v1 + tiny;
+    for (const LoopBox& b : loops(it.surface)) {
+      if (b.u1 < lu || b.u0 > hu || b.v1 < lv || b.v0 > hv) continue;
+      if (piece_meets(b.piece.cw.data(), b.piece.degree, lu, hu, lv, hv, tiny, 0))
         return RegionClass::boundary;
     }
     return it.region->contains(0.5 * (u0 + u1), 0.5 * (v0 + v1)) ? RegionClass::inside
                                                                  : RegionClass::outside;
   }
 
-  // Fills n.upper (direction sign * e_axis), records the node's model points (corners in the
-  // face; a curve's ends) in witnessed_, chooses the split direction, freezes monotone curves.
-  void evaluate(Node& n, int axis, double sign) {
+  // Strictly monotone coordinate along a direction of a (sub-)net, by the sign of d: +1
+  // increasing, -1 decreasing, 0 neither (or not provably). x(i, j) is the coordinate of control
+  // point (i, j) of an (n + 1) x (m + 1) net along the direction; a polynomial net's s-curves are
+  // then the column averages, so positive differences suffice; a rational net's are convex
+  // combinations with varying weights, so each column must lie above the whole previous one
+  // (variation diminishing property of positive-weight Bézier curves: strictly monotone control
+  // coordinates make a strictly monotone curve).
+  template <class X>
+  static int monotone(const X& x, int n, int m, bool rational, double margin) {
+    bool up = true, down = true;
+    for (int i = 0; i < n && (up || down); ++i) {
+      if (rational) {
+        double lo0 = INFINITY, hi0 = -INFINITY, lo1 = INFINITY, hi1 = -INFINITY;
+        for (int j = 0; j <= m; ++j) {
+          lo0 = std::min(lo0, x(i, j));
+          hi0 = std::max(hi0, x(i, j));
+          lo1 = std::min(lo1, x(i + 1, j));
+          hi1 = std::max(hi1, x(i + 1, j));
+        }
+        up = up && lo1 - hi0 > margin;
+        down = down && lo0 - hi1 > margin;
+      } else {
+        for (int j = 0; j <= m; ++j) {
+          const double d = x(i + 1, j) - x(i, j);
+          up = up && d > margin;
+          down = down && d < -margin;
+        }
+      }
+    }
+    return up ? 1 : (down ? -1 : 0);
+  }
+
+  // Prepares node n for direction (axis, sign): its class (dropped when outside: returns false),
+  // n.upper (the sub-net's extreme, widened for rounding), its model points (corners in the
+  // face; a curve's ends) into witnessed_, and its split direction. A node whose coordinate is
+  // strictly monotone along s (or t, or a curve's t) is replaced by its side (end) where the
+  // coordinate is largest: the face's largest value in the box lies there or on a trim edge
+  // (a point of the face's interior that is not on that side can move along s within the box
+  // and the face and grow), and the trim edges are items of their own. A node reduced to a
+  // point is final: frozen, its value attained (or dropped when the point is not in the face).
+  bool evaluate(Node& n, int axis, double sign) {
     const Item& it = items_[n.item];
     std::array<Vec4, kMaxNet> net;
     if (it.curve != nullptr) {
@@ -345,29 +402,24 @@ class BoundsSearch {
       for (int k = 0; k <= deg; ++k)
         net[k] = c.cw[k];
       restrict_curve(net.data(), 1, deg, n.a0, n.a1);
-      double upper = -std::numeric_limits<double>::infinity();
-      bool up = true, down = true;
-      double prev = 0.0;
-      for (int k = 0; k <= deg; ++k) {
-        const double x = sign * net[k][axis] / net[k][3];
-        upper = std::max(upper, x);
-        if (k > 0) {
-          up = up && x > prev;
-          down = down && x < prev;
-        }
-        prev = x;
-      }
       witness(net[0]);
       witness(net[deg]);
-      // Strictly monotone control points: so is the curve (variation diminishing property), so
-      // its largest value is at an end point, which is a model point.
-      if (deg > 0 && (up || down)) {
-        const Vec4& end = up ? net[deg] : net[0];
-        upper = sign * end[axis] / end[3];
+      const auto x = [&](int i, int) { return sign * net[i][axis] / net[i][3]; };
+      const int mono = deg > 0 ? monotone(x, deg, 0, false, 2.0 * it.slack) : 0;
+      if (mono != 0) {
+        n.upper = x(mono > 0 ? deg : 0, 0) + it.slack;
         n.frozen = true;
+        return true;
       }
+      double upper = -INFINITY;
+      for (int k = 0; k <= deg; ++k)
+        upper = std::max(upper, x(k, 0));
       n.upper = upper + it.slack;
-      return;
+      return true;
+    }
+    if (it.region != nullptr && n.cls == RegionClass::boundary) {
+      n.cls = classify(it, n);
+      if (n.cls == RegionClass::outside) return false;
     }
     const BezierPatch& bp = *it.patch;
     const int p = bp.degree_u, q = bp.degree_v, stride = q + 1;
@@ -377,22 +429,56 @@ class BoundsSearch {
       restrict_curve(net.data() + j, stride, p, n.a0, n.a1);
     for (int i = 0; i <= p; ++i)
       restrict_curve(net.data() + i * stride, 1, q, n.b0, n.b1);
-    double upper = -std::numeric_limits<double>::infinity();
-    for (int k = 0; k < (p + 1) * stride; ++k)
-      upper = std::max(upper, sign * net[k][axis] / net[k][3]);
-    n.upper = upper + it.slack;
     // The corners are surface points; in the face when the box is inside, or when the region
     // contains their (u, v).
     const int corner[4][2] = {{0, 0}, {p, 0}, {0, q}, {p, q}};
-    for (const auto& c : corner) {
+    bool corner_in[4];
+    for (int k = 0; k < 4; ++k) {
       bool in = n.cls == RegionClass::inside;
       if (!in && it.region != nullptr) {
-        const double u = bp.param_u.to_parent(c[0] == 0 ? n.a0 : n.a1);
-        const double v = bp.param_v.to_parent(c[1] == 0 ? n.b0 : n.b1);
+        const double u = bp.param_u.to_parent(corner[k][0] == 0 ? n.a0 : n.a1);
+        const double v = bp.param_v.to_parent(corner[k][1] == 0 ? n.b0 : n.b1);
         in = it.region->contains(u, v);
       }
-      if (in) witness(net[c[0] * stride + c[1]]);
+      corner_in[k] = in;
+      if (in) witness(net[corner[k][0] * stride + corner[k][1]]);
     }
+    const auto x = [&](int i, int j) {
+      const Vec4& c = net[i * stride + j];
+      return sign * c[axis] / c[3];
+    };
+    if (n.a0 == n.a1 && n.b0 == n.b1) {  // a point: final
+      if (!corner_in[0]) return false;
+      n.upper = x(0, 0) + it.slack;
+      n.frozen = true;
+      return true;
+    }
+    const double margin = 2.0 * it.slack;
+    if (n.a1 > n.a0) {
+      const int mono = monotone(x, p, q, it.rational, margin);
+      if (mono != 0) {
+        if (mono > 0)
+          n.a0 = n.a1;
+        else
+          n.a1 = n.a0;
+        return evaluate(n, axis, sign);
+      }
+    }
+    if (n.b1 > n.b0) {
+      const auto xt = [&](int j, int i) { return x(i, j); };
+      const int mono = monotone(xt, q, p, it.rational, margin);
+      if (mono != 0) {
+        if (mono > 0)
+          n.b0 = n.b1;
+        else
+          n.b1 = n.b0;
+        return evaluate(n, axis, sign);
+      }
+    }
+    double upper = -INFINITY;
+    for (int k = 0; k < (p + 1) * stride; ++k)
+      upper = std::max(upper, x(k / stride, k % stride));
+    n.upper = upper + it.slack;
     // Split across the direction in which the sub-net is longer in space.
     double along_s = 0.0, along_t = 0.0;
     for (int j = 0; j <= q; ++j)
@@ -404,6 +490,7 @@ class BoundsSearch {
                                    net[i * stride].head<3>() / net[i * stride][3])
                                       .squaredNorm());
     n.split_a = along_s >= along_t;
+    return true;
   }
 
   void witness(const Vec4& h) { witnessed_.extend(Vec3(h.head<3>() / h[3])); }
@@ -411,7 +498,7 @@ class BoundsSearch {
   const PreparedModel& model_;
   ModelBoundsOptions options_;
   std::vector<Item> items_;
-  std::vector<std::optional<std::vector<LoopPiece>>> loops_;  // per surface, built when needed
+  std::vector<std::optional<std::vector<LoopBox>>> loops_;  // per surface, built when needed
   Aabb witnessed_;
 };
 

@@ -95,6 +95,11 @@ void Projector::project(PointView points, const ProjectionOptions& options, Proj
       counters->certified += s.counters.certified;
       counters->reach_proven += s.counters.reach_proven;
       counters->certificates_made += s.counters.certificates_made;
+      counters->edge_pieces_visited += s.counters.edge_pieces_visited;
+      counters->trimmed_patches_visited += s.counters.trimmed_patches_visited;
+      counters->rational_patches_visited += s.counters.rational_patches_visited;
+      counters->region_drops += static_cast<std::uint64_t>(s.surface_stats.region_drops);
+      counters->region_rejections += static_cast<std::uint64_t>(s.surface_stats.region_rejections);
     }
   }
 }
@@ -113,6 +118,8 @@ void Projector::project_serial(PointView points, const ProjectionOptions& option
     counters->subdivisions = static_cast<std::uint64_t>(state.surface_stats.subdivisions) +
                              static_cast<std::uint64_t>(state.curve_stats.subdivisions);
     counters->newton_iterations = static_cast<std::uint64_t>(state.surface_stats.newton_iterations);
+    counters->region_drops = static_cast<std::uint64_t>(state.surface_stats.region_drops);
+    counters->region_rejections = static_cast<std::uint64_t>(state.surface_stats.region_rejections);
   }
 }
 

@@ -49,6 +49,8 @@ void Projector::search_surfaces(const Vec3& p, SurfaceSearch& search, std::int64
           ++state.counters.patches_visited;
           if (k < patch_items) {
             const std::uint32_t patch = model_.item_patch(k);
+            state.counters.trimmed_patches_visited += model_.patch_region(patch) != nullptr;
+            state.counters.rational_patches_visited += model_.patch(patch).rational;
             if (static_cast<std::int64_t>(patch) == skip_patch) return;
             const bool guessed = static_cast<std::int64_t>(patch) == guess_patch;
             if constexpr (kCertifying) {
@@ -78,6 +80,7 @@ void Projector::search_surfaces(const Vec3& p, SurfaceSearch& search, std::int64
           // A trim edge of a face (the loops' points, which the trimmed clipping leaves to the
           // edges): the curve projector, exact on the piece.
           const std::size_t e = k - patch_items;
+          ++state.counters.edge_pieces_visited;
           CurveHit hit;
           hit.distance_sq = kCertifying ? a : best.distance_sq;
           if (project_onto_piece(model_.edge_piece(e), p, hit, &state.curve_stats)) {

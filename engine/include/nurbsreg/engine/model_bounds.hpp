@@ -15,11 +15,17 @@
 // rounding); its corners, when in the face, are model points and give the lower bound. The node
 // with the highest upper bound is split (de Casteljau, always restricted from the original patch
 // so that rounding does not accumulate) until it is within the tolerance of the best model point
-// found, or the node budget is spent.
+// found, or the node budget is spent. A sub-patch (or iso segment) whose coordinate is strictly
+// monotone along s or t (its control points say so) is replaced by its side where the coordinate
+// is largest: the face's largest value in it lies there or on a trim edge, which is an item of
+// its own (so a face cut by a straight trim line along the top of a cylinder costs a handful of
+// nodes, not one per tolerance-sized piece of the loop).
 //
 // Result: `box` is proven to contain every point of the geometry the engine projects onto (up to
-// floating-point rounding, which is covered by a margin of about 1e-14 x the coordinates); each
-// side lies at most `excess` beyond a model point that was found (`witnessed`). Allocates; run
+// floating-point rounding, which is covered by a margin of about 1e-14 x the coordinates), with
+// one assumption: the face's points on its loops are those of its 3-D trim edges (the engine's
+// edges; a CAD file's edges agree with S(uv(t)) to its tolerance, cad_import.hpp). Each side lies
+// at most `excess` beyond a model point that was found (`witnessed`). Allocates; run
 // once per model. Deterministic, single-threaded.
 
 #include <cstddef>

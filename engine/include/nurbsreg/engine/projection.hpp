@@ -181,6 +181,14 @@ struct ProjectionCounters {
   // the hint or the cold seed: no search.
   std::uint64_t reach_proven = 0;
   std::uint64_t certificates_made = 0;  // new WarmCertificates (ProjectionOptions::certify)
+  // Where patches_visited went (surfaces; the profile of bench/cad/real_models_bench): trim-edge
+  // pieces, patches clipped against their face's region, rational patches; and the trimmed
+  // clipping's sub-patches dropped as outside and candidates rejected as outside the region.
+  std::uint64_t edge_pieces_visited = 0;
+  std::uint64_t trimmed_patches_visited = 0;
+  std::uint64_t rational_patches_visited = 0;
+  std::uint64_t region_drops = 0;
+  std::uint64_t region_rejections = 0;
 };
 
 // A frame of points without copying: any container that can hand out point i.
