@@ -113,6 +113,7 @@ def check_page(out, report):
     check(attrs.get("errors", "x") == "", f"no script errors: {attrs.get('errors')}")
     check(int(attrs.get("coloured-pixels", 0)) > 1000, "the 3-D canvas shows colour-map pixels")
     check(int(attrs.get("points", 0)) == report["viewer"]["points"], "the view draws the stated subset")
+    check(attrs.get("hover") == "ok", "hovering over a point shows its deviation")
     console = [line for line in r.stderr.splitlines() if "CONSOLE" in line or "Uncaught" in line]
     check(not any(("rror" in line or "Uncaught" in line) for line in console), f"no console errors: {console}")
 
@@ -165,7 +166,7 @@ def main():
     try:
         panel = os.path.join(a.examples, "panel.json")
         scan = os.path.join(work, "scan.pcd")
-        run([a.binary, "-q", "synth", "--model", panel, "--points", "20000", "--noise", "0.02", "--seed", "9", "--out", scan])
+        run([a.binary, "-q", "synth", "--model", panel, "--points", "8000", "--noise", "0.02", "--seed", "9", "--out", scan])
         pose = os.path.join(work, "identity.txt")
         with open(pose, "w") as f:
             f.write("1 0 0 0\n0 1 0 0\n0 0 1 0\n0 0 0 1\n")
