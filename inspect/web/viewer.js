@@ -132,9 +132,11 @@ if (meshIndex.length > 0) {
     polygonOffset: true, polygonOffsetFactor: 2, polygonOffsetUnits: 2 }));
   scene.add(model);
 }
-scene.add(new THREE.AmbientLight(0xffffff, 0.45));
+// three.js lights are physical (Lambert divides by pi): these give about 0.45 ambient and 0.8
+// direct light of the grey.
+scene.add(new THREE.AmbientLight(0xffffff, 1.4));
 const camera = new THREE.OrthographicCamera(-1, 1, 1, -1, -1, 1);
-const light = new THREE.DirectionalLight(0xffffff, 0.9);
+const light = new THREE.DirectionalLight(0xffffff, 2.5);
 // A headlight: from above-left of the eye towards what it looks at (the target moves with the
 // camera too, so the light direction is fixed in view space).
 light.position.set(-0.3, 0.5, 0);
