@@ -17,7 +17,7 @@ static_assert(std::endian::native == std::endian::little,
               "the PLY writer copies native values as binary_little_endian");
 
 // Bytes of one vertex record, in header order.
-constexpr std::size_t kRecord = 3 * 4 + 3 + 4 + 4 + 2 * 8 + 4 + 4 + 4;
+constexpr std::size_t kRecord = 3 * 4 + 3 + 4 + 4 + 2 * 8 + 4 + 4 + 4 + 4;
 constexpr std::size_t kBlockPoints = 4096;
 
 template <class T>
@@ -42,6 +42,7 @@ void write_deviation_ply(const std::string& path, const PointDeviations& dev,
         << "property float signed_distance\nproperty int face\n"
         << "property double u\nproperty double v\n"
         << "property int tolerance\nproperty int index\nproperty float quality\n"
+        << "property float scalar_signed_distance\n"
         << "end_header\n";
     std::vector<char> block(kBlockPoints * kRecord);
     for (std::size_t begin = 0; begin < dev.size(); begin += kBlockPoints) {
@@ -64,6 +65,7 @@ void write_deviation_ply(const std::string& path, const PointDeviations& dev,
         const std::int32_t side = d < scale.band.lower ? -1 : (d > scale.band.upper ? 1 : 0);
         at = put(at, side);
         at = put(at, static_cast<std::int32_t>(dev.source_index[i]));
+        at = put(at, static_cast<float>(d));
         at = put(at, static_cast<float>(d));
       }
       out.write(block.data(), at - block.data());

@@ -5,6 +5,7 @@
 #include <tbb/parallel_invoke.h>
 
 #include <chrono>
+#include <ctime>
 
 #include "nurbsreg/inspect/deviation_ply.hpp"
 #include "nurbsreg/inspect/html_report.hpp"
@@ -14,6 +15,25 @@
 
 namespace nurbsreg::inspect {
 namespace {
+
+// Wall and process CPU seconds since construction, for the stage log (-v): the CPU time says
+// what a stage costs on a machine shared with other work.
+class StageClock {
+ public:
+  void log(const char* stage) {
+    const auto now = std::chrono::steady_clock::now();
+    const std::clock_t cpu = std::clock();
+    spdlog::debug("inspect: {} {:.3f} s (cpu {:.3f} s)", stage,
+                  std::chrono::duration<double>(now - wall_).count(),
+                  double(cpu - cpu_) / CLOCKS_PER_SEC);
+    wall_ = now;
+    cpu_ = cpu;
+  }
+
+ private:
+  std::chrono::steady_clock::time_point wall_ = std::chrono::steady_clock::now();
+  std::clock_t cpu_ = std::clock();
+};
 
 void write_text(const std::string& path, const std::string& text) {
   io::write_atomically(path, [&](std::ostream& out) {
@@ -27,12 +47,15 @@ InspectionReport run_inspection(const engine::PreparedModel& model,
                                 const PointDeviations& deviations, InspectionReport report,
                                 const InspectionOptions& options, const OutputFolder& folder) {
   const auto start = std::chrono::steady_clock::now();
+  const std::clock_t cpu_start = std::clock();
+  StageClock stage;
   const ColourScale& scale = options.scale;
   report.scale = scale;
   report.min_inside = options.min_inside;
   report.picture_view = isometric_view().description;
   report.stats = compute_statistics(deviations, model.model(), scale.band, scale.lower_limit,
                                     scale.upper_limit, options.histogram_bins);
+  stage.log("statistics");
   ViewerSubset subset;
   DisplayMesh mesh;
   tbb::parallel_invoke([&] { subset = viewer_subset(deviations.points, options.viewer_points); },
@@ -44,9 +67,9 @@ InspectionReport run_inspection(const engine::PreparedModel& model,
       subset.cell == 0.0 ? "every point"
                          : fmt::format("one point per {:.4g} {} grid cell, the first in scan order",
                                        subset.cell, report.units);
-  spdlog::debug("inspect: statistics, subset ({} points) and mesh ({} triangles) in {:.3f} s",
-                subset.indices.size(), mesh.triangle_count(),
-                std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
+  spdlog::debug("inspect: {} points in the view, {} triangles of the model", subset.indices.size(),
+                mesh.triangle_count());
+  stage.log("subset and mesh");
   // inspection_seconds: statistics, subset, mesh, PLY and picture; the page and the JSON that
   // state it are written after (both show the same number).
   tbb::parallel_invoke(
@@ -57,9 +80,15 @@ InspectionReport run_inspection(const engine::PreparedModel& model,
       });
   report.inspection_seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  stage.log("PLY and picture");
   write_html_report(folder.path("report.html"), report, deviations, subset, mesh);
+  stage.log("report.html");
   write_text(folder.path("inspect.json"), inspection_json(report));
   write_text(folder.path("inspect_faces.csv"), faces_csv(report));
+  stage.log("JSON and CSV");
+  spdlog::debug("inspect: all outputs {:.3f} s (cpu {:.3f} s)",
+                std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(),
+                double(std::clock() - cpu_start) / CLOCKS_PER_SEC);
   return report;
 }
 

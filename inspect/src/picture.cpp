@@ -115,7 +115,7 @@ void draw_mesh(Frame& f, const DisplayMesh& mesh, const Camera& cam) {
         f.depth[at] = z;
         f.mesh_depth[at] = z;
         f.shade[at] = shade;
-        const double g = 150.0 + 90.0 * shade;
+        const double g = 110.0 + 95.0 * shade;
         f.rgb[at] = pack(g, g, g + 4.0);
       }
     }
@@ -158,7 +158,7 @@ int splat_size(const Frame& f, std::size_t points) {
   if (points == 0 || covered == 0) return 2;
   const double spacing =
       std::sqrt(static_cast<double>(covered) / (0.5 * static_cast<double>(points)));
-  return std::clamp(static_cast<int>(std::ceil(1.3 * spacing)), 1, 6);
+  return std::clamp(static_cast<int>(std::ceil(1.5 * spacing)), 1, 6);
 }
 
 void set_rgb(cairo_t* cr, const Rgb& c) {

@@ -132,9 +132,11 @@ if (meshIndex.length > 0) {
     polygonOffset: true, polygonOffsetFactor: 2, polygonOffsetUnits: 2 }));
   scene.add(model);
 }
-scene.add(new THREE.AmbientLight(0xffffff, 0.45));
+// three.js lights are physical (Lambert divides by pi): these give about 0.45 ambient and 0.8
+// direct light of the grey.
+scene.add(new THREE.AmbientLight(0xffffff, 1.4));
 const camera = new THREE.OrthographicCamera(-1, 1, 1, -1, -1, 1);
-const light = new THREE.DirectionalLight(0xffffff, 0.9);
+const light = new THREE.DirectionalLight(0xffffff, 2.5);
 // A headlight: from above-left of the eye towards what it looks at (the target moves with the
 // camera too, so the light direction is fixed in view space).
 light.position.set(-0.3, 0.5, 0);
@@ -311,12 +313,24 @@ function selfCheck() {
     if (Math.abs(r - bg[0]) + Math.abs(g - bg[1]) + Math.abs(b - bg[2]) > 6) ++drawn;
     if (Math.max(r, g, b) - Math.min(r, g, b) > 40) ++coloured;  // not grey: the colour map
   }
+  // Hover over a shown point (the middle one of the subset, where it lies on the screen): the
+  // tooltip must name a point's deviation.
+  if (count > 0) {
+    const k = Math.floor(count / 2);
+    const p = new THREE.Vector3(positions[3 * k], positions[3 * k + 1], positions[3 * k + 2]).project(camera);
+    const rect = canvas.getBoundingClientRect();
+    hover({ clientX: rect.left + (p.x + 1) / 2 * rect.width, clientY: rect.top + (1 - p.y) / 2 * rect.height });
+    const tip = $('tooltip');
+    check.dataset.hover = !tip.hidden && /[+-]\d+\.\d{4} /.test(tip.textContent) ? 'ok' : 'failed';
+    tip.hidden = true;
+  }
   check.dataset.drawnPixels = drawn;
   check.dataset.colouredPixels = coloured;
   check.dataset.points = count;
   check.dataset.readyMs = Math.round(performance.now() - started);
   check.dataset.errors = window.__errors.join(' | ');
-  check.dataset.status = window.__errors.length === 0 && coloured > 0 ? 'ok' : 'failed';
+  check.dataset.status =
+      window.__errors.length === 0 && coloured > 0 && check.dataset.hover !== 'failed' ? 'ok' : 'failed';
 }
 
 $('view-note').textContent = `first view: ${view.view}`;

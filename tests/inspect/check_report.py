@@ -57,8 +57,10 @@ def ply_records(path):
     end = data.index(b"end_header\n") + len(b"end_header\n")
     header = data[:end].decode()
     types = {"float": "<f4", "double": "<f8", "uchar": "u1", "char": "i1", "int": "<i4", "uint": "<u4"}
-    fields = [(name, types[t]) for t, name in re.findall(r"property (\w+) (\w+)", header)]
-    return header, np.frombuffer(data[end:], dtype=np.dtype(fields))
+    vertex = header.split("element vertex")[1]
+    count = int(vertex.split()[0])
+    fields = [(name, types[t]) for t, name in re.findall(r"property (\w+) (\w+)", vertex.split("element")[0])]
+    return header, np.frombuffer(data[end:], dtype=np.dtype(fields), count=count)
 
 
 def check_ply(out, report):
@@ -91,6 +93,29 @@ def check_ply(out, report):
     check(len(legacy.points) == len(rec) and legacy.has_colors(), "Open3D legacy reader: points and colours")
 
 
+def check_cloudcompare(out):
+    """CloudCompare's command line (what its GUI does too, without the PLY dialog) loads the PLY
+    with its colours and the signed distance as a scalar field."""
+    if shutil.which("CloudCompare") is None:
+        print("CloudCompare not installed: its check skipped")
+        return
+    saved = os.path.join(out, "cc_saved.ply")
+    env = dict(os.environ, QT_QPA_PLATFORM="offscreen")
+    r = subprocess.run(["CloudCompare", "-SILENT", "-AUTO_SAVE", "OFF", "-C_EXPORT_FMT", "PLY",
+                        "-PLY_EXPORT_FMT", "BINARY_LE", "-O", os.path.join(out, "deviations.ply"),
+                        "-SAVE_CLOUDS", "FILE", saved], capture_output=True, text=True, env=env, timeout=120)
+    check(r.returncode == 0 and os.path.exists(saved), f"CloudCompare opens and saves the PLY: {r.stdout[-300:]}")
+    if not os.path.exists(saved):
+        return
+    _, ours = ply_records(os.path.join(out, "deviations.ply"))
+    _, cc = ply_records(saved)
+    check(len(cc) == len(ours), "CloudCompare sees every point")
+    check("scalar_signed_distance" in cc.dtype.names, f"CloudCompare loads the signed distance as a scalar field: {cc.dtype.names}")
+    if len(cc) == len(ours) and "scalar_signed_distance" in cc.dtype.names:
+        check(np.array_equal(cc["scalar_signed_distance"], ours["signed_distance"]), "CloudCompare's scalar field equals signed_distance")
+        check(np.array_equal(cc["red"], ours["red"]) and np.array_equal(cc["blue"], ours["blue"]), "CloudCompare's colours")
+
+
 def expected_value(report, key):
     simple = {"alignment_rms": report["rms"], "tolerance_lower": report["tolerance"]["lower"],
               "tolerance_upper": report["tolerance"]["upper"], "viewer_points": report["viewer"]["points"]}
@@ -113,6 +138,7 @@ def check_page(out, report):
     check(attrs.get("errors", "x") == "", f"no script errors: {attrs.get('errors')}")
     check(int(attrs.get("coloured-pixels", 0)) > 1000, "the 3-D canvas shows colour-map pixels")
     check(int(attrs.get("points", 0)) == report["viewer"]["points"], "the view draws the stated subset")
+    check(attrs.get("hover") == "ok", "hovering over a point shows its deviation")
     console = [line for line in r.stderr.splitlines() if "CONSOLE" in line or "Uncaught" in line]
     check(not any(("rror" in line or "Uncaught" in line) for line in console), f"no console errors: {console}")
 
@@ -165,7 +191,7 @@ def main():
     try:
         panel = os.path.join(a.examples, "panel.json")
         scan = os.path.join(work, "scan.pcd")
-        run([a.binary, "-q", "synth", "--model", panel, "--points", "20000", "--noise", "0.02", "--seed", "9", "--out", scan])
+        run([a.binary, "-q", "synth", "--model", panel, "--points", "8000", "--noise", "0.02", "--seed", "9", "--out", scan])
         pose = os.path.join(work, "identity.txt")
         with open(pose, "w") as f:
             f.write("1 0 0 0\n0 1 0 0\n0 0 1 0\n0 0 0 1\n")
@@ -175,6 +201,7 @@ def main():
         with open(os.path.join(out, "inspect.json")) as f:
             report = json.load(f)
         check_ply(out, report)
+        check_cloudcompare(out)
         check_page(out, report)
         if a.keep:
             shutil.copytree(out, a.keep, dirs_exist_ok=True)

@@ -83,7 +83,7 @@ TEST(DeviationPly, ReadsBackWithTheProjectsReaderAndFieldByField) {
   EXPECT_NE(header.find("format binary_little_endian 1.0"), std::string::npos);
   EXPECT_NE(header.find("element vertex 6\n"), std::string::npos);
   EXPECT_NE(header.find("property float signed_distance\nproperty int face\n"), std::string::npos);
-  constexpr std::size_t record = 12 + 3 + 4 + 4 + 16 + 4 + 4 + 4;
+  constexpr std::size_t record = 12 + 3 + 4 + 4 + 16 + 4 + 4 + 4 + 4;
   ASSERT_EQ(bytes.size(), body + record * dev.size());
   for (std::size_t i = 0; i < dev.size(); ++i) {
     const char* r = bytes.data() + body + i * record;

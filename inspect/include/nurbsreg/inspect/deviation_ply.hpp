@@ -11,8 +11,10 @@
 //   int   tolerance        -1 below the band, 0 inside, +1 above
 //   int   index            0-based position of the point in the scan file
 //   float quality          = signed_distance (MeshLab shows per-vertex quality as a scalar field)
-// CloudCompare loads every non-coordinate, non-colour property as a scalar field. Only types
-// Open3D's reader knows (float, double, int, uchar), so it sees every field too.
+//   float scalar_signed_distance  = signed_distance: CloudCompare loads a `scalar_*` property as
+//                          a scalar field without asking (also from its command line, -SILENT);
+//                          the other properties it offers in its PLY dialog
+// Only types Open3D's reader knows (float, double, int, uchar), so it sees every field too.
 // Writes atomically (io::write_atomically); throws io::OutputError. Streams in fixed-size
 // blocks: no allocation per point.
 

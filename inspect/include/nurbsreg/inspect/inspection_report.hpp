@@ -32,6 +32,8 @@ struct InspectionReport {
   std::string viewer_subset;
   std::string picture_view;  // the PNG's viewpoint, in words
   double alignment_seconds = 0.0;
+  // Statistics, viewer subset, mesh, PLY and picture (the page and the JSON that state it are
+  // written after).
   double inspection_seconds = 0.0;
 
   bool passed() const {
