@@ -15,6 +15,7 @@ Bounded: about a minute on two cores. Prints a table; medians over the rounds.
 import argparse
 import json
 import pathlib
+import resource
 import statistics
 import subprocess
 import tempfile
@@ -108,24 +109,34 @@ def main():
 
         # A 1 M-point scan moved by a few degrees and millimetres.
         moved = nurbsreg.synth(model, args.points, noise=0.02, pose=(3, -2, 4, 3, -2, 2), seed=7)
-        align_s = []
-        for _ in range(args.rounds):
-            seconds, result = timed(lambda: nurbsreg.align(model, moved.points))
-            align_s.append((seconds, result.seconds))
-        wall, icp = statistics.median(a for a, _ in align_s), statistics.median(b for _, b in align_s)
-        error = np.abs(result.T_model_scan - moved.T_model_scan).max()
-        print(f"align {len(moved.points):,} points from Python: {wall:6.3f} s "
-              f"(ICP's own time {icp:6.3f} s), {result.iterations} iterations, rms "
-              f"{result.rms:.4f}, max |T - T_true| {error:.1e}")
-        # The CLI on the same points (a float64 PCD): its whole run, and the same pose.
+        # The CLI on the same points (a float64 PCD): its whole run, and the same pose; rounds
+        # alternate between the two.
         scan_path = pathlib.Path(tmp) / "scan.pcd"
         nurbsreg.write_point_cloud(scan_path, moved.points, double_precision=True)
         cli = pathlib.Path(args.build) / "bin" / "nurbsreg"
-        seconds, _ = timed(lambda: subprocess.run(
-            [str(cli), "align", "--model", str(model_path), "--scan", str(scan_path),
-             "--out-pose", str(pathlib.Path(tmp) / "pose.txt")], capture_output=True, check=True))
+        python_runs, cli_runs = [], []
+        for _ in range(args.rounds):
+            start, cpu = time.perf_counter(), time.process_time()
+            result = nurbsreg.align(model, moved.points)
+            python_runs.append((time.perf_counter() - start, time.process_time() - cpu,
+                                result.seconds))
+            before = resource.getrusage(resource.RUSAGE_CHILDREN)
+            start = time.perf_counter()
+            subprocess.run([str(cli), "align", "--model", str(model_path), "--scan",
+                            str(scan_path), "--out-pose", str(pathlib.Path(tmp) / "pose.txt")],
+                           capture_output=True, check=True)
+            after = resource.getrusage(resource.RUSAGE_CHILDREN)
+            cli_runs.append((time.perf_counter() - start, after.ru_utime + after.ru_stime
+                             - before.ru_utime - before.ru_stime))
+        wall, cpu, icp = (statistics.median(r[k] for r in python_runs) for k in range(3))
+        cli_wall, cli_cpu = (statistics.median(r[k] for r in cli_runs) for k in range(2))
+        error = np.abs(result.T_model_scan - moved.T_model_scan).max()
         pose = np.loadtxt(pathlib.Path(tmp) / "pose.txt")
-        print(f"  nurbsreg align (CLI, whole command incl. reading the file) {seconds:6.3f} s; "
+        print(f"align {len(moved.points):,} points (wall / CPU seconds, median of {args.rounds}):")
+        print(f"  nurbsreg.align (Python)                    {wall:6.3f} / {cpu:6.3f} s (ICP's "
+              f"own time {icp:.3f} s), {result.iterations} iterations, rms {result.rms:.4f}, "
+              f"max |T - T_true| {error:.1e}")
+        print(f"  nurbsreg align (CLI, incl. reading the file) {cli_wall:6.3f} / {cli_cpu:6.3f} s; "
               f"same pose as Python: {bool((pose == result.T_model_scan).all())}")
 
 

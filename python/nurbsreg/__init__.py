@@ -71,7 +71,8 @@ def project(model, points, *, target="surfaces", threads=None, certify=False, hi
     """Exact closest point on ``model`` of every row of ``points``, as ``nurbsreg project``.
 
     points: (N, 3) float64 or float32 array, C- or Fortran-ordered or strided: read in place,
-        no copy (a list of points is converted to float64 first). Rows with a NaN or infinite
+        no copy (a list of points is converted to float64 first; a PointCloud gives its
+        points). Rows with a NaN or infinite
         coordinate are skipped (status STATUS_SKIPPED, NaN results) and counted
         (``result.skipped``).
     target: "surfaces" or "curves".
@@ -87,6 +88,8 @@ def project(model, points, *, target="surfaces", threads=None, certify=False, hi
     ``v``, ``normal`` (N, 3), ``status`` (uint8, STATUS_*), ``on_trim_edge``. Identical for any
     thread count and to the CLI's rows. The GIL is released while it runs; Ctrl-C stops it.
     """
+    if isinstance(points, PointCloud):
+        points = points.points
     result = _core.project(model, points, target, threads, bool(certify), hints)
     _warn_all(result.warnings)
     return result
@@ -138,6 +141,8 @@ class Aligner:
         Raises AlignmentError (with ``.result``) when no pose could be found, as the CLI exits
         1; warns (NurbsregWarning) where the CLI warns. Releases the GIL; Ctrl-C stops it.
         """
+        if isinstance(scan, PointCloud):
+            scan = scan.points
         result = self._aligner.align(scan, init, bool(distances), threads)
         if result.failure is not None:
             raise AlignmentError("scan: " + result.failure, result)
