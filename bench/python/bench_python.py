@@ -15,6 +15,7 @@ Bounded: about a minute on two cores. Prints a table; medians over the rounds.
 import argparse
 import json
 import pathlib
+import resource
 import statistics
 import subprocess
 import tempfile
@@ -32,6 +33,13 @@ def timed(call):
     start = time.perf_counter()
     result = call()
     return time.perf_counter() - start, result
+
+
+def timed_cpu(call):
+    """Wall and process CPU seconds (every thread) of one call."""
+    start, cpu = time.perf_counter(), time.process_time()
+    call()
+    return time.perf_counter() - start, time.process_time() - cpu
 
 
 def main():
@@ -52,21 +60,29 @@ def main():
         points = nurbsreg.read_point_cloud(path).points
         nurbsreg.project(model, points[:10000])  # the projector pool's scratch
 
-        python_s, cpp_fresh, cpp_reused = [], [], []
+        wall = {"python": [], "fresh": [], "reused": []}
+        cpu = {"python": [], "fresh": [], "reused": []}
         for _ in range(args.rounds):
             done = subprocess.run([str(baseline), str(model_path), str(path), "3"],
                                   capture_output=True, text=True, check=True)
             cpp = json.loads(done.stdout)
-            cpp_fresh += cpp["fresh"]
-            cpp_reused += cpp["reused"]
+            for kind in ("fresh", "reused"):
+                wall[kind] += cpp[kind]
+                cpu[kind] += cpp[kind + "_cpu"]
             for _ in range(3):
-                python_s.append(timed(lambda: nurbsreg.project(model, points))[0])
-        py, fresh, reused = (statistics.median(v) for v in (python_s, cpp_fresh, cpp_reused))
+                w, c = timed_cpu(lambda: nurbsreg.project(model, points))
+                wall["python"].append(w)
+                cpu["python"].append(c)
+        med = {k: (statistics.median(wall[k]), statistics.median(cpu[k])) for k in wall}
+        py_wall, py_cpu = med["python"]
         print(f"project {len(points):,} points (panel, all threads), median of "
-              f"{len(python_s)} calls each, alternating rounds:")
-        print(f"  nurbsreg.project (Python)         {py:7.3f} s  {len(points) / py / 1e6:5.2f} M points/s")
-        print(f"  Projector::project, fresh results {fresh:7.3f} s  ratio Python / C++ {py / fresh:5.3f}")
-        print(f"  Projector::project, reused        {reused:7.3f} s  ratio Python / C++ {py / reused:5.3f}")
+              f"{len(wall['python'])} calls each, alternating rounds (wall / CPU seconds):")
+        print(f"  nurbsreg.project (Python)         {py_wall:7.3f} / {py_cpu:7.3f} s  "
+              f"{len(points) / py_wall / 1e6:5.2f} M points/s")
+        for kind, label in (("fresh", "fresh results"), ("reused", "reused       ")):
+            w, c = med[kind]
+            print(f"  Projector::project, {label} {w:7.3f} / {c:7.3f} s  ratio Python / C++ "
+                  f"{py_wall / w:5.3f} wall, {py_cpu / c:5.3f} CPU")
 
         # Two frames, each projected on one thread or on all, one after the other or in two
         # Python threads at once.
@@ -93,15 +109,35 @@ def main():
 
         # A 1 M-point scan moved by a few degrees and millimetres.
         moved = nurbsreg.synth(model, args.points, noise=0.02, pose=(3, -2, 4, 3, -2, 2), seed=7)
-        align_s = []
+        # The CLI on the same points (a float64 PCD): its whole run, and the same pose; rounds
+        # alternate between the two.
+        scan_path = pathlib.Path(tmp) / "scan.pcd"
+        nurbsreg.write_point_cloud(scan_path, moved.points, double_precision=True)
+        cli = pathlib.Path(args.build) / "bin" / "nurbsreg"
+        python_runs, cli_runs = [], []
         for _ in range(args.rounds):
-            seconds, result = timed(lambda: nurbsreg.align(model, moved.points))
-            align_s.append((seconds, result.seconds))
-        wall, icp = statistics.median(a for a, _ in align_s), statistics.median(b for _, b in align_s)
+            start, cpu = time.perf_counter(), time.process_time()
+            result = nurbsreg.align(model, moved.points)
+            python_runs.append((time.perf_counter() - start, time.process_time() - cpu,
+                                result.seconds))
+            before = resource.getrusage(resource.RUSAGE_CHILDREN)
+            start = time.perf_counter()
+            subprocess.run([str(cli), "align", "--model", str(model_path), "--scan",
+                            str(scan_path), "--out-pose", str(pathlib.Path(tmp) / "pose.txt")],
+                           capture_output=True, check=True)
+            after = resource.getrusage(resource.RUSAGE_CHILDREN)
+            cli_runs.append((time.perf_counter() - start, after.ru_utime + after.ru_stime
+                             - before.ru_utime - before.ru_stime))
+        wall, cpu, icp = (statistics.median(r[k] for r in python_runs) for k in range(3))
+        cli_wall, cli_cpu = (statistics.median(r[k] for r in cli_runs) for k in range(2))
         error = np.abs(result.T_model_scan - moved.T_model_scan).max()
-        print(f"align {len(moved.points):,} points from Python: {wall:6.3f} s "
-              f"(ICP's own time {icp:6.3f} s), {result.iterations} iterations, rms "
-              f"{result.rms:.4f}, max |T - T_true| {error:.1e}")
+        pose = np.loadtxt(pathlib.Path(tmp) / "pose.txt")
+        print(f"align {len(moved.points):,} points (wall / CPU seconds, median of {args.rounds}):")
+        print(f"  nurbsreg.align (Python)                    {wall:6.3f} / {cpu:6.3f} s (ICP's "
+              f"own time {icp:.3f} s), {result.iterations} iterations, rms {result.rms:.4f}, "
+              f"max |T - T_true| {error:.1e}")
+        print(f"  nurbsreg align (CLI, incl. reading the file) {cli_wall:6.3f} / {cli_cpu:6.3f} s; "
+              f"same pose as Python: {bool((pose == result.T_model_scan).all())}")
 
 
 if __name__ == "__main__":

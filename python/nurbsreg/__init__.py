@@ -71,7 +71,8 @@ def project(model, points, *, target="surfaces", threads=None, certify=False, hi
     """Exact closest point on ``model`` of every row of ``points``, as ``nurbsreg project``.
 
     points: (N, 3) float64 or float32 array, C- or Fortran-ordered or strided: read in place,
-        no copy (a list of points is converted to float64 first). Rows with a NaN or infinite
+        no copy (a list of points is converted to float64 first; a PointCloud gives its
+        points). Rows with a NaN or infinite
         coordinate are skipped (status STATUS_SKIPPED, NaN results) and counted
         (``result.skipped``).
     target: "surfaces" or "curves".
@@ -87,6 +88,8 @@ def project(model, points, *, target="surfaces", threads=None, certify=False, hi
     ``v``, ``normal`` (N, 3), ``status`` (uint8, STATUS_*), ``on_trim_edge``. Identical for any
     thread count and to the CLI's rows. The GIL is released while it runs; Ctrl-C stops it.
     """
+    if isinstance(points, PointCloud):
+        points = points.points
     result = _core.project(model, points, target, threads, bool(certify), hints)
     _warn_all(result.warnings)
     return result
@@ -138,6 +141,8 @@ class Aligner:
         Raises AlignmentError (with ``.result``) when no pose could be found, as the CLI exits
         1; warns (NurbsregWarning) where the CLI warns. Releases the GIL; Ctrl-C stops it.
         """
+        if isinstance(scan, PointCloud):
+            scan = scan.points
         result = self._aligner.align(scan, init, bool(distances), threads)
         if result.failure is not None:
             raise AlignmentError("scan: " + result.failure, result)
@@ -146,10 +151,30 @@ class Aligner:
 
 
 def align(model, scan, *, init=None, distances=False, threads=None, **icp_options):
-    """Align ``scan`` to ``model`` once: ``Aligner(model, **icp_options).align(scan, init)``.
+    """Align ``scan`` to ``model`` (ICP on exact projections), as ``nurbsreg align``:
+    ``Aligner(model, **icp_options).align(scan, init, distances=..., threads=...)``.
 
-    See :class:`Aligner` for the options and :meth:`Aligner.align` for the result. For frame
-    after frame keep one Aligner instead.
+    scan: (N, 3) float64 or float32 array (any layout; copied only when it is not C-ordered
+        float64 or has NaN/infinite rows, which are skipped and counted in ``skipped``).
+    init: starting pose, a 4x4 rigid matrix (checked and made exactly orthonormal as the CLI's
+        ``--init``); None: the identity.
+    distances: also return the exact signed distance of every aligned point.
+    threads: worker threads for this call (None or 0: all hardware threads).
+    icp_options: the CLI's ICP options by name: method ("point-to-plane" or "point-to-point"),
+        max_iterations (per stage, 50), max_distance (reject correspondences farther apart,
+        model units; inf), keep_fraction (trimmed ICP, 1), kernel ("none", "huber", "tukey",
+        "geman-mcclure"), kernel_scale (0: from the MAD), coarse (increasing subsample sizes).
+
+    Returns an AlignmentResult: ``T_model_scan`` (4x4, model_point = T * scan_point),
+    ``converged``, ``termination``, ``iterations``, ``rms``, ``inliers``, ``points``,
+    ``fitness`` (inliers / points), ``covariance`` (6x6), ``degeneracy``, ``history`` (one dict
+    per iteration), ``deviation`` (mean, rms, median, p95, p99, max of |d|), ``aligned`` (the
+    scan moved onto the model, by input row), ``signed_distance`` (with distances=True),
+    ``report()`` (the fields of ``align --report``).
+
+    Raises AlignmentError (with ``.result``) when no pose could be found (the CLI exits 1),
+    ValueError/TypeError naming a bad argument or option; warns (NurbsregWarning) where the CLI
+    warns. Releases the GIL; Ctrl-C stops it. For frame after frame keep one :class:`Aligner`.
     """
     return Aligner(model, **icp_options).align(scan, init, distances=distances, threads=threads)
 

@@ -11,6 +11,7 @@
 #include "model_handle.hpp"
 #include "nurbsreg/io/model_file.hpp"
 #include "nurbsreg/io/model_summary.hpp"
+#include "nurbsreg/io/model_warnings.hpp"
 #include "released_call.hpp"
 
 namespace nurbsreg::python {
@@ -21,20 +22,6 @@ py::array_t<double> vector3(const engine::Vec3& v) {
   for (int k = 0; k < 3; ++k)
     a.mutable_at(k) = v[k];
   return a;
-}
-
-// The CLI's warning for faces that are not in the model (every command that loads one says so).
-std::vector<std::string> load_warnings(const std::string& path, const engine::Model& model) {
-  std::vector<std::string> warnings;
-  if (!model.skipped_faces.empty()) {
-    const engine::SkippedFace& first = model.skipped_faces.front();
-    warnings.push_back(path + ": " + std::to_string(model.skipped_faces.size()) + " of " +
-                       std::to_string(model.skipped_faces.size() + model.surfaces.size()) +
-                       " faces could not be converted and are not in the model (face " +
-                       std::to_string(first.face) + ": " + first.reason +
-                       (model.skipped_faces.size() > 1 ? "; info() lists the others)" : ")"));
-  }
-  return warnings;
 }
 
 }  // namespace
@@ -71,7 +58,8 @@ void bind_model(py::module_& m) {
           "bezier_patches, bezier_curve_pieces, bounding_box {min, max}, trimmed_surfaces, "
           "skipped_faces [{face, reason}].")
       .def_property_readonly(
-          "warnings", [](const ModelHandle& h) { return load_warnings(h.path(), h.model()); })
+          "warnings", [](const ModelHandle& h) { return io::model_warnings(h.path(), h.model()); },
+          "The CLI's warnings about this model (missing faces).")
       .def("__repr__", [](const ModelHandle& h) {
         return "<nurbsreg.Model " + h.path() + ": " + std::to_string(h.model().surfaces.size()) +
                " surfaces, " + std::to_string(h.model().curves.size()) + " curves, " +

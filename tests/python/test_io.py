@@ -114,3 +114,21 @@ def test_synth_is_the_cli_synth(panel, tmp_path):
         nurbsreg.synth(panel, 10, pose=(1, 2, 3))
     with pytest.raises(ValueError, match="points: must be > 0"):
         nurbsreg.synth(panel, 0)
+
+
+def test_a_face_beyond_its_surface_warns_as_the_cli(tmp_path):
+    def side(u0, v0, u1, v1):
+        return {"uv": {"degree": 1, "knots": [0, 0, 1, 1], "control_points": [[u0, v0], [u1, v1]]}}
+    import json
+    plate = {"nurbsreg_model": 1, "surfaces": [{
+        "name": "plate", "degree": [1, 1], "knots_u": [0, 0, 1, 1], "knots_v": [0, 0, 1, 1],
+        "control_points": [[[0, 0, 0], [0, 10, 0]], [[10, 0, 0], [10, 10, 0]]],
+        "trim_loops": [{"curves": [side(0.5, 0.2, 1.5, 0.2), side(1.5, 0.2, 1.5, 0.8),
+                                   side(1.5, 0.8, 0.5, 0.8), side(0.5, 0.8, 0.5, 0.2)]}]}]}
+    path = tmp_path / "plate.json"
+    path.write_text(json.dumps(plate))
+    with pytest.warns(nurbsreg.NurbsregWarning) as caught:
+        nurbsreg.load_model(path)
+    message = str(caught[0].message)
+    assert "the trim loops of 1 faces leave their surface's parameter domain (plate by 50%" in message
+    assert message in run_cli("info", "--model", path).stderr
