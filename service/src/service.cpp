@@ -356,6 +356,12 @@ void Service::Impl::align(const httplib::Request& req, httplib::Response& res,
   overrides.kernel = param(req, "kernel");
   overrides.kernel_scale = param(req, "kernel_scale");
   const icp::IcpOptions icp_options = apply_icp_overrides(options.icp, overrides);
+  // A frame's work is bounded by the server's iteration limit (and --max-body): a request may
+  // lower it, not raise it.
+  if (icp_options.max_iterations > options.icp.max_iterations) {
+    throw HttpError(400, "max_iterations: at most " + std::to_string(options.icp.max_iterations) +
+                             " (the server's --max-iterations)");
+  }
   std::optional<std::string> session_id;
   if (const auto text = param(req, "session")) session_id = parse_session_id(*text);
   const bool with_distances = param(req, "distances").value_or("") == "true";

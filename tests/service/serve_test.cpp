@@ -193,6 +193,9 @@ TEST_F(Serve, BadRequestsGetAnErrorNamingTheProblem) {
   EXPECT_NE(error_of(c->Post("/v1/align?model=panel&max_iterations=x", scan, kPcd), 400)
                 .find("max_iterations"),
             std::string::npos);
+  EXPECT_NE(error_of(c->Post("/v1/align?model=panel&max_iterations=100000", scan, kPcd), 400)
+                .find("at most 50"),
+            std::string::npos);
   EXPECT_NE(error_of(c->Post("/v1/align?model=panel", "", kPcd), 400).find("request body"),
             std::string::npos);
   EXPECT_NE(
