@@ -136,13 +136,60 @@ icp::IcpOptions icp_options(const IcpArgs& args) {
   return options;
 }
 
+void add_global_options(CLI::App& cmd, GlobalArgs& args) {
+  cmd.add_flag("--no-global", args.no_global,
+               "No global coarse alignment: ICP from --init, or from the identity");
+  cmd.add_flag("--accept-poor", args.accept_poor,
+               "Report a poor fit (\"fit\": \"poor\") instead of failing");
+  cmd.add_option("--min-inlier-fraction", args.min_inlier_fraction,
+                 "A fit with fewer scan points within 3 x the scan's noise of the model is poor")
+      ->check(CLI::Range(0.0, 1.0));
+}
+
+registration::AlignRequest align_request(const std::string& init, const GlobalArgs& args) {
+  registration::AlignRequest request;
+  if (init == "auto") {
+    request.global = registration::GlobalMode::on;
+  } else if (!init.empty()) {
+    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+    T.matrix() = io::read_pose(init);
+    request.init = T;
+  }
+  if (args.no_global) {
+    if (init == "auto") throw UsageError("--init auto and --no-global contradict each other");
+    request.global = registration::GlobalMode::off;
+  }
+  return request;
+}
+
+registration::RegistrationOptions registration_options(const GlobalArgs& args) {
+  registration::RegistrationOptions o;
+  o.verdict.accept_poor = args.accept_poor;
+  o.verdict.min_inlier_fraction = args.min_inlier_fraction;
+  return o;
+}
+
 registration::AlignmentResult align_frame(registration::Aligner& aligner,
                                           const io::PointCloud& cloud,
-                                          const Eigen::Isometry3d& init) {
+                                          const registration::AlignRequest& request) {
   try {
-    return aligner.align(cloud.points, init);
+    return aligner.align(cloud.points, request);
   } catch (const std::invalid_argument& e) {
     throw UsageError(e.what());
+  }
+}
+
+void warn_about_fit(const std::string& scan, const registration::AlignmentResult& frame) {
+  if (frame.fit.evaluated && !frame.fit.good) {
+    spdlog::warn("{}: accepted although {}", scan, frame.fit.reason);
+  }
+  if (frame.coarse && !frame.coarse->alternatives.empty()) {
+    spdlog::warn(
+        "{}: {} other pose(s) fit as well as this one (inliers {:.1f}% vs {:.1f}%): the part "
+        "looks symmetric under {}; the report lists them",
+        scan, frame.coarse->alternatives.size(),
+        100.0 * frame.coarse->alternatives.front().inlier_fraction,
+        100.0 * frame.coarse->winner.inlier_fraction, frame.coarse->symmetry);
   }
 }
 
@@ -202,6 +249,34 @@ void write_align_outputs(const registration::AlignmentResult& frame,
     report.termination = std::string(icp::to_string(result.termination)) + ": " + result.message;
     if (result.degeneracy.degenerate()) {
       report.termination += "; free directions: " + result.degeneracy.describe();
+    }
+    if (frame.fit.evaluated) {
+      const registration::FitVerdict& f = frame.fit;
+      report.has_fit = true;
+      report.fit = {std::string(f.word()), f.reason, f.noise,     f.tolerance,
+                    f.inlier_fraction,     f.rms,    f.rms_ratio, f.coverage};
+    }
+    if (const auto& c = frame.coarse) {
+      const auto score = [](const registration::PoseScore& s) {
+        return io::PoseScoreRecord{s.T_model_scan.matrix(), s.inlier_fraction, s.trimmed_rms};
+      };
+      report.has_coarse = true;
+      io::CoarseRecord& r = report.coarse;
+      r.method = c->method;
+      r.scan_keypoints = c->scan_keypoints;
+      r.model_keypoints = c->model_keypoints;
+      r.matches = c->matches;
+      r.hypotheses = c->hypotheses;
+      r.verified = c->verified;
+      r.voxel = c->voxel;
+      r.noise = c->noise;
+      r.seconds = c->seconds;
+      r.winner = score(c->winner);
+      r.has_runner_up = c->runner_up.has_value();
+      if (c->runner_up) r.runner_up = score(*c->runner_up);
+      for (const registration::PoseScore& a : c->alternatives)
+        r.alternatives.push_back(score(a));
+      r.symmetry = c->symmetry;
     }
     int k = 0;
     for (const icp::IcpIteration& it : result.log) {
