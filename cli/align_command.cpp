@@ -28,6 +28,7 @@ struct AlignArgs {
   std::string aligned;
   std::string report;
   IcpArgs icp;
+  GlobalArgs global;
   int threads = 0;
 };
 
@@ -55,14 +56,13 @@ void run_align(const AlignArgs& args) {
   if (model.surfaces.empty()) throw UsageError(args.model + ": align needs a model with surfaces");
   const io::PointCloud cloud = io::read_point_cloud(args.scan);
   if (cloud.size() == 0) throw io::InputError(args.scan, "no finite points to align");
-  Eigen::Isometry3d init = Eigen::Isometry3d::Identity();
-  if (!args.init.empty()) init.matrix() = io::read_pose(args.init);
+  const registration::AlignRequest request = align_request(args.init, args.global);
   spdlog::info("{}: {} points ({} skipped: NaN or infinite)", args.scan, cloud.size(),
                cloud.skipped_nonfinite);
 
   const engine::PreparedModel prepared(std::move(model));
-  registration::Aligner aligner(prepared, options);
-  const registration::AlignmentResult frame = align_frame(aligner, cloud, init);
+  registration::Aligner aligner(prepared, options, registration_options(args.global));
+  const registration::AlignmentResult frame = align_frame(aligner, cloud, request);
   const icp::IcpResult& result = frame.icp;
   const registration::DeviationSummary& dev = frame.deviation;
   spdlog::info("{}", result.brief_report());
@@ -74,6 +74,7 @@ void run_align(const AlignArgs& args) {
     throw std::runtime_error(args.scan + ": " + *failure);
   }
   warn_if_unconverged(args.scan, result, args.icp);
+  warn_about_fit(args.scan, frame);
   if (const auto note = frame.sizes.warning()) spdlog::warn("{}: {}", args.scan, *note);
   if (result.degeneracy.degenerate()) {
     spdlog::warn("the scan does not constrain the pose fully; free directions: {}",
@@ -91,6 +92,21 @@ void run_align(const AlignArgs& args) {
   if (result.degeneracy.degenerate()) {
     std::cout << "degenerate: unconstrained " << result.degeneracy.describe() << "\n";
   }
+  if (const auto& c = frame.coarse) {
+    std::cout << fmt::format(
+        "coarse: {} ({} scan / {} model keypoints, {} matches, {} hypotheses verified) in {:.2f} "
+        "s; winner {:.1f}% inliers{}\n",
+        c->method, c->scan_keypoints, c->model_keypoints, c->matches, c->verified, c->seconds,
+        100.0 * c->winner.inlier_fraction,
+        c->runner_up ? fmt::format(", runner-up {:.1f}%", 100.0 * c->runner_up->inlier_fraction)
+                     : std::string());
+  }
+  const registration::FitVerdict& fit = frame.fit;
+  std::cout << fmt::format(
+      "fit {}: {:.1f}% of the points within {:.3g} (3 x noise {:.3g}), rms {:.3g}, model "
+      "coverage {:.1f}%\n",
+      fit.word(), 100.0 * fit.inlier_fraction, fit.tolerance, fit.noise, fit.rms,
+      100.0 * fit.coverage);
   write_align_outputs(frame, aligner.last_projections(), cloud, args.icp,
                       AlignOutputs{args.out_pose, args.aligned, args.report}, total);
   spdlog::info("aligned {} points in {:.2f} s", cloud.size(), total.seconds());
@@ -103,13 +119,16 @@ void add_align_command(CLI::App& app) {
   auto args = std::make_shared<AlignArgs>();
   cmd->add_option("--model", args->model, "Model file (.json, .step/.stp, .iges/.igs)")->required();
   cmd->add_option("--scan", args->scan, "Scan: .pcd, .ply, .xyz/.txt/.csv")->required();
-  cmd->add_option("--init", args->init, "Initial pose T0 (4 lines of 4 numbers)");
+  cmd->add_option("--init", args->init,
+                  "Initial pose T0 (4 lines of 4 numbers): ICP from it as given; \"auto\" or "
+                  "none: global alignment from any pose first");
   cmd->add_option("--out-pose", args->out_pose, "Write the pose T (model_point = T * scan_point)");
   cmd->add_option("--aligned", args->aligned,
                   "Write the aligned scan (.pcd or .csv) with signed_distance, entity, u, v per "
                   "point");
   cmd->add_option("--report", args->report, "Write a JSON report");
   add_icp_options(*cmd, args->icp);
+  add_global_options(*cmd, args->global);
   cmd->add_option("--threads", args->threads, "Worker threads (0 = all hardware threads)")
       ->check(CLI::NonNegativeNumber);
   cmd->callback([args] { run_align(*args); });

@@ -61,6 +61,7 @@ struct BatchArgs {
   std::string target = "surfaces";
   std::string format = "csv";
   IcpArgs icp;
+  GlobalArgs global;
   int threads = 0;
   int in_flight = 0;
   bool resume = false;
@@ -287,11 +288,15 @@ struct Worker {
 class WorkerPool {
  public:
   WorkerPool(std::size_t size, const engine::PreparedModel& model, bool align,
-             const icp::IcpOptions& options) {
+             const icp::IcpOptions& options, const registration::RegistrationOptions& reg) {
+    // One set of coarse-stage features for all workers, built by the first frame that needs it.
+    const auto features =
+        align ? std::make_shared<const registration::ModelFeatures>(model, reg.global.features)
+              : nullptr;
     for (std::size_t i = 0; i < size; ++i) {
       auto w = std::make_unique<Worker>();
       if (align) {
-        w->aligner = std::make_unique<registration::Aligner>(model, options);
+        w->aligner = std::make_unique<registration::Aligner>(model, options, reg, features);
       } else {
         w->projector = std::make_unique<engine::Projector>(model);
       }
@@ -434,8 +439,7 @@ void run_batch(const BatchArgs& args) {
                       : fmt::format("summary.shard-{}-of-{}.csv", shard.index, shard.count)))
           .string();
 
-  Eigen::Isometry3d init = Eigen::Isometry3d::Identity();
-  if (!args.init.empty()) init.matrix() = io::read_pose(args.init);
+  const registration::AlignRequest request = align_request(args.init, args.global);
 
   const Stopwatch prepare;
   engine::Model model = load_model_file(args.model);
@@ -479,7 +483,7 @@ void run_batch(const BatchArgs& args) {
   // is itself parallel, so more frames in flight only cost memory.
   const std::size_t in_flight = args.in_flight > 0 ? static_cast<std::size_t>(args.in_flight)
                                                    : std::min<std::size_t>(parallelism, 4) + 1;
-  WorkerPool pool(in_flight, prepared, align, options);
+  WorkerPool pool(in_flight, prepared, align, options, registration_options(args.global));
 
   StopOnSignal stop_on_signal;
   std::size_t next = 0;
@@ -534,11 +538,12 @@ void run_batch(const BatchArgs& args) {
             const registration::ScanSize sizes = scan_size(token->cloud, prepared);
             if (align) {
               const registration::AlignmentResult r =
-                  align_frame(*worker->aligner, token->cloud, init);
+                  align_frame(*worker->aligner, token->cloud, request);
               // A failed frame keeps no output (fail() removes them); its reason is in the
               // summary.
               if (r.failure) throw std::runtime_error(*r.failure);
               warn_if_unconverged(token->row.file, r.icp, args.icp);
+              warn_about_fit(token->row.file, r);
               write_align_outputs(r, worker->aligner->last_projections(), token->cloud, args.icp,
                                   frame.align, token->clock);
               token->row.rms = fmt::format("{}", r.icp.rms);
@@ -627,12 +632,14 @@ void add_batch_command(CLI::App& app) {
   cmd->add_option("--out", args->out, "Output directory (created if missing)")->required();
   cmd->add_option("--mode", args->mode, "align (default): pose + deviations; project: deviations")
       ->check(CLI::IsMember({"align", "project"}));
-  cmd->add_option("--init", args->init, "align: initial pose T0 for every frame");
+  cmd->add_option("--init", args->init,
+                  "align: initial pose T0 for every frame (none or \"auto\": global alignment)");
   cmd->add_option("--target", args->target, "project: onto the model's surfaces or curves")
       ->check(CLI::IsMember({"surfaces", "curves"}));
   cmd->add_option("--format", args->format, "project: results as csv (default) or pcd")
       ->check(CLI::IsMember({"csv", "pcd"}));
   add_icp_options(*cmd, args->icp);
+  add_global_options(*cmd, args->global);
   cmd->add_option("--threads", args->threads, "Worker threads (0 = all hardware threads)")
       ->check(CLI::NonNegativeNumber);
   cmd->add_option("--in-flight", args->in_flight,

@@ -90,13 +90,60 @@ icp::IcpOptions icp_options(const IcpArgs& args) {
   return options;
 }
 
+void add_global_options(CLI::App& cmd, GlobalArgs& args) {
+  cmd.add_flag("--no-global", args.no_global,
+               "No global coarse alignment: ICP from --init, or from the identity");
+  cmd.add_flag("--accept-poor", args.accept_poor,
+               "Report a poor fit (\"fit\": \"poor\") instead of failing");
+  cmd.add_option("--min-inlier-fraction", args.min_inlier_fraction,
+                 "A fit with fewer scan points within 3 x the scan's noise of the model is poor")
+      ->check(CLI::Range(0.0, 1.0));
+}
+
+registration::AlignRequest align_request(const std::string& init, const GlobalArgs& args) {
+  registration::AlignRequest request;
+  if (init == "auto") {
+    request.global = registration::GlobalMode::on;
+  } else if (!init.empty()) {
+    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+    T.matrix() = io::read_pose(init);
+    request.init = T;
+  }
+  if (args.no_global) {
+    if (init == "auto") throw UsageError("--init auto and --no-global contradict each other");
+    request.global = registration::GlobalMode::off;
+  }
+  return request;
+}
+
+registration::RegistrationOptions registration_options(const GlobalArgs& args) {
+  registration::RegistrationOptions o;
+  o.verdict.accept_poor = args.accept_poor;
+  o.verdict.min_inlier_fraction = args.min_inlier_fraction;
+  return o;
+}
+
 registration::AlignmentResult align_frame(registration::Aligner& aligner,
                                           const io::PointCloud& cloud,
-                                          const Eigen::Isometry3d& init) {
+                                          const registration::AlignRequest& request) {
   try {
-    return aligner.align(cloud.points, init);
+    return aligner.align(cloud.points, request);
   } catch (const std::invalid_argument& e) {
     throw UsageError(e.what());
+  }
+}
+
+void warn_about_fit(const std::string& scan, const registration::AlignmentResult& frame) {
+  if (frame.fit.evaluated && !frame.fit.good) {
+    spdlog::warn("{}: accepted although {}", scan, frame.fit.reason);
+  }
+  if (frame.coarse && !frame.coarse->alternatives.empty()) {
+    spdlog::warn(
+        "{}: {} other pose(s) fit as well as this one (inliers {:.1f}% vs {:.1f}%): the part "
+        "looks symmetric under {}; the report lists them",
+        scan, frame.coarse->alternatives.size(),
+        100.0 * frame.coarse->alternatives.front().inlier_fraction,
+        100.0 * frame.coarse->winner.inlier_fraction, frame.coarse->symmetry);
   }
 }
 

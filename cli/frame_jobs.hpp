@@ -75,6 +75,20 @@ void add_icp_options(CLI::App& cmd, IcpArgs& args);
 // Validated options; UsageError naming the option.
 icp::IcpOptions icp_options(const IcpArgs& args);
 
+// How align and batch start an alignment (README "Aligning from any pose"): the --init value
+// ("": none, so the global coarse stage runs; "auto": the global stage even so; a pose file:
+// ICP from it as before), --no-global (ICP from --init or the identity, no global stage) and
+// --accept-poor (a poor fit is reported, not failed).
+struct GlobalArgs {
+  bool no_global = false;
+  bool accept_poor = false;
+  double min_inlier_fraction = 0.5;
+};
+void add_global_options(CLI::App& cmd, GlobalArgs& args);
+// The request for `init` (the --init value) and the flags; reads the pose file (InputError).
+registration::AlignRequest align_request(const std::string& init, const GlobalArgs& args);
+registration::RegistrationOptions registration_options(const GlobalArgs& args);
+
 // Where align writes; an empty name means "do not write".
 struct AlignOutputs {
   std::string pose;
@@ -82,13 +96,17 @@ struct AlignOutputs {
   std::string report;
 };
 
-// An alignment run by the command line: the scan's non-empty points through `aligner` from
-// `init`. Logs each iteration at debug level; throws UsageError when ICP rejects the input
+// An alignment run by the command line: the scan's non-empty points through `aligner` as
+// `request` says. Logs each iteration at debug level; throws UsageError when ICP rejects the input
 // (IcpTermination::invalid_input). Afterwards `aligner.last_projections()` holds the exact
 // projections of the aligned points (for write_align_outputs).
 registration::AlignmentResult align_frame(registration::Aligner& aligner,
                                           const io::PointCloud& cloud,
-                                          const Eigen::Isometry3d& init);
+                                          const registration::AlignRequest& request);
+
+// Loud warnings about a frame that stands but deserves a look: a poor fit the user accepted,
+// alternatives that fit as well (a symmetric part).
+void warn_about_fit(const std::string& scan, const registration::AlignmentResult& frame);
 
 // The warning for a pose that ran out of iterations (IcpTermination::max_iterations), naming the
 // scan; nothing otherwise.

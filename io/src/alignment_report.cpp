@@ -53,16 +53,27 @@ class ReportReader {
   const Json& object_;
 };
 
-}  // namespace
-
-std::string report_to_json(const AlignmentReport& r) {
+Json matrix_json(const Eigen::Matrix4d& m) {
   Json pose = Json::array();
   for (int i = 0; i < 4; ++i) {
     Json row = Json::array();
     for (int j = 0; j < 4; ++j)
-      row.push_back(number_or_null(r.pose(i, j)));
+      row.push_back(number_or_null(m(i, j)));
     pose.push_back(std::move(row));
   }
+  return pose;
+}
+
+Json score_json(const PoseScoreRecord& s) {
+  return Json{{"pose", matrix_json(s.pose)},
+              {"inlier_fraction", number_or_null(s.inlier_fraction)},
+              {"trimmed_rms", number_or_null(s.trimmed_rms)}};
+}
+
+}  // namespace
+
+std::string report_to_json(const AlignmentReport& r) {
+  Json pose = matrix_json(r.pose);
   Json history = Json::array();
   for (const IterationRecord& it : r.history) {
     history.push_back(Json{{"iteration", it.iteration},
@@ -72,17 +83,47 @@ std::string report_to_json(const AlignmentReport& r) {
                            {"translation_step", number_or_null(it.translation_step)},
                            {"seconds", number_or_null(it.seconds)}});
   }
-  const Json document{{"pose", std::move(pose)},
-                      {"rms", number_or_null(r.rms)},
-                      {"iterations", r.iterations},
-                      {"converged", r.converged},
-                      {"inliers", r.inliers},
-                      {"points", r.points},
-                      {"seconds", number_or_null(r.seconds)},
-                      {"skipped_points", r.skipped_points},
-                      {"method", r.method},
-                      {"termination", r.termination},
-                      {"history", std::move(history)}};
+  Json document{{"pose", std::move(pose)},
+                {"rms", number_or_null(r.rms)},
+                {"iterations", r.iterations},
+                {"converged", r.converged},
+                {"inliers", r.inliers},
+                {"points", r.points},
+                {"seconds", number_or_null(r.seconds)},
+                {"skipped_points", r.skipped_points},
+                {"method", r.method},
+                {"termination", r.termination},
+                {"history", std::move(history)}};
+  if (r.has_fit) {
+    const FitRecord& f = r.fit;
+    document["fit"] = f.fit;
+    document["fit_details"] = Json{{"reason", f.reason},
+                                   {"noise", number_or_null(f.noise)},
+                                   {"tolerance", number_or_null(f.tolerance)},
+                                   {"inlier_fraction", number_or_null(f.inlier_fraction)},
+                                   {"rms", number_or_null(f.rms)},
+                                   {"rms_over_noise", number_or_null(f.rms_ratio)},
+                                   {"coverage", number_or_null(f.coverage)}};
+  }
+  if (r.has_coarse) {
+    const CoarseRecord& c = r.coarse;
+    Json alternatives = Json::array();
+    for (const PoseScoreRecord& a : c.alternatives)
+      alternatives.push_back(score_json(a));
+    document["coarse"] = Json{{"method", c.method},
+                              {"scan_keypoints", c.scan_keypoints},
+                              {"model_keypoints", c.model_keypoints},
+                              {"matches", c.matches},
+                              {"hypotheses", c.hypotheses},
+                              {"verified", c.verified},
+                              {"voxel", number_or_null(c.voxel)},
+                              {"noise", number_or_null(c.noise)},
+                              {"seconds", number_or_null(c.seconds)},
+                              {"winner", score_json(c.winner)},
+                              {"runner_up", c.has_runner_up ? score_json(c.runner_up) : Json()},
+                              {"alternatives", std::move(alternatives)},
+                              {"symmetry", c.symmetry}};
+  }
   return document.dump(2) + "\n";
 }
 
@@ -133,6 +174,34 @@ AlignmentReport parse_alignment_report(std::string_view text, const std::string&
     r.method = v->get<std::string>();
   if (const Json* v = in.find(document, "termination"); v && v->is_string()) {
     r.termination = v->get<std::string>();
+  }
+  if (const Json* v = in.find(document, "fit"); v && v->is_string()) {
+    r.has_fit = true;
+    r.fit.fit = v->get<std::string>();
+    if (const Json* d = in.find(document, "fit_details"); d && d->is_object()) {
+      const auto num = [&](const char* key, double& out) {
+        if (const Json* x = in.find(*d, key))
+          out = in.number(*x, std::string("fit_details.") + key);
+      };
+      if (const Json* x = in.find(*d, "reason"); x && x->is_string())
+        r.fit.reason = x->get<std::string>();
+      num("noise", r.fit.noise);
+      num("tolerance", r.fit.tolerance);
+      num("inlier_fraction", r.fit.inlier_fraction);
+      num("rms", r.fit.rms);
+      num("rms_over_noise", r.fit.rms_ratio);
+      num("coverage", r.fit.coverage);
+    }
+  }
+  if (const Json* c = in.find(document, "coarse"); c && c->is_object()) {
+    r.has_coarse = true;
+    if (const Json* x = in.find(*c, "method"); x && x->is_string())
+      r.coarse.method = x->get<std::string>();
+    if (const Json* x = in.find(*c, "symmetry"); x && x->is_string())
+      r.coarse.symmetry = x->get<std::string>();
+    if (const Json* x = in.find(*c, "alternatives"); x && x->is_array()) {
+      r.coarse.alternatives.resize(x->size());
+    }
   }
   if (const Json* history = in.find(document, "history")) {
     if (!history->is_array()) in.fail("history", "expected an array");

@@ -24,6 +24,34 @@ AlignmentReport make_alignment_report(const registration::AlignmentResult& frame
   if (result.degeneracy.degenerate()) {
     report.termination += "; free directions: " + result.degeneracy.describe();
   }
+  if (frame.fit.evaluated) {
+    const registration::FitVerdict& f = frame.fit;
+    report.has_fit = true;
+    report.fit = {std::string(f.word()), f.reason, f.noise,     f.tolerance,
+                  f.inlier_fraction,     f.rms,    f.rms_ratio, f.coverage};
+  }
+  if (const auto& c = frame.coarse) {
+    const auto score = [](const registration::PoseScore& s) {
+      return PoseScoreRecord{s.T_model_scan.matrix(), s.inlier_fraction, s.trimmed_rms};
+    };
+    report.has_coarse = true;
+    CoarseRecord& r = report.coarse;
+    r.method = c->method;
+    r.scan_keypoints = c->scan_keypoints;
+    r.model_keypoints = c->model_keypoints;
+    r.matches = c->matches;
+    r.hypotheses = c->hypotheses;
+    r.verified = c->verified;
+    r.voxel = c->voxel;
+    r.noise = c->noise;
+    r.seconds = c->seconds;
+    r.winner = score(c->winner);
+    r.has_runner_up = c->runner_up.has_value();
+    if (c->runner_up) r.runner_up = score(*c->runner_up);
+    for (const registration::PoseScore& a : c->alternatives)
+      r.alternatives.push_back(score(a));
+    r.symmetry = c->symmetry;
+  }
   int k = 0;
   for (const icp::IcpIteration& it : result.log) {
     report.history.push_back(

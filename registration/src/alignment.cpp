@@ -6,6 +6,10 @@
 #include <cmath>
 #include <stdexcept>
 
+#include "coarse.hpp"
+#include "features.hpp"
+#include "verdict.hpp"
+
 namespace nurbsreg::registration {
 namespace {
 
@@ -37,13 +41,83 @@ std::optional<std::string> failure_of(const icp::IcpResult& result, const icp::I
 
 }  // namespace
 
-Aligner::Aligner(const engine::PreparedModel& model, icp::IcpOptions options)
-    : model_(model), finder_(model), solver_(validated(std::move(options))) {}
+Aligner::Aligner(const engine::PreparedModel& model, icp::IcpOptions options,
+                 RegistrationOptions registration, std::shared_ptr<const ModelFeatures> features)
+    : model_(model),
+      registration_(std::move(registration)),
+      features_(std::move(features)),
+      finder_(model),
+      solver_(validated(std::move(options))) {}
+
+const ModelFeatures& Aligner::features() {
+  if (!features_) {
+    try {
+      features_ = std::make_shared<const ModelFeatures>(model_, registration_.global.features);
+    } catch (const std::runtime_error& e) {
+      throw std::invalid_argument(std::string("align: ") + e.what());
+    }
+  }
+  return *features_;
+}
+
+AlignmentResult Aligner::align(std::span<const engine::Vec3> scan, const AlignRequest& request) {
+  const bool global = request.global == GlobalMode::on ||
+                      (request.global == GlobalMode::automatic && !request.init);
+  if (!global) return align(scan, request.init.value_or(Eigen::Isometry3d::Identity()));
+  return align(scan);
+}
 
 AlignmentResult Aligner::align(std::span<const engine::Vec3> scan, const Eigen::Isometry3d& init) {
   AlignmentResult frame;
   frame.sizes = scan_size(scan, model_);
   frame.icp = solver_.align(finder_, scan, init);
+  const double noise =
+      frame.icp.termination == icp::IcpTermination::invalid_input
+          ? 0.0
+          : detail::estimate_noise(scan, features().voxel(), registration_.global.seed);
+  return finish(scan, std::move(frame), options(), noise);
+}
+
+AlignmentResult Aligner::align(std::span<const engine::Vec3> scan) {
+  AlignmentResult frame;
+  frame.sizes = scan_size(scan, model_);
+  const GlobalOptions& g = registration_.global;
+  for (std::size_t i = 0; i < scan.size(); ++i) {
+    if (!scan[i].allFinite()) {
+      throw std::invalid_argument("align: scan point " + std::to_string(i) +
+                                  ": non-finite coordinate");
+    }
+  }
+  const ModelFeatures& f = features();
+  const double noise = detail::estimate_noise(scan, f.voxel(), g.seed);
+  detail::CoarseOutcome coarse = detail::coarse_align(scan, f, g, noise, finder_);
+  frame.coarse = std::move(coarse.report);
+  if (coarse.failure) {
+    frame.icp.T_model_scan = Eigen::Isometry3d::Identity();
+    frame.icp.termination = icp::IcpTermination::too_few_correspondences;
+    frame.icp.points = scan.size();
+    frame.icp.message = *coarse.failure;
+    frame.failure = *coarse.failure;
+    return frame;
+  }
+  // The fine stage from the winner: the user's options, made robust where the user left them
+  // open (no kernel, no distance bound): the coarse pose is within a voxel or so, and the
+  // outliers and clutter the global path is meant for must not pull it.
+  icp::IcpOptions fine = options();
+  if (g.robust_fine && fine.kernel == icp::RobustKernel::none) {
+    fine.kernel = icp::RobustKernel::tukey;
+    fine.kernel_scale = 0.0;
+  }
+  if (g.robust_fine && !std::isfinite(fine.max_correspondence_distance)) {
+    fine.max_correspondence_distance = g.fine_max_distance_voxels * f.voxel();
+  }
+  icp::IcpSolver fine_solver(fine);
+  frame.icp = fine_solver.align(finder_, scan, frame.coarse->winner.T_model_scan);
+  return finish(scan, std::move(frame), fine, noise);
+}
+
+AlignmentResult Aligner::finish(std::span<const engine::Vec3> scan, AlignmentResult frame,
+                                const icp::IcpOptions& used, double noise) {
   const icp::IcpResult& result = frame.icp;
   for (const icp::IcpIteration& it : result.log) {
     spdlog::debug("stage {} rms {:.6g} inliers {}/{} step {:.3g} rad {:.3g}", it.stage, it.rms,
@@ -63,14 +137,22 @@ AlignmentResult Aligner::align(std::span<const engine::Vec3> scan, const Eigen::
   query.points = aligned;
   finder_.find(query, correspondences);
   const engine::ProjectionResults& proj = finder_.last_results();
-  const double max_distance = options().max_correspondence_distance;
+  const double max_distance = used.max_correspondence_distance;
   std::vector<double> inlier_distances;
   inlier_distances.reserve(scan.size());
   for (std::size_t i = 0; i < scan.size(); ++i) {
     if (proj.distance[i] <= max_distance) inlier_distances.push_back(proj.distance[i]);
   }
   frame.deviation = summarise_deviations(std::move(inlier_distances));
-  frame.failure = failure_of(result, options(), frame.sizes);
+  frame.failure = failure_of(result, used, frame.sizes);
+  if (frame.failure) return frame;
+
+  frame.fit = detail::judge_fit(aligned, proj.distance, noise, frame.sizes.scan, features(),
+                                registration_.verdict);
+  if (!frame.fit.good && !registration_.verdict.accept_poor) {
+    frame.failure = frame.fit.reason;
+    if (const auto note = frame.sizes.failure_note()) *frame.failure += "; " + *note;
+  }
   return frame;
 }
 

@@ -75,7 +75,8 @@ struct IcpOptions {
   double keep_fraction = 1.0;
   RobustKernel kernel = RobustKernel::none;
   // Kernel scale s (model units, >= 0). 0: re-estimated every iteration from the inlier
-  // residuals as s = 1.4826 median |r| (the MAD of residuals whose centre is 0).
+  // residuals: s = 1.4826 median |r| (the MAD of residuals whose centre is 0), then iterated on
+  // the residuals within 3 s only (never rising), so that outliers do not inflate it.
   double kernel_scale = 0.0;
   // Coarse-to-fine: strictly increasing subsample sizes; the solver first iterates on a
   // deterministic random subsample of each size smaller than the scan (seeded by

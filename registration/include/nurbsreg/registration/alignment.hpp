@@ -1,15 +1,19 @@
 #pragma once
 // One alignment of a scan to a prepared model, as `align`, `batch`, the service and the Python
-// module do it: ICP on exact projections (icp::IcpSolver with an icp::ModelCorrespondenceFinder)
-// from a starting pose, then the exact projections of every aligned point and their deviation
-// summary, and the reason when the run gave no pose to use. One library call behind every
-// front end, so a frame gives the same numbers everywhere.
+// module do it: from a starting pose, ICP on exact projections (icp::IcpSolver with an
+// icp::ModelCorrespondenceFinder); without one, first the global coarse stage (global.hpp:
+// features, sample consensus, hypotheses verified by exact ICP and exact distances) and then a
+// robust ICP from its winner. Then the exact projections of every aligned point, their deviation
+// summary, the fit verdict (good or poor, with its numbers) and the reason when the run gave no
+// pose to use (an ICP failure, or a poor fit unless VerdictOptions::accept_poor). One library
+// call behind every front end, so a frame gives the same numbers everywhere.
 //
 // Threads: one align() at a time per Aligner (it keeps the warm state of the frame before:
 // per-point arrays, hints); several Aligners over one PreparedModel may run concurrently. The
 // ICP inside is parallel with TBB and deterministic (results do not depend on the thread count).
 
 #include <Eigen/Geometry>
+#include <memory>
 #include <optional>
 #include <span>
 #include <string>
@@ -20,6 +24,8 @@
 #include "nurbsreg/icp/icp.hpp"
 #include "nurbsreg/icp/model_finder.hpp"
 #include "nurbsreg/registration/deviation.hpp"
+#include "nurbsreg/registration/global.hpp"
+#include "nurbsreg/registration/model_features.hpp"
 #include "nurbsreg/registration/scan_size.hpp"
 
 namespace nurbsreg::registration {
@@ -31,33 +37,69 @@ struct AlignmentResult {
   std::vector<engine::Vec3> aligned;  // T_model_scan * scan point, in scan order
   ScanSize sizes;
   // Why the run gave no pose to use (ICP lost its correspondences or its normal equations broke
-  // down), as one line for the user; nothing when the pose stands. A run that only ran out of
-  // iterations is not a failure: its pose stands (termination max_iterations, converged false).
+  // down, the coarse stage found no hypothesis, or the fit is poor and not accepted), as one
+  // line for the user; nothing when the pose stands. A run that only ran out of iterations is
+  // not a failure: its pose stands (termination max_iterations, converged false).
   std::optional<std::string> failure;
+  // The verdict on the final pose (every alignment; not evaluated after an ICP failure).
+  FitVerdict fit;
+  // The global coarse stage, when it ran.
+  std::optional<CoarseReport> coarse;
 
   bool ok() const { return !failure.has_value(); }
+};
+
+struct RegistrationOptions {
+  GlobalOptions global;
+  VerdictOptions verdict;
+};
+
+// What one align() call is asked: a starting pose or none, and when to run the global stage.
+struct AlignRequest {
+  std::optional<Eigen::Isometry3d> init;
+  GlobalMode global = GlobalMode::automatic;
 };
 
 class Aligner {
  public:
   // `model` must outlive the aligner; `options` are validated (std::invalid_argument naming the
-  // option otherwise).
-  Aligner(const engine::PreparedModel& model, icp::IcpOptions options);
-  Aligner(const engine::PreparedModel&& model, icp::IcpOptions options) = delete;
+  // option otherwise). `features`: the model's coarse-stage data, shared by the aligners of one
+  // model (batch workers, service sessions); null: the aligner builds its own on first need.
+  Aligner(const engine::PreparedModel& model, icp::IcpOptions options,
+          RegistrationOptions registration = {},
+          std::shared_ptr<const ModelFeatures> features = nullptr);
+  Aligner(const engine::PreparedModel&& model, icp::IcpOptions options,
+          RegistrationOptions registration = {},
+          std::shared_ptr<const ModelFeatures> features = nullptr) = delete;
 
-  // Aligns `scan` (non-empty, finite points) from `init`. Throws std::invalid_argument when ICP
-  // rejects the input itself (IcpTermination::invalid_input: too few points, ...), with ICP's
-  // message. Afterwards last_projections() holds the exact projections of result.aligned.
+  // Aligns `scan` (non-empty, finite points) from `init`: ICP exactly as before the global stage
+  // existed (the same pose), then the verdict. Throws std::invalid_argument when ICP rejects
+  // the input itself (IcpTermination::invalid_input: too few points, ...), with ICP's message.
+  // Afterwards last_projections() holds the exact projections of result.aligned.
   AlignmentResult align(std::span<const engine::Vec3> scan, const Eigen::Isometry3d& init);
+  // From any pose: the global coarse stage, then robust ICP from its winner, then the verdict.
+  // Throws std::invalid_argument like the above, also for a scan with too few points for
+  // features or a model without area.
+  AlignmentResult align(std::span<const engine::Vec3> scan);
+  // Either of the two, as `request` says.
+  AlignmentResult align(std::span<const engine::Vec3> scan, const AlignRequest& request);
 
   // The exact projections of the last align()'s aligned points (entity, u, v, distance, signed
   // distance; no feet or normals), in scan order.
   const engine::ProjectionResults& last_projections() const { return finder_.last_results(); }
   const engine::PreparedModel& model() const { return model_; }
   const icp::IcpOptions& options() const { return solver_.options(); }
+  const RegistrationOptions& registration_options() const { return registration_; }
+  // The model's coarse-stage data (built on first call when none was shared).
+  const ModelFeatures& features();
 
  private:
+  AlignmentResult finish(std::span<const engine::Vec3> scan, AlignmentResult frame,
+                         const icp::IcpOptions& options, double noise);
+
   const engine::PreparedModel& model_;
+  RegistrationOptions registration_;
+  std::shared_ptr<const ModelFeatures> features_;
   icp::ModelCorrespondenceFinder finder_;
   icp::IcpSolver solver_;
 };

@@ -1,0 +1,91 @@
+#pragma once
+// Options and reports of the alignment from any pose (DESIGN.md "From any pose to a verdict"):
+// the global coarse stage (features, sample consensus, hypotheses verified by exact ICP and
+// exact distances) and the fit verdict every alignment ends with.
+
+#include <Eigen/Geometry>
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "nurbsreg/registration/model_features.hpp"
+
+namespace nurbsreg::registration {
+
+// When Aligner::align runs the global coarse stage: automatic = when no initial pose is given;
+// on = always (an initial pose is then ignored: `--init auto`); off = never (ICP from the
+// initial pose, or from the identity: `--no-global`).
+enum class GlobalMode { automatic, on, off };
+
+struct GlobalOptions {
+  // For the Aligner's own ModelFeatures (when none is shared with it).
+  FeatureOptions features;
+  // Seed matches of the guided sample consensus (coarse_detail.hpp in src: RansacParams).
+  int ransac_seeds = 1500;
+  // Hypotheses kept from sample consensus; each is refined by a short exact ICP and scored.
+  int hypotheses = 10;
+  // Scan points (a seeded subsample) for refining and scoring a hypothesis, and its iterations.
+  std::size_t verify_points = 1500;
+  int verify_iterations = 20;
+  // A distinct refined pose whose inlier fraction is at least this fraction of the winner's
+  // fits as well: reported as an alternative (a symmetry of the part) instead of dropped.
+  double symmetry_ratio = 0.97;
+  // The fine ICP after the coarse stage (only when the user left the kernel at none): Tukey
+  // with the inliers' scale; and, when the maximum distance is unbounded, this many voxels.
+  bool robust_fine = true;
+  double fine_max_distance_voxels = 3.0;
+  std::uint64_t seed = 1;
+};
+
+struct VerdictOptions {
+  // The tolerance of an inlier: this many times the scan's estimated noise (with a floor of
+  // 1e-5 of the scan's size, for noise-free scans).
+  double tolerance_sigmas = 3.0;
+  // Poor below these: the fraction of scan points within the tolerance, the fraction of the
+  // model's keypoints with an inlier near them (partial views go down to 25% of the surface).
+  double min_inlier_fraction = 0.5;
+  double min_coverage = 0.05;
+  // A poor fit is a failure (AlignmentResult::failure) unless accepted.
+  bool accept_poor = false;
+};
+
+struct FitVerdict {
+  bool evaluated = false;  // false when there was no pose to judge (an ICP failure)
+  bool good = false;
+  double noise = 0.0;            // the scan's own noise estimate sigma (model units)
+  double tolerance = 0.0;        // inlier tolerance
+  double inlier_fraction = 0.0;  // of all scan points, exact distance <= tolerance
+  double rms = 0.0;              // of the inliers' exact distances
+  double rms_ratio = 0.0;        // rms / noise (about 1 for a good fit; 0 when noise is 0)
+  double coverage = 0.0;         // fraction of the model's keypoints near an inlier
+  std::string reason;            // why poor; empty when good
+  std::string_view word() const { return good ? "good" : "poor"; }
+};
+
+// One verified hypothesis: the pose after its short exact ICP, and its exact score on the
+// verification subsample.
+struct PoseScore {
+  Eigen::Isometry3d T_model_scan = Eigen::Isometry3d::Identity();
+  double inlier_fraction = 0.0;
+  double trimmed_rms = 0.0;  // rms of the closer half of the exact distances
+};
+
+struct CoarseReport {
+  std::string method;  // "fpfh-ransac" (sign-invariant FPFH, sample consensus, exact verification)
+  std::size_t scan_keypoints = 0, model_keypoints = 0, matches = 0;
+  int hypotheses = 0;  // kept from sample consensus
+  int verified = 0;    // refined by exact ICP and scored
+  double voxel = 0.0;
+  double noise = 0.0;
+  PoseScore winner;
+  std::optional<PoseScore> runner_up;  // the best pose clearly different from the winner
+  // Distinct poses that fit as well as the winner (symmetry_ratio), the winner excluded, and
+  // the symmetry they show ("rotation by 180.0 deg about (0, 0, 1) through (0, 0, 0)", one per
+  // alternative, joined by "; "); empty when the pose is unique.
+  std::vector<PoseScore> alternatives;
+  std::string symmetry;
+  double seconds = 0.0;
+};
+
+}  // namespace nurbsreg::registration

@@ -1,0 +1,30 @@
+#pragma once
+// Internal to registration: the global coarse stage as a whole (global_alignment.cpp), what
+// Aligner::align(scan) runs before its fine ICP.
+
+#include <optional>
+#include <span>
+#include <string>
+
+#include "nurbsreg/engine/types.hpp"
+#include "nurbsreg/icp/model_finder.hpp"
+#include "nurbsreg/registration/global.hpp"
+#include "nurbsreg/registration/model_features.hpp"
+
+namespace nurbsreg::registration::detail {
+
+struct CoarseOutcome {
+  CoarseReport report;
+  // Why no pose came out (too few points for features, no hypothesis); empty otherwise.
+  std::optional<std::string> failure;
+};
+
+// Keypoints and descriptors of the scan, matches against the model's, sample consensus, and
+// every kept hypothesis refined by a short exact ICP on a seeded subsample (through `finder`,
+// which is reset) and scored by exact distances within a tolerance from `noise`. The winner is
+// report.winner. Deterministic for options.seed, the same for any thread count.
+CoarseOutcome coarse_align(std::span<const engine::Vec3> scan, const ModelFeatures& features,
+                           const GlobalOptions& options, double noise,
+                           icp::ModelCorrespondenceFinder& finder);
+
+}  // namespace nurbsreg::registration::detail

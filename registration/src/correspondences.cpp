@@ -1,0 +1,60 @@
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <limits>
+
+#include "coarse_detail.hpp"
+
+namespace nurbsreg::registration::detail {
+
+std::vector<Match> match_descriptors(const DescriptorMatrix& scan, const ModelDescriptors& model) {
+  const Eigen::Index ns = scan.rows();
+  const Eigen::Index nm = model.rows();
+  std::vector<Match> out;
+  if (ns == 0 || nm == 0) return out;
+  const Eigen::VectorXf scan_sq = scan.rowwise().squaredNorm();
+  const Eigen::VectorXf model_sq = model.rowwise().squaredNorm();
+  constexpr Eigen::Index kBlock = 256;
+  const Eigen::Index blocks = (ns + kBlock - 1) / kBlock;
+  std::vector<std::uint32_t> forward(static_cast<std::size_t>(ns));
+  // Per block, each model row's best scan row in the block and its distance.
+  std::vector<std::vector<std::pair<float, std::uint32_t>>> backward(
+      static_cast<std::size_t>(blocks));
+  tbb::parallel_for(Eigen::Index{0}, blocks, [&](Eigen::Index b) {
+    const Eigen::Index begin = b * kBlock;
+    const Eigen::Index rows = std::min(kBlock, ns - begin);
+    const Eigen::MatrixXf dot = scan.middleRows(begin, rows) * model.transpose();
+    auto& best_scan = backward[static_cast<std::size_t>(b)];
+    best_scan.assign(static_cast<std::size_t>(nm), {std::numeric_limits<float>::infinity(), 0});
+    for (Eigen::Index r = 0; r < rows; ++r) {
+      float best = std::numeric_limits<float>::infinity();
+      std::uint32_t best_j = 0;
+      for (Eigen::Index j = 0; j < nm; ++j) {
+        const float d = scan_sq(begin + r) + model_sq(j) - 2.0f * dot(r, j);
+        if (d < best) {
+          best = d;
+          best_j = static_cast<std::uint32_t>(j);
+        }
+        auto& bj = best_scan[static_cast<std::size_t>(j)];
+        if (d < bj.first) bj = {d, static_cast<std::uint32_t>(begin + r)};
+      }
+      forward[static_cast<std::size_t>(begin + r)] = best_j;
+    }
+  });
+  out.reserve(static_cast<std::size_t>(ns + nm));
+  for (Eigen::Index i = 0; i < ns; ++i)
+    out.push_back({static_cast<std::uint32_t>(i), forward[static_cast<std::size_t>(i)]});
+  for (Eigen::Index j = 0; j < nm; ++j) {
+    std::pair<float, std::uint32_t> best{std::numeric_limits<float>::infinity(), 0};
+    for (const auto& block : backward) {
+      if (block[static_cast<std::size_t>(j)].first < best.first)
+        best = block[static_cast<std::size_t>(j)];
+    }
+    out.push_back({best.second, static_cast<std::uint32_t>(j)});
+  }
+  std::sort(out.begin(), out.end());
+  out.erase(std::unique(out.begin(), out.end()), out.end());
+  return out;
+}
+
+}  // namespace nurbsreg::registration::detail

@@ -1,0 +1,178 @@
+#include "features.hpp"
+
+#include <tbb/parallel_for.h>
+
+#include <Eigen/Eigenvalues>
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <numbers>
+#include <random>
+
+namespace nurbsreg::registration::detail {
+namespace {
+
+using engine::Vec3;
+
+struct Moments3 {
+  Vec3 sum = Vec3::Zero();
+  Eigen::Matrix3d outer = Eigen::Matrix3d::Zero();
+  int count = 0;
+  void add(const Vec3& p) {
+    sum += p;
+    outer.noalias() += p * p.transpose();
+    ++count;
+  }
+  // Covariance about the mean; points are taken relative to the query point, so the sums stay
+  // small and the subtraction loses no digits.
+  Eigen::Matrix3d covariance() const {
+    const Vec3 mean = sum / count;
+    return outer / count - mean * mean.transpose();
+  }
+};
+
+// Adds one pair's value to block `block` of h: x in [0, 1] is the angle (as a fraction of a
+// right angle) on a square-root scale, which spreads the small angles of smooth surfaces over
+// several bins instead of one; soft (linear) binning, so that a value near a bin edge does not
+// jump between two descriptors.
+void add_to_bins(float* h, int block, double angle_fraction) {
+  const double x = std::sqrt(std::clamp(angle_fraction, 0.0, 1.0)) * kBinsPerFeature - 0.5;
+  const int lo = static_cast<int>(std::floor(x));
+  const double t = x - lo;
+  if (lo >= 0) h[block * kBinsPerFeature + lo] += static_cast<float>(1.0 - t);
+  if (lo + 1 < kBinsPerFeature) h[block * kBinsPerFeature + lo + 1] += static_cast<float>(t);
+  if (lo < 0) h[block * kBinsPerFeature] += static_cast<float>(1.0 - t);
+  if (lo + 1 >= kBinsPerFeature)
+    h[block * kBinsPerFeature + kBinsPerFeature - 1] += static_cast<float>(t);
+}
+
+// |cos| -> the angle of a direction from a plane (asin) or between two lines (acos), as a
+// fraction of a right angle.
+double from_plane(double abs_cos) {
+  return std::asin(std::min(1.0, abs_cos)) / (0.5 * std::numbers::pi);
+}
+double between(double abs_cos) {
+  return std::acos(std::min(1.0, abs_cos)) / (0.5 * std::numbers::pi);
+}
+
+}  // namespace
+
+PcaNormals pca_normals(std::span<const Vec3> points, const PointGrid& grid, double radius,
+                       int min_neighbours) {
+  PcaNormals out;
+  out.normals.assign(points.size(), Vec3::UnitZ());
+  out.valid.assign(points.size(), 0);
+  tbb::parallel_for(std::size_t{0}, points.size(), [&](std::size_t i) {
+    Moments3 m;
+    const Vec3& q = points[i];
+    grid.for_each_within(q, radius, [&](std::uint32_t j, double) { m.add(points[j] - q); });
+    if (m.count < min_neighbours) return;
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(m.covariance());
+    const Vec3 l = eig.eigenvalues();
+    // A surface: the smallest spread clearly below the middle one (a line has two small ones).
+    if (!(l(1) > 0.0) || l(0) > 0.25 * l(1)) return;
+    out.normals[i] = eig.eigenvectors().col(0).normalized();
+    out.valid[i] = 1;
+  });
+  return out;
+}
+
+DescriptorMatrix describe(std::span<const Vec3> points, std::span<const Vec3> normals,
+                          const PointGrid& grid, double radius) {
+  const std::size_t n = points.size();
+  DescriptorMatrix spfh = DescriptorMatrix::Zero(static_cast<Eigen::Index>(n), kDescriptorSize);
+  std::vector<std::uint32_t> neighbours_count(n, 0);
+  tbb::parallel_for(std::size_t{0}, n, [&](std::size_t i) {
+    const Vec3& p = points[i];
+    const Vec3& ni = normals[i];
+    std::array<float, kDescriptorSize> h{};
+    std::uint32_t count = 0;
+    grid.for_each_within(p, radius, [&](std::uint32_t j, double d2) {
+      if (j == i || !(d2 > 0.0)) return;
+      const Vec3 d = (points[j] - p) / std::sqrt(d2);
+      const Vec3& nj = normals[j];
+      Vec3 v = ni.cross(d);
+      const double vn = v.norm();
+      const double alpha = vn > 1e-12 ? std::abs(v.dot(nj)) / vn : 0.0;
+      add_to_bins(h.data(), 0, from_plane(std::abs(ni.dot(d))));
+      add_to_bins(h.data(), 1, from_plane(std::abs(nj.dot(d))));
+      add_to_bins(h.data(), 2, between(std::abs(ni.dot(nj))));
+      add_to_bins(h.data(), 3, from_plane(alpha));
+      ++count;
+    });
+    neighbours_count[i] = count;
+    if (count == 0) return;
+    const float scale = 100.0f / static_cast<float>(count);
+    for (int k = 0; k < kDescriptorSize; ++k)
+      spfh(static_cast<Eigen::Index>(i), k) = h[static_cast<std::size_t>(k)] * scale;
+  });
+  DescriptorMatrix out = DescriptorMatrix::Zero(static_cast<Eigen::Index>(n), kDescriptorSize);
+  tbb::parallel_for(std::size_t{0}, n, [&](std::size_t i) {
+    Eigen::Matrix<float, 1, kDescriptorSize> sum = Eigen::Matrix<float, 1, kDescriptorSize>::Zero();
+    int count = 0;
+    grid.for_each_within(points[i], radius, [&](std::uint32_t j, double) {
+      if (j == i || neighbours_count[j] == 0) return;
+      sum += spfh.row(j);
+      ++count;
+    });
+    const auto row = static_cast<Eigen::Index>(i);
+    if (count > 0) {
+      out.row(row) = 0.5f * spfh.row(row) + (0.5f / static_cast<float>(count)) * sum;
+    } else {
+      out.row(row) = spfh.row(row);
+    }
+  });
+  return out;
+}
+
+double estimate_noise(std::span<const Vec3> scan, double voxel, std::uint64_t seed) {
+  if (scan.size() < 16) return 0.0;
+  // A seeded subset (at most 40000 points) and its mean spacing on the scanned surface; the
+  // area hint is the scan's surface area (occupied voxels x voxel^2).
+  constexpr std::size_t kSubset = 40000;
+  std::vector<Vec3> subset;
+  if (scan.size() <= kSubset) {
+    subset.assign(scan.begin(), scan.end());
+  } else {
+    std::mt19937_64 rng(seed);
+    subset.reserve(kSubset);
+    for (std::size_t i = 0; i < kSubset; ++i)
+      subset.push_back(scan[static_cast<std::size_t>(rng() % scan.size())]);
+  }
+  // The scanned surface's area: its voxels with two points or more (a uniform outlier is alone
+  // in its voxel) times the voxel's face.
+  const Voxelised cells = voxelise(subset, voxel);
+  const auto occupied = std::count_if(cells.counts.begin(), cells.counts.end(),
+                                      [](std::uint32_t c) { return c >= 2; });
+  const double area = static_cast<double>(std::max<std::ptrdiff_t>(occupied, 1)) * voxel * voxel;
+  const double spacing = std::sqrt(area / static_cast<double>(subset.size()));
+  // About 16 neighbours, but never beyond the voxel (curvature) nor below the spacing.
+  const double radius = std::clamp(2.3 * spacing, 0.25 * voxel, voxel);
+  const PointGrid grid(subset, radius);
+  // Probe at most 3000 points (every k-th of the subset: it is already random).
+  const std::size_t probes = std::min<std::size_t>(3000, subset.size());
+  const std::size_t stride = subset.size() / probes;
+  std::vector<double> variances(probes, -1.0);
+  tbb::parallel_for(std::size_t{0}, probes, [&](std::size_t k) {
+    const Vec3& q = subset[k * stride];
+    Moments3 m;
+    grid.for_each_within(q, radius, [&](std::uint32_t j, double) { m.add(subset[j] - q); });
+    if (m.count < 6) return;
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(m.covariance(),
+                                                             Eigen::EigenvaluesOnly);
+    const Vec3 l = eig.eigenvalues();
+    if (l(0) > 0.25 * l(1)) return;  // not a surface: an outlier blob or an edge
+    // The plane through the mean takes 3 of the count's degrees of freedom.
+    variances[k] = std::max(0.0, l(0)) * m.count / (m.count - 3);
+  });
+  std::vector<double> valid;
+  for (double v : variances) {
+    if (v >= 0.0) valid.push_back(v);
+  }
+  if (valid.size() < 10) return 0.0;
+  const auto mid = valid.begin() + static_cast<std::ptrdiff_t>(valid.size() / 2);
+  std::nth_element(valid.begin(), mid, valid.end());
+  return std::sqrt(*mid);
+}
+
+}  // namespace nurbsreg::registration::detail

@@ -1,0 +1,57 @@
+#pragma once
+// Internal to registration: local geometry of the coarse stage's clouds. Normals by local PCA,
+// the scan's noise level, and a sign-invariant variant of FPFH (Rusu, Blodow, Beetz, "Fast
+// Point Feature Histograms (FPFH) for 3D registration", ICRA 2009).
+//
+// Why sign-invariant: a scan carries no viewpoint, so its PCA normals have arbitrary signs, and
+// orienting them consistently (a minimum spanning tree over the cloud, Hoppe et al. 1992) costs
+// more than the whole coarse stage and fails across thin walls, where it flips whole regions.
+// FPFH's angles change with the signs; the absolute values of the cosines below do not, so the
+// scan's and the model's (exact, outward) normals give the same histograms whatever their signs.
+// Per pair (p_i, n_i), (p_j, n_j) with d = (p_j - p_i) / |p_j - p_i| and v = n_i x d / |n_i x d|:
+//   |n_i . d|, |n_j . d|, |n_i . n_j|, |v . n_j|   (FPFH's phi and alpha, unsigned, and two more)
+// each turned into its angle (from the plane, or between the normals) and binned on a
+// square-root scale of the angle with soft bins (machined and smooth freeform parts have mostly
+// small angles, which FPFH's linear bins of the cosines put all into one bin), 8 bins each: 32
+// numbers. As in FPFH, a point's descriptor is its own
+// histogram (SPFH) plus the mean of its neighbours' SPFHs, each block normalised to sum 100.
+//
+// All functions write by index and are deterministic for any thread count.
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "nurbsreg/engine/types.hpp"
+#include "point_grid.hpp"
+
+namespace nurbsreg::registration::detail {
+
+inline constexpr int kBinsPerFeature = 8;
+inline constexpr int kDescriptorSize = 4 * kBinsPerFeature;
+using DescriptorMatrix = Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+
+// Unit normals of `points` by PCA over the neighbours within `radius` (<= grid.cell(), the grid
+// over `points`); valid[i] = 0 where fewer than `min_neighbours` neighbours or the
+// neighbourhood is not a surface (no clear smallest eigenvalue: a line or a blob).
+struct PcaNormals {
+  std::vector<engine::Vec3> normals;
+  std::vector<std::uint8_t> valid;
+};
+PcaNormals pca_normals(std::span<const engine::Vec3> points, const PointGrid& grid, double radius,
+                       int min_neighbours);
+
+// Descriptors (rows in point order) over the neighbours within `radius` (<= grid.cell()).
+DescriptorMatrix describe(std::span<const engine::Vec3> points,
+                          std::span<const engine::Vec3> normals, const PointGrid& grid,
+                          double radius);
+
+// The scan's noise level sigma (model units) along the surface normal, independent of any
+// model: sqrt of the median smallest PCA eigenvalue of small neighbourhoods of a seeded subset
+// of the scan, corrected for the degrees of freedom the plane fit takes. `voxel` (the model's
+// sample spacing) caps the neighbourhood radius (curvature inflates the estimate beyond it).
+// 0 when no neighbourhood has enough points (a very sparse scan).
+double estimate_noise(std::span<const engine::Vec3> scan, double voxel, std::uint64_t seed);
+
+}  // namespace nurbsreg::registration::detail

@@ -1,0 +1,181 @@
+#include <tbb/parallel_for.h>
+
+#include <Eigen/SVD>
+#include <algorithm>
+#include <array>
+#include <numeric>
+#include <random>
+
+#include "coarse_detail.hpp"
+
+namespace nurbsreg::registration::detail {
+namespace {
+
+using engine::Vec3;
+
+constexpr int kChunks = 32;
+
+// Adds h to the best-first list `kept` unless a kept pose within the distinctness limits has at
+// least its support (then h is a duplicate of it); replaces the weaker duplicates otherwise.
+void keep_best(std::vector<Hypothesis>& kept, const Hypothesis& h, const RansacParams& p) {
+  for (auto it = kept.begin(); it != kept.end();) {
+    const bool same = rotation_between(it->T_model_scan, h.T_model_scan) <= p.distinct_angle &&
+                      (it->T_model_scan.translation() - h.T_model_scan.translation()).norm() <=
+                          p.distinct_translation;
+    if (!same) {
+      ++it;
+      continue;
+    }
+    if (it->support >= h.support) return;
+    it = kept.erase(it);
+  }
+  const auto pos = std::find_if(kept.begin(), kept.end(),
+                                [&](const Hypothesis& k) { return k.support < h.support; });
+  kept.insert(pos, h);
+  if (kept.size() > static_cast<std::size_t>(p.keep)) kept.pop_back();
+}
+
+std::size_t support_of(const Eigen::Isometry3d& T, std::span<const Vec3> scan,
+                       std::span<const Vec3> model, std::span<const Match> matches, double d2max,
+                       std::vector<std::uint32_t>* supporters) {
+  std::size_t count = 0;
+  for (std::uint32_t k = 0; k < matches.size(); ++k) {
+    if ((T * scan[matches[k].scan] - model[matches[k].model]).squaredNorm() <= d2max) {
+      ++count;
+      if (supporters) supporters->push_back(k);
+    }
+  }
+  return count;
+}
+
+}  // namespace
+
+double rotation_between(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b) {
+  return Eigen::AngleAxisd(a.linear() * b.linear().transpose()).angle();
+}
+
+bool fit_rigid(std::span<const Vec3> src, std::span<const Vec3> dst, Eigen::Isometry3d& T) {
+  const std::size_t n = src.size();
+  if (n < 3) return false;
+  Vec3 ms = Vec3::Zero(), md = Vec3::Zero();
+  for (std::size_t i = 0; i < n; ++i) {
+    ms += src[i];
+    md += dst[i];
+  }
+  ms /= static_cast<double>(n);
+  md /= static_cast<double>(n);
+  Eigen::Matrix3d C = Eigen::Matrix3d::Zero();
+  for (std::size_t i = 0; i < n; ++i)
+    C.noalias() += (dst[i] - md) * (src[i] - ms).transpose();
+  const Eigen::JacobiSVD<Eigen::Matrix3d> svd(C, Eigen::ComputeFullU | Eigen::ComputeFullV);
+  const Vec3 s = svd.singularValues();
+  // Collinear points leave the rotation about their line free.
+  if (!(s(1) > 1e-12 * s(0))) return false;
+  Eigen::Matrix3d S = Eigen::Matrix3d::Identity();
+  if ((svd.matrixU() * svd.matrixV().transpose()).determinant() < 0.0) S(2, 2) = -1.0;
+  T.linear() = svd.matrixU() * S * svd.matrixV().transpose();
+  T.translation() = md - T.linear() * ms;
+  return T.matrix().allFinite();
+}
+
+std::vector<Hypothesis> ransac_hypotheses(std::span<const Vec3> scan, std::span<const Vec3> model,
+                                          std::span<const Match> matches, const RansacParams& p) {
+  std::vector<Hypothesis> kept;
+  if (matches.size() < 3) return kept;
+  const double d2max = p.inlier_distance * p.inlier_distance;
+  const std::size_t m = matches.size();
+  // Seeds: every match, or a seeded subset of p.seeds of them.
+  std::vector<std::uint32_t> seeds(m);
+  std::iota(seeds.begin(), seeds.end(), std::uint32_t{0});
+  if (m > static_cast<std::size_t>(p.seeds)) {
+    std::mt19937_64 rng(p.seed);
+    for (std::size_t i = 0; i < static_cast<std::size_t>(p.seeds); ++i)
+      std::swap(seeds[i], seeds[i + static_cast<std::size_t>(rng() % (m - i))]);
+    seeds.resize(static_cast<std::size_t>(p.seeds));
+    std::sort(seeds.begin(), seeds.end());
+  }
+  const auto compatible = [&](std::uint32_t a, std::uint32_t b) {
+    const double ls = (scan[matches[a].scan] - scan[matches[b].scan]).norm();
+    const double lm = (model[matches[a].model] - model[matches[b].model]).norm();
+    return ls >= p.min_edge && std::abs(ls - lm) <= p.inlier_distance &&
+           std::min(ls, lm) >= p.edge_similarity * std::max(ls, lm);
+  };
+  const std::size_t chunks = std::min<std::size_t>(kChunks, seeds.size());
+  std::vector<std::vector<Hypothesis>> chunk_best(chunks);
+  tbb::parallel_for(std::size_t{0}, chunks, [&](std::size_t chunk) {
+    std::vector<Hypothesis>& best = chunk_best[chunk];
+    std::vector<std::uint32_t> with_a, with_ab;
+    for (std::size_t si = chunk; si < seeds.size(); si += chunks) {
+      const std::uint32_t a = seeds[si];
+      // The matches consistent with a: if a is right, every right match is among them.
+      with_a.clear();
+      for (std::uint32_t b = 0; b < m; ++b) {
+        if (b != a && compatible(a, b)) with_a.push_back(b);
+      }
+      if (with_a.size() < 2) continue;
+      std::mt19937_64 rng(p.seed * 0x9E3779B97F4A7C15ull + a);
+      Hypothesis seed_best;
+      for (int draw = 0; draw < p.draws_per_seed; ++draw) {
+        const std::uint32_t b = with_a[static_cast<std::size_t>(rng() % with_a.size())];
+        with_ab.clear();
+        for (std::uint32_t c : with_a) {
+          if (c != b && compatible(b, c)) with_ab.push_back(c);
+        }
+        if (with_ab.empty()) continue;
+        const std::uint32_t c = with_ab[static_cast<std::size_t>(rng() % with_ab.size())];
+        const std::array<Vec3, 3> s{scan[matches[a].scan], scan[matches[b].scan],
+                                    scan[matches[c].scan]};
+        const std::array<Vec3, 3> d{model[matches[a].model], model[matches[b].model],
+                                    model[matches[c].model]};
+        Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+        if (!fit_rigid(s, d, T)) continue;
+        // The triple itself must fit: equal edge lengths still allow a mirrored triangle.
+        bool fits = true;
+        for (int k = 0; k < 3 && fits; ++k)
+          fits = (T * s[k] - d[k]).squaredNorm() <= d2max;
+        if (!fits) continue;
+        // Support among a's consistent matches (where every right match lies), cheap.
+        std::size_t support = 1;
+        for (std::uint32_t k : with_a)
+          support += (T * scan[matches[k].scan] - model[matches[k].model]).squaredNorm() <= d2max;
+        if (support > seed_best.support) seed_best = {T, support};
+      }
+      if (seed_best.support < 4) continue;
+      seed_best.support = support_of(seed_best.T_model_scan, scan, model, matches, d2max, nullptr);
+      keep_best(best, seed_best, p);
+    }
+  });
+  for (const auto& chunk : chunk_best) {
+    for (const Hypothesis& h : chunk)
+      keep_best(kept, h, p);
+  }
+  // Refit each on its supporters (twice: the refit gains supporters), then order again.
+  std::vector<Hypothesis> refined;
+  std::vector<std::uint32_t> supporters;
+  std::vector<Vec3> src, dst;
+  for (const Hypothesis& h : kept) {
+    Hypothesis r = h;
+    for (int round = 0; round < 2; ++round) {
+      supporters.clear();
+      support_of(r.T_model_scan, scan, model, matches, d2max, &supporters);
+      src.clear();
+      dst.clear();
+      for (std::uint32_t k : supporters) {
+        src.push_back(scan[matches[k].scan]);
+        dst.push_back(model[matches[k].model]);
+      }
+      Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+      if (!fit_rigid(src, dst, T)) break;
+      const std::size_t support = support_of(T, scan, model, matches, d2max, nullptr);
+      if (support < r.support) break;
+      r = {T, support};
+    }
+    refined.push_back(r);
+  }
+  std::vector<Hypothesis> out;
+  for (const Hypothesis& h : refined)
+    keep_best(out, h, p);
+  return out;
+}
+
+}  // namespace nurbsreg::registration::detail

@@ -1,0 +1,55 @@
+#include "nurbsreg/registration/model_features.hpp"
+
+#include <cmath>
+#include <stdexcept>
+
+#include "features.hpp"
+#include "nurbsreg/engine/sampling.hpp"
+#include "point_grid.hpp"
+
+namespace nurbsreg::registration {
+
+ModelFeatures::ModelFeatures(const engine::PreparedModel& model, FeatureOptions options)
+    : model_(model), options_(options) {
+  if (model.model().surfaces.empty()) {
+    throw std::runtime_error("the model has no surfaces to align a scan to");
+  }
+  area_ = engine::surface_area(model.model());
+  if (!(area_ > 0.0) || !std::isfinite(area_)) {
+    throw std::runtime_error("the model's surfaces have no area to align a scan to");
+  }
+  voxel_ = std::sqrt(area_ / static_cast<double>(std::max<std::size_t>(options_.keypoints, 16)));
+}
+
+const ModelKeypoints& ModelFeatures::keypoints() const {
+  std::call_once(keypoints_once_, [&] {
+    // Four draws per voxel, then the draw nearest each voxel's centroid: samples spread like the
+    // voxelised scan's points (a plain random draw clumps), each with its exact normal.
+    const std::vector<engine::SurfaceSample> samples =
+        engine::sample_surfaces(model_.model(), 4 * options_.keypoints, options_.seed);
+    std::vector<engine::Vec3> points(samples.size());
+    for (std::size_t i = 0; i < samples.size(); ++i)
+      points[i] = samples[i].point;
+    const detail::Voxelised v = detail::voxelise(points, voxel_);
+    keypoints_.points.reserve(v.nearest.size());
+    keypoints_.normals.reserve(v.nearest.size());
+    for (std::uint32_t i : v.nearest) {
+      keypoints_.points.push_back(samples[i].point);
+      keypoints_.normals.push_back(samples[i].normal);
+    }
+  });
+  return keypoints_;
+}
+
+const Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>&
+ModelFeatures::descriptors() const {
+  std::call_once(descriptors_once_, [&] {
+    const ModelKeypoints& k = keypoints();
+    const double radius = options_.feature_radius * voxel_;
+    const detail::PointGrid grid(k.points, radius);
+    descriptors_ = detail::describe(k.points, k.normals, grid, radius);
+  });
+  return descriptors_;
+}
+
+}  // namespace nurbsreg::registration

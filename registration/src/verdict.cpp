@@ -1,0 +1,82 @@
+#include "verdict.hpp"
+
+#include <spdlog/fmt/fmt.h>
+
+#include <cmath>
+#include <unordered_set>
+
+namespace nurbsreg::registration::detail {
+namespace {
+
+std::uint64_t voxel_key(const engine::Vec3& p, double voxel, std::int64_t dx = 0,
+                        std::int64_t dy = 0, std::int64_t dz = 0) {
+  const auto c = [&](double x, std::int64_t d) {
+    return static_cast<std::uint64_t>(static_cast<std::int64_t>(std::floor(x / voxel)) + d +
+                                      (std::int64_t{1} << 20)) &
+           ((std::uint64_t{1} << 21) - 1);
+  };
+  return (c(p.x(), dx) << 42) | (c(p.y(), dy) << 21) | c(p.z(), dz);
+}
+
+// Fraction of the model's keypoints with an inlier in their voxel or a neighbouring one.
+double coverage_of(std::span<const engine::Vec3> aligned, std::span<const double> distances,
+                   double tolerance, const ModelFeatures& features) {
+  const ModelKeypoints& k = features.keypoints();
+  if (k.points.empty()) return 0.0;
+  const double voxel = features.voxel();
+  std::unordered_set<std::uint64_t> occupied;
+  // At most ~200k inliers are hashed (every s-th point): a voxel holds many of them anyway.
+  const std::size_t stride = std::max<std::size_t>(1, aligned.size() / 200000);
+  for (std::size_t i = 0; i < aligned.size(); i += stride) {
+    if (distances[i] <= tolerance) occupied.insert(voxel_key(aligned[i], voxel));
+  }
+  std::size_t covered = 0;
+  for (const engine::Vec3& p : k.points) {
+    bool near = false;
+    for (int dx = -1; dx <= 1 && !near; ++dx)
+      for (int dy = -1; dy <= 1 && !near; ++dy)
+        for (int dz = -1; dz <= 1 && !near; ++dz)
+          near = occupied.count(voxel_key(p, voxel, dx, dy, dz)) != 0;
+    covered += near;
+  }
+  return static_cast<double>(covered) / static_cast<double>(k.points.size());
+}
+
+}  // namespace
+
+FitVerdict judge_fit(std::span<const engine::Vec3> aligned, std::span<const double> distances,
+                     double noise, double scan_diagonal, const ModelFeatures& features,
+                     const VerdictOptions& o) {
+  FitVerdict v;
+  v.evaluated = true;
+  v.noise = noise;
+  v.tolerance = std::max(o.tolerance_sigmas * noise, 1e-5 * scan_diagonal);
+  std::size_t inliers = 0;
+  double sum_sq = 0.0;
+  for (double d : distances) {
+    if (!(d <= v.tolerance)) continue;
+    ++inliers;
+    sum_sq += d * d;
+  }
+  const double n = static_cast<double>(std::max<std::size_t>(distances.size(), 1));
+  v.inlier_fraction = static_cast<double>(inliers) / n;
+  v.rms = inliers > 0 ? std::sqrt(sum_sq / static_cast<double>(inliers)) : 0.0;
+  v.rms_ratio = noise > 0.0 ? v.rms / noise : 0.0;
+  v.coverage = coverage_of(aligned, distances, v.tolerance, features);
+  if (v.inlier_fraction < o.min_inlier_fraction) {
+    v.reason = fmt::format(
+        "poor fit: {:.1f}% of the points lie within {:.3g} of the model ({:g} x the scan's noise "
+        "{:.3g}), fewer than {:.0f}%",
+        100.0 * v.inlier_fraction, v.tolerance, o.tolerance_sigmas, noise,
+        100.0 * o.min_inlier_fraction);
+  } else if (v.coverage < o.min_coverage) {
+    v.reason = fmt::format(
+        "poor fit: the inliers cover {:.1f}% of the model's surface, less than {:.0f}% (a small "
+        "patch fits anywhere)",
+        100.0 * v.coverage, 100.0 * o.min_coverage);
+  }
+  v.good = v.reason.empty();
+  return v;
+}
+
+}  // namespace nurbsreg::registration::detail
