@@ -53,8 +53,7 @@ void run_align(const AlignArgs& args) {
   const icp::IcpOptions options = icp_options(args.icp);
   engine::Model model = load_model_file(args.model);
   if (model.surfaces.empty()) throw UsageError(args.model + ": align needs a model with surfaces");
-  const io::PointCloud cloud = io::read_point_cloud(args.scan);
-  if (cloud.size() == 0) throw io::InputError(args.scan, "no finite points to align");
+  const io::PointCloud cloud = io::read_scan(args.scan);
   Eigen::Isometry3d init = Eigen::Isometry3d::Identity();
   if (!args.init.empty()) init.matrix() = io::read_pose(args.init);
   spdlog::info("{}: {} points ({} skipped: NaN or infinite)", args.scan, cloud.size(),
