@@ -54,8 +54,7 @@ void run_align(const AlignArgs& args) {
   const icp::IcpOptions options = icp_options(args.icp);
   engine::Model model = load_model_file(args.model);
   if (model.surfaces.empty()) throw UsageError(args.model + ": align needs a model with surfaces");
-  const io::PointCloud cloud = io::read_point_cloud(args.scan);
-  if (cloud.size() == 0) throw io::InputError(args.scan, "no finite points to align");
+  const io::PointCloud cloud = io::read_scan(args.scan);
   const registration::AlignRequest request = align_request(args.init, args.global);
   spdlog::info("{}: {} points ({} skipped: NaN or infinite)", args.scan, cloud.size(),
                cloud.skipped_nonfinite);

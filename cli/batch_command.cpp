@@ -513,15 +513,11 @@ void run_batch(const BatchArgs& args) {
           // The old marker goes first: from here until the new one is written the
           // frame is incomplete, whatever outputs exist.
           clear_frame(frame, out_dir);
-          token->cloud = io::read_point_cloud(frame.input);
+          // An inspection frame without points is a fault of the scanner or the transfer:
+          // read_scan says so, as for the single commands.
+          token->cloud = io::read_scan(frame.input);
           token->row.points = token->cloud.size();
           token->row.skipped = token->cloud.skipped_nonfinite;
-          // An inspection frame without points is a fault of the scanner or the transfer, in
-          // both modes (a single `project` would write an empty table).
-          if (token->cloud.size() == 0) {
-            throw io::InputError(
-                frame.input, align ? "no finite points to align" : "no finite points to project");
-          }
         } catch (const std::exception& e) {
           fail(*token, frame, e.what());
         }

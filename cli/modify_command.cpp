@@ -93,7 +93,7 @@ void run_modify(const ModifyArgs& args) {
     }
     source = args.targets;
   } else {
-    const io::PointCloud cloud = io::read_point_cloud(args.points);
+    const io::PointCloud cloud = io::read_scan(args.points);
     targets = io::nearest_scan_targets(cloud.points, noses, args.points);
     source = args.points + " (nearest of " + std::to_string(cloud.size()) + " points)";
   }

@@ -29,7 +29,7 @@ void run_project(const ProjectArgs& args) {
   engine::Model model = load_model_file(args.model);
   const engine::ProjectionTarget target = parse_projection_target(args.target);
   check_projection_target(model, target, args.model);
-  const io::PointCloud cloud = io::read_point_cloud(args.points);
+  const io::PointCloud cloud = io::read_scan(args.points);
   spdlog::info("{}: {} points read, {} skipped (NaN or infinite)", args.points, cloud.size(),
                cloud.skipped_nonfinite);
 
@@ -44,12 +44,6 @@ void run_project(const ProjectArgs& args) {
 
   engine::Projector projector(prepared);
   const ProjectFrameResult r = project_frame(projector, cloud, target, args.out, true);
-  if (r.points == 0) {
-    // An empty table is written (a pipeline may expect the file), but no statistics of nothing.
-    spdlog::warn("{}: no finite points to project ({} skipped); wrote an empty table {}",
-                 args.points, r.skipped, args.out);
-    return;
-  }
   spdlog::info(
       "{} points projected, {} skipped; distance min {:.6g} mean {:.6g} max {:.6g}; {:.0f} "
       "points/s; wrote {} ({:.2f} s total)",

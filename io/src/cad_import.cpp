@@ -31,26 +31,33 @@
 #include <chrono>
 #include <cmath>
 #include <csignal>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <mutex>
 #include <optional>
 #include <span>
+#include <string_view>
 
 #include <spdlog/spdlog.h>
 
 #include "cad_face_conversion.hpp"
+#include "cad_isolation.hpp"
 #include "nurbsreg/io/errors.hpp"
+#include "nurbsreg/io/model_json.hpp"
+#include "text_io.hpp"
 
 namespace nurbsreg::io {
-namespace {
 
 // OCCT's data-exchange session (Interface_Static parameters, the shared XSControl
 // controllers) is global state: one import at a time.
-std::mutex& occt_mutex() {
+std::mutex& cad_detail::occt_mutex() {
   static std::mutex m;
   return m;
 }
+
+namespace {
+using cad_detail::occt_mutex;
 
 std::string status_text(IFSelect_ReturnStatus status) {
   switch (status) {
@@ -246,12 +253,13 @@ class CrashSignalsAsExceptions {
 
 // Runs an import with OCCT's exceptions (and crashes inside OCCT) turned into InputError.
 template <class Import>
-engine::Model guarded(const std::string& path, CadImportReport* report, Import&& import) {
-  check_readable(path);
+engine::Model guarded(const std::string& path, CadImportReport* report, bool take_lock,
+                      Import&& import) {
   CadImportReport local;
   CadImportReport& r = report != nullptr ? *report : local;
   r = CadImportReport{};
-  std::lock_guard<std::mutex> lock(occt_mutex());
+  std::unique_lock<std::mutex> lock(occt_mutex(), std::defer_lock);
+  if (take_lock) lock.lock();
   // OCCT's readers print progress ("Total number of loaded entities") to stdout, which belongs
   // to the CLI's results: silence the default messenger (warnings are reported our way).
   Message::DefaultMessenger()->ChangePrinters().Clear();
@@ -267,40 +275,65 @@ engine::Model guarded(const std::string& path, CadImportReport* report, Import&&
 
 }  // namespace
 
+namespace cad_detail {
+
+engine::Model import_in_process(const std::string& path, CadImportReport* report, bool take_lock) {
+  const std::string ext = text_detail::lower_extension(path);
+  if (ext == ".step" || ext == ".stp") {
+    return guarded(path, report, take_lock, [&](CadImportReport& r) {
+      r.format = "STEP";
+      STEPControl_Reader reader;
+      const TopoDS_Shape shape = transfer(path, reader);
+      TColStd_SequenceOfAsciiString lengths, angles, solid_angles;
+      reader.FileUnits(lengths, angles, solid_angles);
+      if (!lengths.IsEmpty()) r.file_units = lengths.First().ToCString();
+      return convert_shape(path, shape, r);
+    });
+  }
+  if (ext == ".iges" || ext == ".igs") {
+    return guarded(path, report, take_lock, [&](CadImportReport& r) {
+      r.format = "IGES";
+      check_iges_complete(path);
+      IGESControl_Reader reader;
+      const TopoDS_Shape shape = transfer(path, reader);
+      const Handle(IGESData_IGESModel) model = reader.IGESModel();
+      if (!model.IsNull()) {
+        const Handle(TCollection_HAsciiString) unit = model->GlobalSection().UnitName();
+        if (!unit.IsNull()) r.file_units = unit->ToCString();
+      }
+      return convert_shape(path, shape, r);
+    });
+  }
+  throw InputError(path, "not a CAD file: expected a .step, .stp, .iges or .igs file");
+}
+
+}  // namespace cad_detail
+
+engine::Model read_cad_file(const std::string& path, CadImportReport* report) {
+  const std::string ext = text_detail::lower_extension(path);
+  if (ext != ".step" && ext != ".stp" && ext != ".iges" && ext != ".igs") {
+    throw InputError(path, "not a CAD file: expected a .step, .stp, .iges or .igs file");
+  }
+  check_readable(path);
+  const char* in_process = std::getenv("NURBSREG_CAD_IN_PROCESS");
+  if (in_process != nullptr && std::string_view(in_process) == "1") {
+    engine::Model model = cad_detail::import_in_process(path, report);
+    // The same load-time checks as the isolated path (which reads the model back as JSON).
+    return parse_model(model_to_json(model), path);
+  }
+  return cad_detail::import_isolated(path, report);
+}
+
 engine::Model read_step(const std::string& path, CadImportReport* report) {
-  return guarded(path, report, [&](CadImportReport& r) {
-    r.format = "STEP";
-    STEPControl_Reader reader;
-    const TopoDS_Shape shape = transfer(path, reader);
-    TColStd_SequenceOfAsciiString lengths, angles, solid_angles;
-    reader.FileUnits(lengths, angles, solid_angles);
-    if (!lengths.IsEmpty()) r.file_units = lengths.First().ToCString();
-    return convert_shape(path, shape, r);
-  });
+  const std::string ext = text_detail::lower_extension(path);
+  if (ext != ".step" && ext != ".stp") throw InputError(path, "not a STEP file (.step, .stp)");
+  return read_cad_file(path, report);
 }
 
 engine::Model read_iges(const std::string& path, CadImportReport* report) {
-  return guarded(path, report, [&](CadImportReport& r) {
-    r.format = "IGES";
-    check_iges_complete(path);
-    IGESControl_Reader reader;
-    const TopoDS_Shape shape = transfer(path, reader);
-    const Handle(IGESData_IGESModel) model = reader.IGESModel();
-    if (!model.IsNull()) {
-      const Handle(TCollection_HAsciiString) unit = model->GlobalSection().UnitName();
-      if (!unit.IsNull()) r.file_units = unit->ToCString();
-    }
-    return convert_shape(path, shape, r);
-  });
-}
-
-engine::Model read_cad_file(const std::string& path, CadImportReport* report) {
-  std::string ext = std::filesystem::path(path).extension().string();
-  std::transform(ext.begin(), ext.end(), ext.begin(),
-                 [](unsigned char ch) { return static_cast<char>(std::tolower(ch)); });
-  if (ext == ".step" || ext == ".stp") return read_step(path, report);
-  if (ext == ".iges" || ext == ".igs") return read_iges(path, report);
-  throw InputError(path, "not a CAD file: expected a .step, .stp, .iges or .igs file");
+  const std::string ext = text_detail::lower_extension(path);
+  if (ext != ".iges" && ext != ".igs") throw InputError(path, "not an IGES file (.iges, .igs)");
+  return read_cad_file(path, report);
 }
 
 }  // namespace nurbsreg::io

@@ -3,6 +3,7 @@
 #include <cmath>
 #include <nlohmann/json.hpp>
 
+#include "model_ranges.hpp"
 #include "nurbsreg/io/atomic_file.hpp"
 #include "nurbsreg/io/errors.hpp"
 #include "text_io.hpp"
@@ -48,7 +49,8 @@ class EntityReader {
 
   // Adds `"name"` to the label once the entity's name is known.
   void set_name(const std::string& name) {
-    if (!name.empty()) label_ += " \"" + name + "\"";
+    // Escaped (text_io.hpp), so that a message stays one printable line whatever the name.
+    if (!name.empty()) label_ += " " + text_detail::quote_name(name);
   }
   const std::string& label() const { return label_; }
 
@@ -517,6 +519,10 @@ engine::Model parse_model(std::string_view text, const std::string& file_label) 
   // The reader checked shapes; the engine's validate() owns the geometric rules (finite values,
   // weights > 0, knots), so the two can never disagree about what a valid model is.
   if (auto error = model.validate()) throw InputError(file_label, *error);
+  // Valid, but also within what the exact projection can represent and what one model may
+  // cost (input_ranges.hpp, resource_limits.hpp).
+  detail::check_model_ranges(model, file_label);
+  detail::check_model_size(model, file_label);
   return model;
 }
 

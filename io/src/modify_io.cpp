@@ -2,7 +2,6 @@
 
 #include <charconv>
 #include <cmath>
-#include <fstream>
 #include <set>
 #include <sstream>
 #include <string_view>
@@ -12,6 +11,7 @@
 
 #include "nurbsreg/io/atomic_file.hpp"
 #include "nurbsreg/io/errors.hpp"
+#include "text_io.hpp"
 
 namespace nurbsreg::io {
 
@@ -25,25 +25,6 @@ std::string_view trim(std::string_view s) {
   return s;
 }
 
-std::vector<std::string_view> split_commas(std::string_view line) {
-  std::vector<std::string_view> out;
-  std::size_t start = 0;
-  while (true) {
-    const std::size_t comma = line.find(',', start);
-    out.push_back(
-        trim(line.substr(start, comma == std::string_view::npos ? comma : comma - start)));
-    if (comma == std::string_view::npos) break;
-    start = comma + 1;
-  }
-  return out;
-}
-
-bool parse_double(std::string_view token, double& value) {
-  if (!token.empty() && token.front() == '+') token.remove_prefix(1);
-  const auto r = std::from_chars(token.data(), token.data() + token.size(), value);
-  return r.ec == std::errc() && r.ptr == token.data() + token.size();
-}
-
 bool parse_index(std::string_view token, int& value) {
   const auto r = std::from_chars(token.data(), token.data() + token.size(), value);
   return r.ec == std::errc() && r.ptr == token.data() + token.size() && value >= 0;
@@ -52,9 +33,8 @@ bool parse_index(std::string_view token, int& value) {
 }  // namespace
 
 std::vector<engine::SegmentTarget> read_modify_targets(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw InputError(path, "cannot open the targets file");
-  std::string line;
+  const std::string text = text_detail::read_text_file(path);
+  std::vector<std::string_view> cells;
   int line_number = 0;
   int col_segment = -1;
   int col_x = -1;
@@ -64,15 +44,19 @@ std::vector<engine::SegmentTarget> read_modify_targets(const std::string& path) 
   std::vector<engine::SegmentTarget> targets;
   std::set<int> seen;
   auto where = [&] { return "line " + std::to_string(line_number) + ": "; };
-  while (std::getline(in, line)) {
+  std::size_t start = 0;
+  while (start < text.size()) {
+    std::size_t end = text.find('\n', start);
+    if (end == std::string::npos) end = text.size();
+    std::string_view view(text.data() + start, end - start);
+    start = end + 1;
     ++line_number;
-    std::string_view view(line);
     if (const std::size_t hash = view.find('#'); hash != std::string_view::npos) {
       view = view.substr(0, hash);
     }
     view = trim(view);
     if (view.empty()) continue;
-    const std::vector<std::string_view> cells = split_commas(view);
+    text_detail::split_csv(view, cells);
     if (!have_header) {
       for (int c = 0; c < static_cast<int>(cells.size()); ++c) {
         if (cells[c] == "segment") col_segment = c;
@@ -81,8 +65,8 @@ std::vector<engine::SegmentTarget> read_modify_targets(const std::string& path) 
         if (cells[c] == "z") col_z = c;
       }
       if (col_segment < 0 || col_x < 0 || col_y < 0) {
-        throw InputError(path, where() + "expected the header `segment,x,y,z` (z optional), got `" +
-                                   std::string(view) + "`");
+        throw InputError(path, where() + "expected the header `segment,x,y,z` (z optional), got " +
+                                   text_detail::quote(view));
       }
       have_header = true;
       continue;
@@ -94,16 +78,16 @@ std::vector<engine::SegmentTarget> read_modify_targets(const std::string& path) 
     }
     engine::SegmentTarget t;
     if (!parse_index(cells[col_segment], t.segment)) {
-      throw InputError(path, where() + "segment: expected a 0-based integer, got `" +
-                                 std::string(cells[col_segment]) + "`");
+      throw InputError(path, where() + "segment: expected a 0-based integer, got " +
+                                 text_detail::quote(cells[col_segment]));
     }
     const int cols[3] = {col_x, col_y, col_z};
     const char* names[3] = {"x", "y", "z"};
     for (int k = 0; k < 3; ++k) {
       double v = 0.0;
-      if (cols[k] >= 0 && !(parse_double(cells[cols[k]], v) && std::isfinite(v))) {
-        throw InputError(path, where() + names[k] + ": expected a finite number, got `" +
-                                   std::string(cells[cols[k]]) + "`");
+      if (cols[k] >= 0 && !(text_detail::parse_number(cells[cols[k]], v) && std::isfinite(v))) {
+        throw InputError(path, where() + names[k] + ": expected a finite number, got " +
+                                   text_detail::quote(cells[cols[k]]));
       }
       t.point[k] = v;
     }
@@ -113,7 +97,6 @@ std::vector<engine::SegmentTarget> read_modify_targets(const std::string& path) 
     }
     targets.push_back(t);
   }
-  if (in.bad()) throw InputError(path, "read error");
   if (!have_header) throw InputError(path, "empty file (expected the header `segment,x,y,z`)");
   if (targets.empty()) throw InputError(path, "no target rows after the header");
   return targets;

@@ -12,17 +12,21 @@
 
 #include "nurbsreg/io/errors.hpp"
 #include "nurbsreg/io/point_cloud.hpp"
+#include "text_io.hpp"
 
 namespace nurbsreg::io::detail {
 
-// The whole file as bytes. Throws InputError when it cannot be opened or read.
-std::string read_file(const std::string& path);
+using text_detail::kUtf8Bom;
+using text_detail::lower_extension;
+using text_detail::parse_number;
+using text_detail::quote;
+using text_detail::read_text_file;
 
-// Byte-order mark that some editors and spreadsheets put at the start of text files.
-inline constexpr std::string_view kUtf8Bom = "\xEF\xBB\xBF";
-
-// Lower-case extension including the dot (".pcd"), empty when there is none.
-std::string lower_extension(const std::string& path);
+// The error for a cloud of more than `limit` points (resource_limits.hpp).
+InputError too_many_points(const std::string& path, std::uint64_t limit);
+// Throws InputError naming the first point with a coordinate beyond kMaxCoordinate
+// (input_ranges.hpp).
+void check_coordinate_range(const std::string& path, const PointCloud& cloud);
 
 // Readers of the individual formats; they fill `cloud` (initially empty) and throw InputError.
 void read_pcd(const std::string& path, PointCloud& cloud);
@@ -62,18 +66,6 @@ struct PcdData {
 PcdData read_pcd_data(const std::string& path);
 PcdData parse_pcd_data(const std::string& path, const std::string& data);
 
-// A token from the file for an error message: quoted, at most 40 characters, control and
-// non-ASCII bytes shown as '?' so that the message stays one printable line.
-inline std::string quote(std::string_view token) {
-  constexpr std::size_t kMax = 40;
-  std::string out = "'";
-  for (const char c : token.substr(0, kMax)) {
-    out.push_back(c >= 0x20 && c < 0x7f ? c : '?');
-  }
-  if (token.size() > kMax) out += "...";
-  return out + "'";
-}
-
 // Appends point `index` of the file, or counts it as skipped when a coordinate is not finite.
 inline void add_point(PointCloud& cloud, double x, double y, double z) {
   const std::uint64_t index = cloud.total++;
@@ -85,30 +77,6 @@ inline void add_point(PointCloud& cloud, double x, double y, double z) {
   cloud.source_index.push_back(index);
 }
 
-// Parses a whole token as a double. Accepts what std::from_chars accepts (including `nan`,
-// `inf`, `infinity` in any case) plus a leading '+'. Returns false unless the entire token is a
-// number.
-inline bool parse_double(std::string_view token, double& value) {
-  const char* first = token.data();
-  const char* last = first + token.size();
-  if (first != last && *first == '+') ++first;
-  if (first == last) return false;
-  const auto [end, ec] = std::from_chars(first, last, value);
-  // Out-of-range magnitudes (1e999) become inf/0 like strtod would; anything else is an error.
-  if (ec == std::errc::result_out_of_range) {
-    value = std::strtod(std::string(token).c_str(), nullptr);
-    return end == last;
-  }
-  return ec == std::errc() && end == last;
-}
-
-// Shortest representation that reads back to the identical value (std::to_chars without a
-// format, C++17 [charconv]); integers print exactly.
-template <class T>
-inline void append_number(std::string& out, T value) {
-  char buffer[32];
-  const auto result = std::to_chars(buffer, buffer + sizeof buffer, value);
-  out.append(buffer, result.ptr);
-}
+using text_detail::append_number;
 
 }  // namespace nurbsreg::io::detail

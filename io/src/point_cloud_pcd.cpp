@@ -1,51 +1,34 @@
-// PCD reader (PCL's Point Cloud Data format, v0.5-v0.7).
+// PCD reader (PCL's Point Cloud Data format, v0.5-v0.7), entirely ours.
 //
-// PCL's PCDReader parses the header and decodes binary and binary_compressed bodies (LZF,
-// structure of arrays). PCL trusts the header: it resizes its buffer to POINTS x point_step
-// before looking at the file size and reads binary bodies without bounds checks, so a truncated
-// or corrupt file could make it allocate gigabytes or read past the end. We therefore check the
-// header numbers against the file size ourselves first (prescan_header, check_body_size) and
-// only then hand the body to PCL. ASCII bodies we parse ourselves: PCL turns a bad token into 0
-// without an error, while we owe the user `line N: ...`.
-#include <pcl/PCLPointCloud2.h>
-#include <pcl/console/print.h>
-#include <pcl/io/pcd_io.h>
-
+// A header can claim any size, so every count is checked with overflow-safe arithmetic and
+// against the bytes the file really has before anything is allocated: nothing a header says
+// makes us allocate more than a small multiple of the file's size. PCL's PCDReader is not used:
+// it resizes its buffer to POINTS x point_step before looking at the file size (8.6 GB from a
+// 102-byte file whose COUNTs wrap), and its binary_compressed decoder lays out `_` fields
+// differently from its binary one. The layout rules (PCL's own):
+//  - a row is the fields in order, each SIZE x COUNT bytes, no alignment (binary); the same
+//    values as text, one row a line (ascii); for binary_compressed, uint32 compressed size,
+//    uint32 uncompressed size, then LZF data that decompresses to the fields' planes one after
+//    the other (structure of arrays: all x, then all y, ...);
+//  - `_` names a padding field: laid out like any other field in every encoding, never read;
+//  - COUNT 0 is rejected by name: PCL writes COUNT >= 1, and a zero-width x/y/z would be read
+//    from its neighbour's bytes;
+//  - ascii bodies hold exactly POINTS rows (POINTS 0 with rows is an error); binary bodies at
+//    least POINTS rows (trailing bytes ignored, as PCL does), for POINTS 0 too.
+// ASCII numbers go through the project's one number parser (text_io.hpp): PCL would turn a
+// bad token into 0 without an error, while we owe the user `line N: ...`.
 #include <algorithm>
 #include <array>
 #include <bit>
 #include <charconv>
 #include <cstring>
 #include <limits>
-#include <mutex>
-#include <sstream>
 
+#include "nurbsreg/io/resource_limits.hpp"
 #include "point_cloud_detail.hpp"
 
 namespace nurbsreg::io::detail {
 namespace {
-
-// PCL reports problems on its console; we report them as exceptions instead, so its output is
-// silenced while we call it (and restored after, for applications that use PCL themselves).
-// The verbosity is a PCL global: the lock keeps concurrent reads from restoring each other's
-// "silenced" level for good (it serialises only the PCL decoding step).
-class QuietPcl {
- public:
-  QuietPcl() : lock_(mutex()), saved_(pcl::console::getVerbosityLevel()) {
-    pcl::console::setVerbosityLevel(pcl::console::L_ALWAYS);
-  }
-  ~QuietPcl() { pcl::console::setVerbosityLevel(saved_); }
-  QuietPcl(const QuietPcl&) = delete;
-  QuietPcl& operator=(const QuietPcl&) = delete;
-
- private:
-  static std::mutex& mutex() {
-    static std::mutex m;
-    return m;
-  }
-  std::lock_guard<std::mutex> lock_;
-  pcl::console::VERBOSITY_LEVEL saved_;
-};
 
 struct Prescan {
   std::size_t header_end = 0;  // offset of the first body byte
@@ -226,7 +209,7 @@ void check_body_size(const std::string& path, const std::string& data, const Pre
                     " differs from POINTS x point size = " + std::to_string(bytes));
   }
   // LZF cannot expand by more than about 100x (a 3-byte back reference copies <= 264 bytes), so
-  // a larger claim is corrupt, and refusing it keeps PCL from allocating for it.
+  // a larger claim is corrupt, and refusing it keeps us from allocating for it.
   if (bytes > 100 * static_cast<std::uint64_t>(compressed) + 1024) {
     throw truncated("uncompressed size " + std::to_string(uncompressed) + " is impossible for " +
                     std::to_string(compressed) + " compressed bytes");
@@ -235,6 +218,21 @@ void check_body_size(const std::string& path, const std::string& data, const Pre
 
 void read_ascii_body(const std::string& path, const std::string& data, const Prescan& h,
                      PcdData& out) {
+  if (h.points == 0) {
+    // No rows to hold (and values_per_point may be anything): any content is an error.
+    const std::string_view body(data.data() + h.header_end, data.size() - h.header_end);
+    if (body.find_first_not_of(" \t\r\n") != std::string_view::npos) {
+      throw InputError(
+          path, "line " +
+                    std::to_string(h.header_lines + 1 +
+                                   std::count(body.begin(),
+                                              body.begin() + static_cast<std::ptrdiff_t>(
+                                                                 body.find_first_not_of(" \t\r\n")),
+                                              '\n')) +
+                    ": more data than POINTS 0");
+    }
+    return;
+  }
   out.values.resize(h.points * out.values_per_point);
   // A value of a TYPE F SIZE 4 field is a float, as in binary files: round the text to float so
   // that the encoding does not change the coordinates.
@@ -271,8 +269,9 @@ void read_ascii_body(const std::string& path, const std::string& data, const Pre
         row = out.values.data() + point * out.values_per_point;
       }
       if (k == out.values_per_point) break;  // counted below as too many values
-      if (!parse_double(token, row[k])) {
-        throw InputError(path, "line " + std::to_string(line) + ": not a number: " + quote(token));
+      if (!parse_number(token, row[k])) {
+        throw InputError(path,
+                         "line " + std::to_string(line) + ": " + text_detail::bad_number(token));
       }
       if (is_float[k]) row[k] = static_cast<float>(row[k]);
       ++k;
@@ -291,53 +290,71 @@ void read_ascii_body(const std::string& path, const std::string& data, const Pre
   }
 }
 
+// LZF decompression (Marc Lehmann's liblzf format, which PCL's lzf.cpp implements): a control
+// byte below 32 starts a literal run of ctrl + 1 bytes; otherwise its top three bits are a
+// length (7: add the next byte) and, with the next byte, a back reference of length + 2 bytes
+// at distance ((ctrl & 31) << 8) + byte + 1. Every read and write is bounds-checked: false on
+// any inconsistency, and true only when the output is filled exactly.
+bool lzf_decompress(const std::uint8_t* in, std::size_t in_size, std::uint8_t* out,
+                    std::size_t out_size) {
+  const std::uint8_t* ip = in;
+  const std::uint8_t* const in_end = in + in_size;
+  std::uint8_t* op = out;
+  std::uint8_t* const out_end = out + out_size;
+  while (ip < in_end) {
+    const unsigned ctrl = *ip++;
+    if (ctrl < 32) {
+      const std::size_t run = ctrl + 1;
+      if (static_cast<std::size_t>(in_end - ip) < run) return false;
+      if (static_cast<std::size_t>(out_end - op) < run) return false;
+      std::memcpy(op, ip, run);
+      ip += run;
+      op += run;
+      continue;
+    }
+    std::size_t length = ctrl >> 5;
+    if (length == 7) {
+      if (ip == in_end) return false;
+      length += *ip++;
+    }
+    if (ip == in_end) return false;
+    const std::size_t distance = ((ctrl & 31u) << 8) + *ip++ + 1;
+    length += 2;
+    if (distance > static_cast<std::size_t>(op - out)) return false;
+    if (static_cast<std::size_t>(out_end - op) < length) return false;
+    const std::uint8_t* ref = op - distance;
+    for (std::size_t k = 0; k < length; ++k)  // byte by byte: the ranges may overlap
+      *op++ = *ref++;
+  }
+  return op == out_end;
+}
+
 void read_binary_body(const std::string& path, const std::string& data, const Prescan& h,
                       PcdData& out) {
-  // Only now, with the sizes checked, does PCL see the file.
-  const QuietPcl quiet;
-  pcl::PCDReader reader;
-  pcl::PCLPointCloud2 cloud;
-  Eigen::Vector4f origin;
-  Eigen::Quaternionf orientation;
-  int version = 0, data_type = 0;
-  unsigned int data_idx = 0;
-  int status = -1;
-  try {
-    std::istringstream header(data.substr(0, h.header_end));
-    status = reader.readHeader(header, cloud, origin, orientation, version, data_type, data_idx);
-    if (status < 0) throw InputError(path, "malformed PCD header (rejected by PCL)");
-    if (cloud.data.size() != h.points * out.point_step) {
-      throw InputError(path, "PCD header: PCL computes " + std::to_string(cloud.data.size()) +
-                                 " data bytes, expected " +
-                                 std::to_string(h.points * out.point_step));
+  // check_body_size has bounded points x point_step by the file's bytes.
+  const std::size_t bytes = h.points * out.point_step;
+  const auto* body = reinterpret_cast<const std::uint8_t*>(data.data()) + h.header_end;
+  if (h.data_type == "binary") {
+    out.rows.assign(body, body + bytes);
+    return;
+  }
+  std::uint32_t compressed = 0;
+  std::memcpy(&compressed, body, 4);
+  std::vector<std::uint8_t> planes(bytes);
+  if (!lzf_decompress(body + 8, compressed, planes.data(), planes.size())) {
+    throw InputError(path, "corrupt binary_compressed data (LZF decompression failed)");
+  }
+  // Structure of arrays -> rows: field f's plane holds points x (size x count) bytes.
+  out.rows.resize(bytes);
+  std::size_t plane = 0;
+  for (const PcdField& f : out.fields) {
+    const std::size_t width = f.size * f.count;
+    for (std::size_t i = 0; i < h.points; ++i) {
+      std::memcpy(out.rows.data() + i * out.point_step + f.offset,
+                  planes.data() + plane + i * width, width);
     }
-    // Our row layout (PcdField::offset) must be PCL's, or the values would be read wrongly.
-    for (const PcdField& ours : out.fields) {
-      for (const pcl::PCLPointField& theirs : cloud.fields) {
-        if (theirs.name == ours.name && theirs.offset != ours.offset) {
-          throw InputError(path, "PCD header: field '" + ours.name + "' at byte " +
-                                     std::to_string(theirs.offset) + " for PCL, " +
-                                     std::to_string(ours.offset) + " by FIELDS/SIZE/COUNT");
-        }
-      }
-    }
-    status = reader.readBodyBinary(reinterpret_cast<const unsigned char*>(data.data()), cloud,
-                                   version, data_type == 2, static_cast<unsigned>(h.header_end));
-  } catch (const InputError&) {
-    throw;
-  } catch (const std::exception& e) {
-    throw InputError(path, std::string("malformed PCD file (") + e.what() + ")");
+    plane += width * h.points;
   }
-  if (status < 0) {
-    throw InputError(path, h.data_type == "binary_compressed"
-                               ? "corrupt binary_compressed data (LZF decompression failed)"
-                               : "corrupt binary PCD data");
-  }
-  if (cloud.data.size() != h.points * out.point_step) {
-    throw InputError(path, "PCD body has " + std::to_string(cloud.data.size()) +
-                               " bytes, expected " + std::to_string(h.points * out.point_step));
-  }
-  out.rows = std::move(cloud.data);
 }
 
 template <class T>
@@ -388,7 +405,7 @@ const PcdField* PcdData::find(std::string_view name) const {
 }
 
 PcdData read_pcd_data(const std::string& path) {
-  return parse_pcd_data(path, read_file(path));
+  return parse_pcd_data(path, read_text_file(path));
 }
 
 PcdData parse_pcd_data(const std::string& path, const std::string& data) {
@@ -400,16 +417,30 @@ PcdData parse_pcd_data(const std::string& path, const std::string& data) {
   out.height = static_cast<std::uint32_t>(h.height);
   out.points = h.points;
   out.ascii = h.data_type == "ascii";
-  std::size_t offset = 0, first = 0;
+  // Row layout with overflow-checked sums: COUNTs come from the file and may be anything
+  // (1 + 2^64 - 1 wraps to 0 and once made the ascii reader write past its buffer).
+  std::uint64_t offset = 0, first = 0;
   for (std::size_t i = 0; i < h.names.size(); ++i) {
+    if (h.counts[i] == 0) {
+      throw InputError(
+          path, "PCD field '" + h.names[i] + "': COUNT 0 (every field holds at least one value)");
+    }
     out.fields.push_back(PcdField{h.names[i], h.types[i], h.sizes[i], h.counts[i], offset, first});
-    offset += h.sizes[i] * h.counts[i];
-    first += h.counts[i];
+    std::uint64_t width = 0;
+    if (__builtin_mul_overflow(h.sizes[i], h.counts[i], &width) ||
+        __builtin_add_overflow(offset, width, &offset) ||
+        __builtin_add_overflow(first, h.counts[i], &first)) {
+      throw InputError(path, "PCD field '" + h.names[i] + "': COUNT " +
+                                 std::to_string(h.counts[i]) + " makes the row size overflow");
+    }
   }
   out.point_step = offset;
   out.values_per_point = first;
   check_body_size(path, data, h, out.point_step, out.values_per_point);
-  if (h.points == 0) return out;
+  // A body that really holds more points than the limit (a truncated claim is reported above).
+  const std::uint64_t max_points = resource_limits().max_points;
+  if (h.points > max_points) throw too_many_points(path, max_points);
+  if (h.points == 0 && !out.ascii) return out;
   if (out.ascii) {
     read_ascii_body(path, data, h, out);
   } else {
@@ -419,7 +450,7 @@ PcdData parse_pcd_data(const std::string& path, const std::string& data) {
 }
 
 void read_pcd(const std::string& path, PointCloud& cloud) {
-  parse_pcd(path, read_file(path), cloud);
+  parse_pcd(path, read_text_file(path), cloud);
 }
 
 void parse_pcd(const std::string& path, const std::string& data, PointCloud& cloud) {

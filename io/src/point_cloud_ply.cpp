@@ -8,10 +8,12 @@
 #include <algorithm>
 #include <array>
 #include <bit>
+#include <charconv>
 #include <cstring>
 #include <optional>
 #include <vector>
 
+#include "nurbsreg/io/resource_limits.hpp"
 #include "point_cloud_detail.hpp"
 
 namespace nurbsreg::io::detail {
@@ -101,6 +103,12 @@ struct Header {
   std::size_t lines = 0;  // header lines, for ascii line numbers
 };
 
+// A whole token as a non-negative integer (counts and list lengths).
+bool parse_count(std::string_view token, std::uint64_t& value) {
+  const auto [end, ec] = std::from_chars(token.data(), token.data() + token.size(), value);
+  return ec == std::errc() && end == token.data() + token.size() && !token.empty();
+}
+
 std::vector<std::string_view> split_words(std::string_view line) {
   std::vector<std::string_view> words;
   std::size_t i = 0;
@@ -150,13 +158,14 @@ Header parse_header(const std::string& path, const std::string& data) {
       }
       have_format = true;
     } else if (key == "element") {
-      double count = -1;
-      if (words.size() != 3 || !parse_double(words[2], count) || count < 0 ||
-          count != static_cast<double>(static_cast<std::uint64_t>(count))) {
-        throw fail("expected 'element <name> <count>'");
+      // An integer token, parsed as one: a count such as 1e30 went through a double before,
+      // and casting that to an integer is undefined behaviour.
+      std::uint64_t count = 0;
+      if (words.size() != 3 || !parse_count(words[2], count)) {
+        throw fail("expected 'element <name> <count>' with a non-negative integer count, got " +
+                   (words.size() == 3 ? quote(words[2]) : std::string("something else")));
       }
-      header.elements.push_back(
-          Element{std::string(words[1]), static_cast<std::uint64_t>(count), {}});
+      header.elements.push_back(Element{std::string(words[1]), count, {}});
     } else if (key == "property") {
       if (header.elements.empty()) throw fail("property before any element");
       Property property;
@@ -238,6 +247,7 @@ class TokenStream {
 
 void read_ascii(const std::string& path, const std::string& data, const Header& header,
                 const VertexLayout& layout, PointCloud& cloud) {
+  const std::uint64_t max_points = resource_limits().max_points;
   TokenStream tokens(data, header.data_offset, header.lines);
   for (std::size_t e = 0; e <= layout.element; ++e) {
     const Element& element = header.elements[e];
@@ -266,17 +276,21 @@ void read_ascii(const std::string& path, const std::string& data, const Header& 
           }
         };
         need();
-        double value = 0.0;
-        if (!parse_double(token, value)) {
-          throw fail("property '" + property.name + "': not a number: " + quote(token));
-        }
         if (property.is_list) {
-          if (value < 0 || value != static_cast<double>(static_cast<std::uint64_t>(value))) {
-            throw fail("property '" + property.name + "': bad list length");
+          std::uint64_t length = 0;
+          if (!parse_count(token, length)) {
+            throw fail("property '" + property.name +
+                       "': list length is not a non-negative integer: " + quote(token));
           }
-          for (auto n = static_cast<std::uint64_t>(value); n > 0; --n)
+          for (; length > 0; --length)  // each item needs a token: ends at the data's end
             need();
-        } else if (is_vertex) {
+          continue;
+        }
+        double value = 0.0;
+        if (!parse_number(token, value)) {
+          throw fail("property '" + property.name + "': " + text_detail::bad_number(token));
+        }
+        if (is_vertex) {
           // A float property holds a float whatever the encoding (binary files agree).
           if (property.type == Scalar::float32) value = static_cast<float>(value);
           for (int axis = 0; axis < 3; ++axis) {
@@ -284,7 +298,10 @@ void read_ascii(const std::string& path, const std::string& data, const Header& 
           }
         }
       }
-      if (is_vertex) add_point(cloud, xyz[0], xyz[1], xyz[2]);
+      if (is_vertex) {
+        if (cloud.total == max_points) throw too_many_points(path, max_points);
+        add_point(cloud, xyz[0], xyz[1], xyz[2]);
+      }
     }
   }
 }
@@ -293,6 +310,7 @@ void read_ascii(const std::string& path, const std::string& data, const Header& 
 
 void read_binary(const std::string& path, const std::string& data, const Header& header,
                  const VertexLayout& layout, PointCloud& cloud) {
+  const std::uint64_t max_points = resource_limits().max_points;
   const bool swap =
       (header.format == Format::binary_be) != (std::endian::native == std::endian::big);
   const auto* const begin = reinterpret_cast<const unsigned char*>(data.data());
@@ -325,7 +343,8 @@ void read_binary(const std::string& path, const std::string& data, const Header&
         p += element.count * stride;
         continue;
       }
-      cloud.points.reserve(element.count);
+      if (element.count > max_points) throw too_many_points(path, max_points);
+      cloud.points.reserve(element.count);  // <= the file's bytes / stride, checked above
       cloud.source_index.reserve(element.count);
       std::array<std::size_t, 3> at{};
       std::array<Scalar, 3> type{};
@@ -365,7 +384,10 @@ void read_binary(const std::string& path, const std::string& data, const Header&
           p += size;
         }
       }
-      if (is_vertex) add_point(cloud, xyz[0], xyz[1], xyz[2]);
+      if (is_vertex) {
+        if (cloud.total == max_points) throw too_many_points(path, max_points);
+        add_point(cloud, xyz[0], xyz[1], xyz[2]);
+      }
     }
   }
 }
@@ -373,7 +395,7 @@ void read_binary(const std::string& path, const std::string& data, const Header&
 }  // namespace
 
 void read_ply(const std::string& path, PointCloud& cloud) {
-  parse_ply(path, read_file(path), cloud);
+  parse_ply(path, read_text_file(path), cloud);
 }
 
 void parse_ply(const std::string& path, const std::string& data, PointCloud& cloud) {

@@ -10,30 +10,12 @@
 #include <filesystem>
 #include <fstream>
 
+#include "nurbsreg/io/input_ranges.hpp"
+#include "nurbsreg/io/resource_limits.hpp"
 #include "point_cloud_detail.hpp"
 
 namespace nurbsreg::io {
 namespace detail {
-
-std::string read_file(const std::string& path) {
-  std::error_code ec;
-  if (std::filesystem::is_directory(path, ec)) throw InputError(path, "is a directory");
-  std::ifstream in(path, std::ios::binary | std::ios::ate);
-  if (!in) throw InputError(path, "cannot open the file (missing or not readable)");
-  const std::streamoff size = in.tellg();
-  if (size < 0) throw InputError(path, "cannot determine the file size");
-  std::string bytes(static_cast<std::size_t>(size), '\0');
-  in.seekg(0);
-  if (size > 0 && !in.read(bytes.data(), size)) throw InputError(path, "read error");
-  return bytes;
-}
-
-std::string lower_extension(const std::string& path) {
-  std::string ext = std::filesystem::path(path).extension().string();
-  std::transform(ext.begin(), ext.end(), ext.begin(),
-                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
-  return ext;
-}
 
 namespace {
 
@@ -88,9 +70,38 @@ std::string lower(std::string_view s) {
 
 }  // namespace
 
+InputError too_many_points(const std::string& path, std::uint64_t limit) {
+  return InputError(path, "more than " + std::to_string(limit) +
+                              " points, the limit (raise it with NURBSREG_MAX_POINTS=<n>)");
+}
+
+void check_coordinate_range(const std::string& path, const PointCloud& cloud) {
+  // One pass without branches in the common case: the largest magnitude first, the offending
+  // point only when there is one.
+  double largest = 0;
+  for (const engine::Vec3& p : cloud.points)
+    largest = std::max(largest, p.cwiseAbs().maxCoeff());
+  if (largest <= kMaxCoordinate) return;
+  for (std::size_t i = 0; i < cloud.points.size(); ++i) {
+    const engine::Vec3& p = cloud.points[i];
+    for (int axis = 0; axis < 3; ++axis) {
+      if (std::abs(p[axis]) > kMaxCoordinate) {
+        throw InputError(path, "point " + std::to_string(cloud.source_index[i]) + ": " +
+                                   static_cast<char>('x' + axis) + " = " +
+                                   text_detail::format_number(p[axis]) +
+                                   " is beyond the supported range |coordinate| <= 1e15 " +
+                                   "(README \"Coordinate range\")");
+      }
+    }
+  }
+}
+
 void read_text(const std::string& path, PointCloud& cloud) {
-  const std::string data = read_file(path);
-  cloud.points.reserve(static_cast<std::size_t>(std::count(data.begin(), data.end(), '\n')) + 1);
+  const std::string data = read_text_file(path);
+  const std::uint64_t max_points = resource_limits().max_points;
+  const std::uint64_t lines =
+      static_cast<std::uint64_t>(std::count(data.begin(), data.end(), '\n')) + 1;
+  cloud.points.reserve(std::min(lines, max_points));
   cloud.source_index.reserve(cloud.points.capacity());
 
   // Columns holding x, y, z: 0, 1, 2 unless a header line names them.
@@ -122,7 +133,7 @@ void read_text(const std::string& path, PointCloud& cloud) {
     double value = 0.0;
     if (!seen_content) {
       seen_content = true;
-      if (!field.empty() && !parse_double(field, value)) {
+      if (!field.empty() && !parse_number(field, value) && !text_detail::out_of_range(field)) {
         // A header naming the columns (`x,y,z` or `index,x,y,z,foot_x,...`).
         std::array<bool, 3> found{false, false, false};
         std::size_t index = 0;
@@ -150,8 +161,9 @@ void read_text(const std::string& path, PointCloud& cloud) {
     do {
       for (int axis = 0; axis < 3; ++axis) {
         if (column[axis] != index) continue;
-        if (!parse_double(field, xyz[axis])) {
-          throw at_line("column " + std::to_string(index + 1) + ": not a number: " + quote(field));
+        if (!parse_number(field, xyz[axis])) {
+          throw at_line("column " + std::to_string(index + 1) + ": " +
+                        text_detail::bad_number(field));
         }
         ++got;
       }
@@ -162,6 +174,7 @@ void read_text(const std::string& path, PointCloud& cloud) {
                                 : "expected " + std::to_string(needed) +
                                       " columns as in the header, got " + std::to_string(index));
     }
+    if (cloud.total == max_points) throw too_many_points(path, max_points);
     add_point(cloud, xyz[0], xyz[1], xyz[2]);
   }
 }
@@ -185,6 +198,18 @@ PointCloud read_point_cloud(const std::string& path) {
   if (cloud.height == 0) {
     cloud.width = static_cast<std::uint32_t>(cloud.total);
     cloud.height = 1;
+  }
+  return cloud;
+}
+
+PointCloud read_scan(const std::string& path) {
+  PointCloud cloud = read_point_cloud(path);
+  detail::check_coordinate_range(path, cloud);
+  if (cloud.size() == 0) {
+    throw InputError(path, cloud.total == 0
+                               ? std::string("the scan has no points")
+                               : "the scan has no finite points (all " +
+                                     std::to_string(cloud.total) + " are NaN or infinite)");
   }
   return cloud;
 }

@@ -295,9 +295,10 @@ PointTable read_pcd_table(const std::string& path) {
 }
 
 PointTable read_csv_table(const std::string& path) {
-  const std::string data = detail::read_file(path);
+  const std::string data = detail::read_text_file(path);
   PointTable table;
   std::vector<std::vector<double>*> columns;  // stable: the table keeps columns in a deque
+  std::vector<std::string_view> fields;
   bool have_header = false;
   const char* p = data.data();
   const char* const end = p + data.size();
@@ -315,17 +316,9 @@ PointTable read_csv_table(const std::string& path) {
     const auto fail = [&](const std::string& what) {
       return InputError(path, "line " + std::to_string(line_number) + ": " + what);
     };
-    std::size_t k = 0;
-    std::size_t start = 0;
-    while (true) {
-      const std::size_t comma = std::min(line.find(',', start), line.size());
-      std::string_view token = line.substr(start, comma - start);
-      while (!token.empty() && (token.front() == ' ' || token.front() == '\t')) {
-        token.remove_prefix(1);
-      }
-      while (!token.empty() && (token.back() == ' ' || token.back() == '\t')) {
-        token.remove_suffix(1);
-      }
+    text_detail::split_csv(line, fields);
+    for (std::size_t k = 0; k < fields.size(); ++k) {
+      const std::string_view token = fields[k];
       if (!have_header) {
         if (token.empty()) throw fail("empty column name in the header");
         columns.push_back(&table.add_column<double>(std::string(token)));
@@ -334,16 +327,13 @@ PointTable read_csv_table(const std::string& path) {
           throw fail("more values than the " + std::to_string(columns.size()) + " header columns");
         }
         double value = 0.0;
-        if (!detail::parse_double(token, value)) {
-          throw fail("column '" + table.columns()[k].name +
-                     "': not a number: " + detail::quote(token));
+        if (!detail::parse_number(token, value)) {
+          throw fail("column '" + table.columns()[k].name + "': " + text_detail::bad_number(token));
         }
         columns[k]->push_back(value);
       }
-      ++k;
-      if (comma == line.size()) break;
-      start = comma + 1;
     }
+    const std::size_t k = fields.size();
     if (!have_header) {
       have_header = true;
       if (const auto problem = table.validate()) throw fail("bad header: " + *problem);

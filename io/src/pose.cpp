@@ -50,8 +50,9 @@ Eigen::Matrix4d parse_pose(std::string_view text, const std::string& file_label)
       }
       double value = 0.0;
       if (!text_detail::parse_number(token, value) || !std::isfinite(value)) {
+        // Quoted with control bytes escaped: the token may be anything (ESC sequences too).
         throw InputError(file_label,
-                         where + ": \"" + std::string(token) + "\" is not a finite number");
+                         where + ": " + text_detail::quote(token) + " is not a finite number");
       }
       if (column == 4) {
         throw InputError(file_label, where + ": expected 4 numbers, got more");

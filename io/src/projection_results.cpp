@@ -86,31 +86,8 @@ void append_binary(std::string& buffer, T value) {
   buffer.append(bytes, sizeof(T));
 }
 
-std::string lower_extension(const std::string& path) {
-  std::string ext = std::filesystem::path(path).extension().string();
-  std::transform(ext.begin(), ext.end(), ext.begin(),
-                 [](unsigned char ch) { return static_cast<char>(std::tolower(ch)); });
-  return ext;
-}
-
-// Splits one CSV line on commas, trimming blanks and a trailing '\r'.
-void split_csv(std::string_view line, std::vector<std::string_view>& fields) {
-  fields.clear();
-  std::size_t start = 0;
-  while (true) {
-    std::size_t end = line.find(',', start);
-    std::string_view field = line.substr(start, end == std::string_view::npos ? end : end - start);
-    while (!field.empty() && (field.front() == ' ' || field.front() == '\t'))
-      field.remove_prefix(1);
-    while (!field.empty() &&
-           (field.back() == ' ' || field.back() == '\t' || field.back() == '\r')) {
-      field.remove_suffix(1);
-    }
-    fields.push_back(field);
-    if (end == std::string_view::npos) break;
-    start = end + 1;
-  }
-}
+using text_detail::lower_extension;
+using text_detail::split_csv;
 
 // Where each contract column sits in a file, and the extra columns, found by name.
 struct ColumnMap {
@@ -386,8 +363,8 @@ ProjectionTable read_projection_csv(const std::string& path) {
     }
     for (std::size_t k = 0; k < fields.size(); ++k) {
       if (!text_detail::parse_number(fields[k], values[k])) {
-        throw InputError(path, where() + ", column " + std::to_string(k + 1) + ": \"" +
-                                   std::string(fields[k]) + "\" is not a number");
+        throw InputError(path, where() + ", column " + std::to_string(k + 1) + ": " +
+                                   text_detail::bad_number(fields[k]));
       }
     }
     append_row(

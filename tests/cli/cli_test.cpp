@@ -354,16 +354,20 @@ TEST(Cli, AFaceBeyondItsSurfaceIsNamed) {
             std::string::npos);
 }
 
-// project of a file without finite points writes the table's header and says so, with no
-// statistics of nothing.
-TEST(Cli, ProjectOfNoPointsWritesAnEmptyTable) {
+// An empty scan is bad input for every command (issue 24): project of a file without finite
+// points exits 3 naming it, and writes no table.
+TEST(Cli, ProjectOfNoPointsIsBadInput) {
   ScratchDir dir("project_empty");
   std::string out;
-  const CommandResult r = project_text_points(dir, "nan.xyz", "nan 0 0\n1 inf 2\n", out);
-  EXPECT_EQ(r.status, 0) << r.err;
-  EXPECT_NE(r.err.find("no finite points to project (2 skipped)"), std::string::npos) << r.err;
-  EXPECT_EQ(r.err.find("distance min"), std::string::npos) << r.err;
-  EXPECT_EQ(count_lines(read_text(out)), 1);
+  CommandResult r = project_text_points(dir, "nan.xyz", "nan 0 0\n1 inf 2\n", out);
+  EXPECT_EQ(r.status, 3) << r.err;
+  EXPECT_NE(r.err.find("nan.xyz: the scan has no finite points (all 2 are NaN or infinite)"),
+            std::string::npos)
+      << r.err;
+  EXPECT_FALSE(std::filesystem::exists(out));
+  r = project_text_points(dir, "empty.xyz", "# nothing\n", out);
+  EXPECT_EQ(r.status, 3) << r.err;
+  EXPECT_NE(r.err.find("empty.xyz: the scan has no points"), std::string::npos) << r.err;
 }
 
 }  // namespace

@@ -151,9 +151,9 @@ INSTANTIATE_TEST_SUITE_P(
                       ErrorCase{"long row", "1 0 0 0\n# c\n0 1 0 0 7\n" + kRow3 + kRow4,
                                 "line 3: expected 4 numbers, got more"},
                       ErrorCase{"word", "1 0 0 0\n" + kRow2 + "0 0 one 0\n" + kRow4,
-                                "line 3: \"one\" is not a finite number"},
+                                "line 3: 'one' is not a finite number"},
                       ErrorCase{"nan", "1 0 0 nan\n" + kRow2 + kRow3 + kRow4,
-                                "line 1: \"nan\" is not a finite number"},
+                                "line 1: 'nan' is not a finite number"},
                       ErrorCase{
                           "three rows", "1 0 0 0\n" + kRow2 + kRow3,
                           "expected 4 lines of 4 numbers (a 4x4 rigid transform), got 3 lines"},

@@ -256,7 +256,7 @@ TEST(ProjectionResults, MalformedCsvNamesLineAndColumn) {
                 .find("line 3: expected 11 comma-separated values (as in the header), got 10"),
             std::string::npos);
   EXPECT_NE(input_error(header + "0,0,0,zero,0,0,0,0,0,0,0\n")
-                .find("line 2, column 4: \"zero\" is not a number"),
+                .find("line 2, column 4: not a number: 'zero'"),
             std::string::npos);
   EXPECT_NE(input_error(header + "-1,0,0,0,0,0,0,0,0,0,0\n")
                 .find("line 2: index must be a non-negative integer"),

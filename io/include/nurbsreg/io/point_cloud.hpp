@@ -42,7 +42,16 @@ struct PointCloud {
   std::size_t size() const { return points.size(); }
 };
 
+// A cloud of more points than resource_limits().max_points is an error; an empty cloud is not
+// (a file may be empty), and any finite coordinate is read as it is (faithful file I/O).
 PointCloud read_point_cloud(const std::string& path);
+
+// read_point_cloud for a scan to be projected, aligned or used as targets: a cloud without a
+// single finite point, and a coordinate beyond kMaxCoordinate (input_ranges.hpp: what the
+// exact projection can represent), are bad input here (InputError "the scan has no points" /
+// "no finite points" / "point 7: x = ... is beyond the supported range"), so that every command
+// treats such scans alike.
+PointCloud read_scan(const std::string& path);
 
 struct PointCloudWriteOptions {
   PcdEncoding pcd_encoding = PcdEncoding::binary;
