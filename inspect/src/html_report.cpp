@@ -328,9 +328,9 @@ std::string html_report(const InspectionReport& r, const PointDeviations& dev,
          histogram_svg(r) + "</div>\n";
   out += "<div><h2>Alignment</h2>\n" + alignment_section(r) + "</div></section>\n";
   out +=
-      "<section><h2>Faces</h2><p class=\"hint\">Click a column to sort; click a row to show that "
-      "face alone in the view.</p>\n";
-  out += face_table(r) + "</section>\n";
+      "<section><h2>Faces</h2><p class=\"hint\">Worst first (share inside the tolerance); click a "
+      "column to sort, a row to show that face alone in the view.</p>\n<div class=\"table-box\">";
+  out += face_table(r) + "</div></section>\n";
   out += fmt::format(
       "<footer>Signed distance from the exact closest point on the model (positive on the face's "
       "outer side). "

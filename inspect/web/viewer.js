@@ -42,6 +42,9 @@ table.querySelectorAll('th').forEach((th, column) => {
   });
 });
 
+// The worst faces first: by share inside the tolerance, ascending (faces without points last).
+table.querySelectorAll('th')[9].click();
+
 // ---- the legend (drawn from the colour map's own samples) ----
 function drawLegend() {
   const ramp = new Uint8Array(decode('legend-ramp'));
@@ -201,7 +204,7 @@ function defaultPointSize() {
   const pixelsPerUnit = container.clientHeight / (camera.top - camera.bottom);
   // The scan's frame on the screen, about half of it covered by the surface seen from the front.
   const area = 4 * extentX * extentY * pixelsPerUnit ** 2 * 0.5;
-  return Math.min(6, Math.max(1.5, Math.sqrt(area / Math.max(count, 1)) * 1.2));
+  return Math.min(6, Math.max(1.5, Math.sqrt(area / Math.max(count, 1)) * 1.5));
 }
 
 // ---- orbit, pan, zoom ----

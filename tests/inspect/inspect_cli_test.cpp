@@ -215,6 +215,8 @@ TEST(InspectCli, BadInputFailsWithOneLineAndLeavesNothing) {
   expect_clean_failure(dir, base + " --tolerance-lower 0.1 --tolerance-upper 0.1", 2, "lower");
   expect_clean_failure(dir, base, 2, "--tolerance");
   expect_clean_failure(dir, base + " --tolerance 0.1 --colour-max 0.05", 2, "--colour-max");
+  expect_clean_failure(dir, base + " --tolerance 0.1 --init " + c.pose, 2, "--pose");
+  expect_clean_failure(dir, base + " --tolerance 0.1 --colour-scale rainbow", 2, "--colour-scale");
   expect_clean_failure(dir,
                        "--model " + c.model + " --scan " + (dir / "missing.xyz") + " --pose " +
                            c.pose + " --tolerance 0.1",
