@@ -93,7 +93,8 @@ def test_init_is_checked_as_the_cli_checks_init_files(panel, panel_scan, scan_po
     with pytest.raises(nurbsreg.InputError) as caught:
         nurbsreg.align(panel, scan_points, init=sheared)
     assert isinstance(caught.value, ValueError)
-    assert str(caught.value) == "init: " + cli.stderr.strip().splitlines()[-1].split("bad.txt: ", 1)[1]
+    cli_reason = cli.stderr.strip().splitlines()[-1].split("bad.txt: ", 1)[1]
+    assert str(caught.value) == "init: " + cli_reason
     with pytest.raises(ValueError, match=r"init: expected shape \(4, 4\)"):
         nurbsreg.align(panel, scan_points, init=np.eye(3))
     # A pose from a file with 6 decimals is accepted and made exactly rigid, as by the CLI.
@@ -124,6 +125,8 @@ def test_bad_options(panel, scan_points):
         nurbsreg.align(panel, scan_points, max_iteration=3)
     with pytest.raises(ValueError, match="scan: no finite points to align"):
         nurbsreg.align(panel, np.full((5, 3), np.nan))
+    with pytest.raises(ValueError, match="scan: no finite points to align"):
+        nurbsreg.align(panel, np.zeros((0, 3)))
     with pytest.raises(ValueError, match=r"scan: expected shape \(N, 3\)"):
         nurbsreg.align(panel, np.zeros((5, 4)))
 

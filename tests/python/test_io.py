@@ -130,5 +130,6 @@ def test_a_face_beyond_its_surface_warns_as_the_cli(tmp_path):
     with pytest.warns(nurbsreg.NurbsregWarning) as caught:
         nurbsreg.load_model(path)
     message = str(caught[0].message)
-    assert "the trim loops of 1 faces leave their surface's parameter domain (plate by 50%" in message
+    assert ("the trim loops of 1 faces leave their surface's parameter domain (plate by 50%"
+            in message)
     assert message in run_cli("info", "--model", path).stderr

@@ -18,7 +18,8 @@ def test_same_rows_as_the_cli(panel, panel_scan, tmp_path):
     np.testing.assert_array_equal(cloud.index, cli["index"])
     np.testing.assert_array_equal(cloud.points, np.c_[cli["x"], cli["y"], cli["z"]])
     np.testing.assert_array_equal(r.foot, np.c_[cli["foot_x"], cli["foot_y"], cli["foot_z"]])
-    np.testing.assert_array_equal(r.normal, np.c_[cli["normal_x"], cli["normal_y"], cli["normal_z"]])
+    np.testing.assert_array_equal(r.normal,
+                                  np.c_[cli["normal_x"], cli["normal_y"], cli["normal_z"]])
     for name in ("distance", "entity", "u", "v", "signed_distance"):
         np.testing.assert_array_equal(getattr(r, name), cli[name], err_msg=name)
     assert (r.status == nurbsreg.STATUS_OK).all() and r.skipped == 0
@@ -127,7 +128,8 @@ def test_hints_and_certificates_give_the_same_closest_points(panel, points, refe
 
 
 @pytest.mark.parametrize("bad, error, text", [
-    (np.zeros((4, 3), np.int64), TypeError, "points: expected float64 or float32 values, got int64"),
+    (np.zeros((4, 3), np.int64), TypeError,
+     "points: expected float64 or float32 values, got int64"),
     (np.zeros((4, 3), np.float16), TypeError, "points: expected float64 or float32"),
     (np.zeros((4, 2)), ValueError, r"points: expected shape \(N, 3\), got \(4, 2\)"),
     (np.zeros(3), ValueError, r"points: expected shape \(N, 3\), got \(3,\)"),
