@@ -2,7 +2,8 @@
 // Ma & Hewitt (seed paper 000) on the six kinds of test curve of seed 002's Fig. 4 / Table 1
 // (cubic, quartic, quintic Bézier; cubic, quartic, sextic rational Bézier), with test points
 // on offset curves at +-2% and +-10% of the bounding-box diagonal. Counters: subdivisions and
-// Newton evaluations per point. See bench/README.md ("Curves") for the command and results.
+// Newton evaluations per point. See bench/README.md for the command, bench/HISTORY.md ("Curves")
+// for results.
 #include <benchmark/benchmark.h>
 
 #include <cmath>

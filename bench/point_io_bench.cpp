@@ -1,6 +1,6 @@
 // Point I/O throughput (points/s) on 1,000,000 generated points in a temporary directory:
 // XYZ text, PCD binary and binary_compressed, PLY binary, and a projection-results CSV with the
-// contract's 11 columns. Reproduce: see bench/README.md, "Point I/O".
+// contract's 11 columns. Reproduce: see bench/README.md; results: bench/HISTORY.md, "Point I/O".
 #include <benchmark/benchmark.h>
 #include <unistd.h>
 

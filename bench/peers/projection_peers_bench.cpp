@@ -8,7 +8,7 @@
 // tbb::parallel_for, one projector object per thread built before timing. Failures are judged
 // against a brute-force reference (reference.hpp) on a prefix of the points; slow peers run on
 // a shorter prefix of the same points (the points are interleaved near/far, so every prefix is
-// representative). See bench/README.md, "Projection vs peers".
+// representative). See bench/README.md; history: bench/HISTORY.md, "Projection vs peers".
 
 #include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
