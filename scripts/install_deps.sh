@@ -13,6 +13,9 @@ packages=(
   # library); OpenCASCADE also reads STEP/IGES.
   libocct-foundation-dev libocct-modeling-data-dev libocct-modeling-algorithms-dev
   libocct-data-exchange-dev libsisl-dev
+  # The sanitizer and fuzzing builds of scripts/test.sh (clang with AddressSanitizer,
+  # UndefinedBehaviorSanitizer, ThreadSanitizer and libFuzzer; the main build stays GCC).
+  clang libclang-rt-14-dev
 )
 
 missing=()
