@@ -10,6 +10,17 @@ option(NURBSREG_NATIVE "Compile nurbsreg's targets with -march=native (not porta
 # time (engine/src/platform/cpu_dispatch.hpp). OFF: SSE2 only. Without effect when NURBSREG_NATIVE is on.
 option(NURBSREG_CPU_DISPATCH "Runtime dispatch of the hot kernels to AVX2 clones (GCC, x86-64)" ON)
 
+# Sanitizer and fuzzing builds (scripts/test.sh builds them in build-asan/ and build-tsan/ with
+# clang; README "Tests under sanitizers"). The flags go to nurbsreg's own targets only; link
+# options are PUBLIC so that every executable linking a sanitized library links the runtime.
+set(NURBSREG_SANITIZE "" CACHE STRING
+    "Sanitizers for nurbsreg's targets: empty, address,undefined or thread")
+option(NURBSREG_FUZZ "Build the libFuzzer harnesses in tests/fuzz (Clang only)" OFF)
+option(NURBSREG_WERROR "Warnings are errors on nurbsreg's targets" ON)
+if(NURBSREG_FUZZ AND NOT CMAKE_CXX_COMPILER_ID STREQUAL "Clang")
+  message(FATAL_ERROR "NURBSREG_FUZZ needs Clang (libFuzzer): configure with CXX=clang++")
+endif()
+
 function(nurbsreg_apply_standard target)
   target_compile_features(${target} PUBLIC cxx_std_20)
   set_target_properties(${target} PROPERTIES CXX_EXTENSIONS OFF)
@@ -18,7 +29,20 @@ function(nurbsreg_apply_standard target)
     # with -std=c++20 (only ISO C modes turn it off), wherever the target has one (-march=native,
     # the x86-64-v3 clones). Off, the clones and a native build project bit-identically to the
     # portable build (Eigen's own FMA intrinsics in its dense matrix products remain natively).
-    target_compile_options(${target} PRIVATE -Wall -Wextra -Werror -ffp-contract=off)
+    target_compile_options(${target} PRIVATE -Wall -Wextra -ffp-contract=off)
+    if(NURBSREG_WERROR)
+      target_compile_options(${target} PRIVATE -Werror)
+    endif()
+    if(NURBSREG_SANITIZE)
+      # UBSan findings abort (a test fails) instead of printing and going on.
+      target_compile_options(${target} PRIVATE -fsanitize=${NURBSREG_SANITIZE}
+                                               -fno-omit-frame-pointer -fno-sanitize-recover=all)
+      target_link_options(${target} PUBLIC -fsanitize=${NURBSREG_SANITIZE})
+    endif()
+    if(NURBSREG_FUZZ)
+      target_compile_options(${target} PRIVATE -fsanitize=fuzzer-no-link)
+      target_link_options(${target} PUBLIC -fsanitize=fuzzer-no-link)
+    endif()
     if(NURBSREG_NATIVE)
       target_compile_options(${target} PRIVATE -march=native)
       target_compile_definitions(${target} PRIVATE EIGEN_MAX_STATIC_ALIGN_BYTES=16)

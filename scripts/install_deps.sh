@@ -18,10 +18,13 @@ packages=(
   # inspect: the PNG and its legend (cairo, DejaVu fonts); npm fetches three.js for the HTML
   # report at build time (inspect/web/package-lock.json); its tests open the report in headless
   # Chromium and read the PLY with Open3D; bench/inspect compares with CloudCompare's C2M.
-  libcairo2-dev fonts-dejavu-core chromium python3-open3d cloudcompare
+  libcairo2-dev fonts-dejavu-core chromium cloudcompare
   # The Python package (python/): built for and tested with Debian's /usr/bin/python3; Open3D
   # for the interop tests.
   pybind11-dev python3-dev python3-numpy python3-pytest python3-open3d
+  # The sanitizer and fuzzing builds of scripts/test.sh (clang with AddressSanitizer,
+  # UndefinedBehaviorSanitizer, ThreadSanitizer and libFuzzer; the main build stays GCC).
+  clang libclang-rt-14-dev
 )
 
 # Node.js and npm (inspect's build step): Debian's packages, unless a node with npm is already

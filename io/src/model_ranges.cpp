@@ -153,7 +153,7 @@ void check_model_size(const engine::Model& model, const std::string& file) {
              std::to_string(s.degree_u) + ", " + std::to_string(s.degree_v) + ")";
   }
   throw InputError(file, "the model decomposes into " + format_number(patches) +
-                             " Bézier patches with " + format_number(total) +
+                             " Bezier patches with " + format_number(total) +
                              " control points in all, more than the limit of " +
                              std::to_string(limit) + " (about 60 bytes each once prepared)" +
                              detail + "; raise it with NURBSREG_MAX_BEZIER_POINTS=<n>");

@@ -237,7 +237,7 @@ TEST(FuzzRegression, ModelsBeyondTheBezierLimitAreRejectedWithTheSwitch) {
   // Was: 82,944 patches and 850 MB for `info` on a 1 MB file, without a limit.
   const std::string message = error_of([&] { parse_model(degree12_model(300), "deg12.json"); });
   EXPECT_HAS(message,
-             "deg12.json: the model decomposes into 82944 Bézier patches with 14017536 "
+             "deg12.json: the model decomposes into 82944 Bezier patches with 14017536 "
              "control points in all, more than the limit of 4000000");
   EXPECT_HAS(message, "surface 0, has 288 x 288 patches of degree (12, 12)");
   EXPECT_HAS(message, "NURBSREG_MAX_BEZIER_POINTS=<n>");
