@@ -360,10 +360,9 @@ int main(int argc, char** argv) {
   std::printf(
       "\n%zu points per run, %d threads, fastest of %d alternating runs.\n\n| model | faces | "
       "patches (trim-straddling, rational, max deg) | edge pieces | diagonal (control pts) | "
-      "convert s | from cache s | prepare s | bounds s | peak MB | near pts/s | mixed pts/s | "
-      "align 1 M s (iters, rms) | OCCT DSS pts/s |\n| --- | ---: | --- | ---: | --- | ---: | ---: "
-      "| "
-      "---: | ---: | ---: | ---: | ---: | --- | ---: |\n",
+      "convert s | from cache s | prepare s | bounds s | peak MB | near pts/s (per CPU-s) | "
+      "mixed pts/s (per CPU-s) | align wall s, CPU s (iters, rms) | OCCT DSS pts/s |\n| --- | "
+      "---: | --- | ---: | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | --- | ---: |\n",
       opt.points, opt.threads, opt.repeat);
   for (const Row& r : rows) {
     if (!r.error.empty()) {

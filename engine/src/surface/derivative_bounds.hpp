@@ -21,32 +21,55 @@ struct DerivativeRanges {
   Iv v, s, t, ss, st, tt;
 };
 
+// One tight loop per derivative (no per-element branches: on the grids of high-degree patches,
+// up to 41 x 41 for degree 20 in F, the one loop with six guarded updates was a fifth of the time
+// on linkrods.step). Every range takes its elements in the same row-major order as before and
+// scales after the extremes: multiplying by a positive constant is monotone under rounding, so
+// the ranges are bit for bit those of the scaled elements.
 [[maybe_unused]] DerivativeRanges derivative_ranges(const double* a, int rows, int cols) {
   const double inf = std::numeric_limits<double>::infinity();
   DerivativeRanges r{{inf, -inf}, {inf, -inf}, {inf, -inf}, {inf, -inf}, {inf, -inf}, {inf, -inf}};
-  auto grow = [](Iv& iv, double x) {
-    iv.lo = std::min(iv.lo, x);
-    iv.hi = std::max(iv.hi, x);
+  const auto grow = [](double& lo, double& hi, double x) {
+    lo = std::min(lo, x);
+    hi = std::max(hi, x);
   };
   const int m = rows - 1, n = cols - 1;
+  for (int k = 0; k < rows * cols; ++k)
+    grow(r.v.lo, r.v.hi, a[k]);
+  for (int i = 0; i + 1 < rows; ++i) {
+    const double* r0 = a + i * cols;
+    const double* r1 = r0 + cols;
+    for (int j = 0; j < cols; ++j)
+      grow(r.s.lo, r.s.hi, r1[j] - r0[j]);
+    for (int j = 0; j + 1 < cols; ++j)
+      grow(r.st.lo, r.st.hi, r1[j + 1] - r1[j] - r0[j + 1] + r0[j]);
+  }
   for (int i = 0; i < rows; ++i) {
     const double* row = a + i * cols;
-    for (int j = 0; j < cols; ++j) {
-      grow(r.v, row[j]);
-      if (i + 1 < rows) grow(r.s, m * (row[cols + j] - row[j]));
-      if (j + 1 < cols) grow(r.t, n * (row[j + 1] - row[j]));
-      if (i + 2 < rows)
-        grow(r.ss, m * (m - 1) * (row[2 * cols + j] - 2.0 * row[cols + j] + row[j]));
-      if (j + 2 < cols) grow(r.tt, n * (n - 1) * (row[j + 2] - 2.0 * row[j + 1] + row[j]));
-      if (i + 1 < rows && j + 1 < cols) {
-        grow(r.st, m * n * (row[cols + j + 1] - row[cols + j] - row[j + 1] + row[j]));
-      }
+    for (int j = 0; j + 1 < cols; ++j)
+      grow(r.t.lo, r.t.hi, row[j + 1] - row[j]);
+    for (int j = 0; j + 2 < cols; ++j)
+      grow(r.tt.lo, r.tt.hi, row[j + 2] - 2.0 * row[j + 1] + row[j]);
+  }
+  for (int i = 0; i + 2 < rows; ++i) {
+    const double* r0 = a + i * cols;
+    const double* r1 = r0 + cols;
+    const double* r2 = r1 + cols;
+    for (int j = 0; j < cols; ++j)
+      grow(r.ss.lo, r.ss.hi, r2[j] - 2.0 * r1[j] + r0[j]);
+  }
+  const auto scale = [](Iv& iv, double k) {
+    if (iv.lo > iv.hi) {
+      iv = {0.0, 0.0};  // degree 0 (or 1 for a second derivative): identically zero
+    } else {
+      iv = {k * iv.lo, k * iv.hi};
     }
-  }
-  // Degree 0 in a direction: the derivative is identically zero.
-  for (Iv* iv : {&r.s, &r.t, &r.ss, &r.st, &r.tt}) {
-    if (iv->lo > iv->hi) *iv = {0.0, 0.0};
-  }
+  };
+  scale(r.s, m);
+  scale(r.t, n);
+  scale(r.ss, double(m) * (m - 1));
+  scale(r.tt, double(n) * (n - 1));
+  scale(r.st, double(m) * n);
   return r;
 }
 
