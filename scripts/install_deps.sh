@@ -13,6 +13,8 @@ packages=(
   # library); OpenCASCADE also reads STEP/IGES.
   libocct-foundation-dev libocct-modeling-data-dev libocct-modeling-algorithms-dev
   libocct-data-exchange-dev libsisl-dev
+  # bench/align_global/run.py's peers (Open3D RANSAC on FPFH, FGR) and its arithmetic.
+  python3-open3d python3-numpy
 )
 
 missing=()
