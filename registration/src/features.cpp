@@ -147,7 +147,7 @@ double estimate_noise(std::span<const Vec3> scan, double voxel, std::uint64_t se
   const double area = static_cast<double>(std::max<std::ptrdiff_t>(occupied, 1)) * voxel * voxel;
   const double spacing = std::sqrt(area / static_cast<double>(subset.size()));
   // About 16 neighbours, but never beyond the voxel (curvature) nor below the spacing.
-  const double radius = std::clamp(3.0 * spacing, 0.25 * voxel, voxel);
+  const double radius = std::clamp(2.3 * spacing, 0.25 * voxel, voxel);
   const PointGrid grid(subset, radius);
   // Probe at most 3000 points (every k-th of the subset: it is already random).
   const std::size_t probes = std::min<std::size_t>(3000, subset.size());
@@ -157,7 +157,7 @@ double estimate_noise(std::span<const Vec3> scan, double voxel, std::uint64_t se
     const Vec3& q = subset[k * stride];
     Moments3 m;
     grid.for_each_within(q, radius, [&](std::uint32_t j, double) { m.add(subset[j] - q); });
-    if (m.count < 10) return;
+    if (m.count < 6) return;
     const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(m.covariance(),
                                                              Eigen::EigenvaluesOnly);
     const Vec3 l = eig.eigenvalues();
