@@ -88,6 +88,10 @@ AlignmentResult Aligner::align(std::span<const engine::Vec3> scan) {
                                   ": non-finite coordinate");
     }
   }
+  // Fewer points than any pose needs: ICP's own message says so (no place to look for).
+  if (scan.size() < options().min_correspondences) {
+    return align(scan, Eigen::Isometry3d::Identity());
+  }
   const ModelFeatures& f = features();
   const double noise = detail::estimate_noise(scan, f.voxel(), g.seed);
   detail::CoarseOutcome coarse = detail::coarse_align(scan, f, g, noise, finder_);
@@ -97,7 +101,8 @@ AlignmentResult Aligner::align(std::span<const engine::Vec3> scan) {
     frame.icp.termination = icp::IcpTermination::too_few_correspondences;
     frame.icp.points = scan.size();
     frame.icp.message = *coarse.failure;
-    frame.failure = *coarse.failure;
+    frame.failure = "alignment failed: " + *coarse.failure;
+    if (const auto note = frame.sizes.failure_note()) *frame.failure += "; " + *note;
     return frame;
   }
   // The fine stage from the winner: the user's options, made robust where the user left them

@@ -137,7 +137,16 @@ CoarseOutcome coarse_align(std::span<const Vec3> scan, const ModelFeatures& feat
   const FeatureOptions& fo = features.options();
 
   // 1. Features: the scan's keypoints and descriptors, the model's (built once, shared).
+  auto lap = [&, last = start](const char* what) mutable {
+    const auto now = Clock::now();
+    spdlog::debug("coarse: {} in {:.3f} s", what,
+                  std::chrono::duration<double>(now - last).count());
+    last = now;
+  };
+  features.descriptors();
+  lap("model features (once per model)");
   const ScanKeypoints keys = scan_keypoints(scan, features);
+  lap("scan keypoints");
   r.scan_keypoints = keys.points.size();
   const ModelKeypoints& model_keys = features.keypoints();
   r.model_keypoints = model_keys.points.size();
@@ -153,7 +162,9 @@ CoarseOutcome coarse_align(std::span<const Vec3> scan, const ModelFeatures& feat
   const DescriptorMatrix scan_desc = describe(keys.points, keys.normals, grid, feature_radius);
 
   // 2. Matches and hypotheses.
+  lap("scan descriptors");
   const std::vector<Match> matches = match_descriptors(scan_desc, features.descriptors());
+  lap("matches");
   r.matches = matches.size();
   RansacParams rp;
   rp.seeds = o.ransac_seeds;
@@ -166,6 +177,7 @@ CoarseOutcome coarse_align(std::span<const Vec3> scan, const ModelFeatures& feat
   const std::vector<Hypothesis> hypotheses =
       ransac_hypotheses(keys.points, model_keys.points, matches, rp);
   r.hypotheses = static_cast<int>(hypotheses.size());
+  lap("hypotheses");
   if (hypotheses.empty()) {
     out.failure = fmt::format(
         "the global alignment found no pose: {} feature matches between {} scan and {} model "
@@ -200,6 +212,7 @@ CoarseOutcome coarse_align(std::span<const Vec3> scan, const ModelFeatures& feat
                   icp::to_string(res.termination));
   }
   r.verified = static_cast<int>(scored.size());
+  lap("verification");
   std::stable_sort(scored.begin(), scored.end(), better);
   // Poses that converged onto the same one are one pose.
   std::vector<PoseScore> distinct;

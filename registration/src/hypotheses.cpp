@@ -14,6 +14,8 @@ namespace {
 using engine::Vec3;
 
 constexpr int kChunks = 32;
+constexpr std::size_t kSupportSample = 256;
+constexpr int kThirdAttempts = 64;
 
 // Adds h to the best-first list `kept` unless a kept pose within the distinctness limits has at
 // least its support (then h is a duplicate of it); replaces the weaker duplicates otherwise.
@@ -104,7 +106,7 @@ std::vector<Hypothesis> ransac_hypotheses(std::span<const Vec3> scan, std::span<
   std::vector<std::vector<Hypothesis>> chunk_best(chunks);
   tbb::parallel_for(std::size_t{0}, chunks, [&](std::size_t chunk) {
     std::vector<Hypothesis>& best = chunk_best[chunk];
-    std::vector<std::uint32_t> with_a, with_ab;
+    std::vector<std::uint32_t> with_a;
     for (std::size_t si = chunk; si < seeds.size(); si += chunks) {
       const std::uint32_t a = seeds[si];
       // The matches consistent with a: if a is right, every right match is among them.
@@ -115,14 +117,17 @@ std::vector<Hypothesis> ransac_hypotheses(std::span<const Vec3> scan, std::span<
       if (with_a.size() < 2) continue;
       std::mt19937_64 rng(p.seed * 0x9E3779B97F4A7C15ull + a);
       Hypothesis seed_best;
+      // Support is counted on at most kSupportSample of a's consistent matches (evenly spread).
+      const std::size_t step = std::max<std::size_t>(1, with_a.size() / kSupportSample);
       for (int draw = 0; draw < p.draws_per_seed; ++draw) {
         const std::uint32_t b = with_a[static_cast<std::size_t>(rng() % with_a.size())];
-        with_ab.clear();
-        for (std::uint32_t c : with_a) {
-          if (c != b && compatible(b, c)) with_ab.push_back(c);
+        // c: consistent with a (drawn from with_a) and with b (rejection: a few tries).
+        std::uint32_t c = b;
+        for (int attempt = 0; attempt < kThirdAttempts && c == b; ++attempt) {
+          const std::uint32_t k = with_a[static_cast<std::size_t>(rng() % with_a.size())];
+          if (k != b && compatible(b, k)) c = k;
         }
-        if (with_ab.empty()) continue;
-        const std::uint32_t c = with_ab[static_cast<std::size_t>(rng() % with_ab.size())];
+        if (c == b) continue;
         const std::array<Vec3, 3> s{scan[matches[a].scan], scan[matches[b].scan],
                                     scan[matches[c].scan]};
         const std::array<Vec3, 3> d{model[matches[a].model], model[matches[b].model],
@@ -136,11 +141,13 @@ std::vector<Hypothesis> ransac_hypotheses(std::span<const Vec3> scan, std::span<
         if (!fits) continue;
         // Support among a's consistent matches (where every right match lies), cheap.
         std::size_t support = 1;
-        for (std::uint32_t k : with_a)
-          support += (T * scan[matches[k].scan] - model[matches[k].model]).squaredNorm() <= d2max;
+        for (std::size_t i = 0; i < with_a.size(); i += step) {
+          const Match& k = matches[with_a[i]];
+          support += (T * scan[k.scan] - model[k.model]).squaredNorm() <= d2max;
+        }
         if (support > seed_best.support) seed_best = {T, support};
       }
-      if (seed_best.support < 4) continue;
+      if (seed_best.support < 3) continue;
       seed_best.support = support_of(seed_best.T_model_scan, scan, model, matches, d2max, nullptr);
       keep_best(best, seed_best, p);
     }

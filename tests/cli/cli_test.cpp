@@ -239,15 +239,17 @@ TEST(Cli, AlignOutOfIterationsWarnsAndKeepsItsPose) {
 
 // ICP that loses its correspondences has no pose to give: a scan far beside the panel (every foot
 // on an edge, off the normal) fails with exit 1 and one line naming the scan and the cause. No
-// pose or aligned scan is written; the report is, and says converged: false.
+// pose or aligned scan is written; the report is, and says converged: false. (--no-global: the
+// local run from the identity; without it the global stage finds the pose, see below.)
 TEST(Cli, AlignThatLosesItsCorrespondencesFails) {
   ScratchDir dir("align_fails");
   const std::string scan =
       synth_panel_scan(dir, "beside.pcd", "--points 2000 --seed 5 --pose \"0 0 0 1000 0 0\"");
-  const CommandResult align = run_nurbsreg(
-      "-q align --model " + kPanel + " --scan " + scan + " --out-pose " + (dir / "pose.txt") +
-          " --aligned " + (dir / "aligned.pcd") + " --report " + (dir / "report.json"),
-      dir.path());
+  const CommandResult align =
+      run_nurbsreg("-q align --no-global --model " + kPanel + " --scan " + scan + " --out-pose " +
+                       (dir / "pose.txt") + " --aligned " + (dir / "aligned.pcd") + " --report " +
+                       (dir / "report.json"),
+                   dir.path());
   EXPECT_EQ(align.status, 1) << align.err;
   EXPECT_EQ(count_lines(align.err), 1) << align.err;
   EXPECT_EQ(align.err.rfind("error: " + scan + ": alignment failed", 0), 0u) << align.err;
@@ -262,6 +264,56 @@ TEST(Cli, AlignThatLosesItsCorrespondencesFails) {
   EXPECT_EQ(report["termination"].get<std::string>().rfind("too_few_correspondences", 0), 0u);
 }
 
+// The same scan far beside the panel, without --init: the global stage finds the pose, the fit
+// is good, and the report says how (coarse method, hypotheses, scores) and why (fit numbers).
+TEST(Cli, AlignWithoutInitFindsThePoseFromAnywhere) {
+  ScratchDir dir("align_global");
+  const std::string scan = synth_panel_scan(
+      dir, "far.pcd",
+      "--points 5000 --seed 5 --noise 0.01 --pose \"150 -60 20 1000 0 0\" --out-pose " +
+          (dir / "truth.txt"));
+  const CommandResult align =
+      run_nurbsreg("-q align --model " + kPanel + " --scan " + scan + " --out-pose " +
+                       (dir / "pose.txt") + " --report " + (dir / "report.json"),
+                   dir.path());
+  ASSERT_EQ(align.status, 0) << align.err;
+  const Eigen::Matrix4d truth = io::read_pose(dir / "truth.txt");
+  const Eigen::Matrix4d found = io::read_pose(dir / "pose.txt");
+  // found * truth^-1 is the identity up to noise: it moves the panel's middle by a few hundredths.
+  const Eigen::Matrix4d error = found * truth.inverse();
+  EXPECT_LT((error.topLeftCorner<3, 3>() - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff(),
+            1e-3);
+  const Eigen::Vector4d middle(50, 50, 5, 1);
+  EXPECT_LT((error * middle - middle).norm(), 0.05);
+  const auto report = nlohmann::json::parse(read_text(dir / "report.json"));
+  EXPECT_EQ(report["fit"].get<std::string>(), "good");
+  EXPECT_GT(report["fit_details"]["inlier_fraction"].get<double>(), 0.95);
+  EXPECT_EQ(report["coarse"]["method"].get<std::string>(), "fpfh-ransac");
+  EXPECT_GE(report["coarse"]["verified"].get<int>(), 1);
+  EXPECT_GT(report["coarse"]["winner"]["inlier_fraction"].get<double>(), 0.9);
+}
+
+// A wrong pose from --init is never a plain success: exit 1 with one line naming the scan and
+// the poor fit; --accept-poor writes it, reported "poor".
+TEST(Cli, APoorFitFailsUnlessAccepted) {
+  ScratchDir dir("align_poor");
+  const std::string scan =
+      synth_panel_scan(dir, "turned.pcd", "--points 3000 --seed 4 --pose \"0 0 90 100 0 0\"");
+  const CommandResult poor = run_nurbsreg(
+      "-q align --no-global --model " + kPanel + " --scan " + scan + " --max-iterations 3",
+      dir.path());
+  EXPECT_EQ(poor.status, 1) << poor.err;
+  EXPECT_EQ(count_lines(poor.err), 1) << poor.err;
+  EXPECT_EQ(poor.err.rfind("error: " + scan + ": poor fit", 0), 0u) << poor.err;
+  const CommandResult accepted =
+      run_nurbsreg("-q align --no-global --accept-poor --model " + kPanel + " --scan " + scan +
+                       " --max-iterations 3 --report " + (dir / "report.json"),
+                   dir.path());
+  EXPECT_EQ(accepted.status, 0) << accepted.err;
+  const auto report = nlohmann::json::parse(read_text(dir / "report.json"));
+  EXPECT_EQ(report["fit"].get<std::string>(), "poor");
+}
+
 // A synthetic panel scan with every coordinate multiplied by `scale` (another unit), as XYZ.
 std::string scaled_panel_scan(const ScratchDir& dir, const std::string& name, double scale) {
   const io::PointCloud cloud =
@@ -274,16 +326,18 @@ std::string scaled_panel_scan(const ScratchDir& dir, const std::string& name, do
   return scan;
 }
 
-// A scan in metres against the panel in millimetres: ICP settles the small scan on some patch
-// (exit 0, a pose), so the command must say that the sizes differ by 1000.
+// A scan in metres against the panel in millimetres: local ICP (--no-global) settles the small
+// scan on some patch. That pose means nothing, and the verdict says so (it covers 0.1% of the
+// model: exit 1), with the sizes that differ by 1000 as the likely cause.
 TEST(Cli, AlignOfAScanInOtherUnitsWarns) {
   ScratchDir dir("align_metres");
   const std::string scan = scaled_panel_scan(dir, "metres.xyz", 1e-3);
-  const CommandResult align = run_nurbsreg(
-      "align --model " + kPanel + " --scan " + scan + " --out-pose " + (dir / "pose.txt"),
-      dir.path());
-  EXPECT_EQ(align.status, 0) << align.err;
-  EXPECT_NE(align.err.find(scan + ": the scan is 1/"), std::string::npos) << align.err;
+  const CommandResult align = run_nurbsreg("align --no-global --model " + kPanel + " --scan " +
+                                               scan + " --out-pose " + (dir / "pose.txt"),
+                                           dir.path());
+  EXPECT_EQ(align.status, 1) << align.err;
+  EXPECT_NE(align.err.find(scan + ": poor fit"), std::string::npos) << align.err;
+  EXPECT_NE(align.err.find("the scan is 1/"), std::string::npos) << align.err;
   EXPECT_NE(align.err.find("of the size of the model"), std::string::npos) << align.err;
   EXPECT_NE(align.err.find("are both in the same units"), std::string::npos) << align.err;
   // project warns the same way; a scan of the panel's own size does not.
