@@ -1,4 +1,4 @@
-#!/usr/bin/env python3
+#!/usr/bin/python3
 """nurbsreg's exact signed distances against CloudCompare's C2M distances on the same points.
 
 Usage: compare_c2m.py deviations.ply cc_c2m.ply

@@ -6,9 +6,9 @@
 # the figures.
 #
 # Usage: bench/inspect/run_inspect_bench.sh BUILD_DIR WORK_DIR [POINTS] [CHORD_TOLERANCE]
-# Needs: the build's nurbsreg and bench/inspect/step_to_stl; chromium; CloudCompare; python3
-# with numpy (scripts/install_deps.sh). Times: wall and CPU seconds (CPU says what a stage costs
-# on a shared machine).
+# Needs: the build's nurbsreg and bench/inspect/step_to_stl; chromium; CloudCompare; numpy for
+# /usr/bin/python3 (Debian python3-numpy, which python3-open3d pulls in). Times: wall and CPU
+# seconds (CPU says what a stage costs on a shared machine).
 set -euo pipefail
 build=$(realpath "$1")
 work=$2
@@ -55,4 +55,4 @@ export QT_QPA_PLATFORM=offscreen
   -O out/deviations.ply -O part.stl -C2M_DIST -SAVE_CLOUDS FILE cc_c2m.ply > cc.log 2> cc.time
 tail -1 cc_load.time
 tail -1 cc.time
-python3 "$here/compare_c2m.py" out/deviations.ply cc_c2m.ply
+/usr/bin/python3 "$here/compare_c2m.py" out/deviations.ply cc_c2m.ply

@@ -1,4 +1,4 @@
-#!/usr/bin/env python3
+#!/usr/bin/python3
 """The inspection report in a real browser and the PLY in Open3D (ctest inspect_browser_and_open3d).
 
 Makes a small noisy scan of the example panel, runs `nurbsreg inspect` on it, then:
