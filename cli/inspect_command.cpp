@@ -39,6 +39,7 @@ struct InspectArgs {
   std::size_t viewer_points = 300'000;
   bool no_model_mesh = false;
   IcpArgs icp;
+  GlobalArgs global;
   int threads = 0;
 };
 
@@ -130,11 +131,14 @@ void run_inspect(const InspectArgs& args) {
       sum_sq += d * d;
     report.alignment.rms = deviations.size() ? std::sqrt(sum_sq / double(deviations.size())) : NAN;
   } else {
-    registration::Aligner aligner(prepared, icp);
-    const registration::AlignmentResult frame = align_frame(aligner, cloud, init);
+    // As `align` does: from any pose without --init (the global stage), from --init as given.
+    registration::Aligner aligner(prepared, icp, registration_options(args.global));
+    const registration::AlignmentResult frame =
+        align_frame(aligner, cloud, align_request(args.init, args.global));
     spdlog::info("{}", frame.icp.brief_report());
     if (frame.failure) throw std::runtime_error(args.scan + ": " + *frame.failure);
     warn_if_unconverged(args.scan, frame.icp, args.icp);
+    warn_about_fit(args.scan, frame);
     if (const auto note = frame.sizes.warning()) spdlog::warn("{}: {}", args.scan, *note);
     if (frame.icp.degeneracy.degenerate()) {
       report.degeneracy = frame.icp.degeneracy.describe();
@@ -182,7 +186,7 @@ void add_inspect_command(CLI::App& app) {
   auto args = std::make_shared<InspectArgs>();
   cmd->add_option("--model", args->model, "Model file (.json, .step/.stp, .iges/.igs)")->required();
   cmd->add_option("--scan", args->scan, "Scan: .pcd, .ply, .xyz/.txt/.csv")->required();
-  cmd->add_option("--init", args->init, "Initial pose T0 for the alignment (4 lines of 4 numbers)");
+  cmd->add_option("--init", args->init, "Initial pose T0 for the alignment (4 lines of 4 numbers); none: global alignment from any pose first");
   cmd->add_option("--pose", args->pose,
                   "The final pose T: no alignment (model_point = T * scan_point)");
   cmd->add_option("--out-dir", args->out_dir, "Output folder (created; its parent must exist)")
@@ -208,6 +212,7 @@ void add_inspect_command(CLI::App& app) {
       ->check(CLI::Range(std::size_t{1}, std::size_t{5'000'000}));
   cmd->add_flag("--no-model-mesh", args->no_model_mesh, "Leave the model's grey faces out");
   add_icp_options(*cmd, args->icp);
+  add_global_options(*cmd, args->global);
   cmd->add_option("--threads", args->threads, "Worker threads (0 = all hardware threads)")
       ->check(CLI::NonNegativeNumber);
   cmd->callback([args] { run_inspect(*args); });

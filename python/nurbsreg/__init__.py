@@ -126,7 +126,7 @@ class Aligner:
         scan: (N, 3) float64 or float32 array (any layout; copied only when it is not C-ordered
             float64 or has NaN/infinite rows, which are skipped and counted).
         init: starting pose, a 4x4 rigid matrix (checked and made exactly orthonormal as the
-            CLI's ``--init``); None: the identity.
+            CLI's ``--init``); None: from any pose (the global coarse stage, then ICP), as the CLI without ``--init``.
         distances: also return the exact signed distance of every aligned point
             (``result.signed_distance``, NaN for skipped rows).
         threads: worker threads for this call (None or 0: all).
@@ -157,7 +157,7 @@ def align(model, scan, *, init=None, distances=False, threads=None, **icp_option
     scan: (N, 3) float64 or float32 array (any layout; copied only when it is not C-ordered
         float64 or has NaN/infinite rows, which are skipped and counted in ``skipped``).
     init: starting pose, a 4x4 rigid matrix (checked and made exactly orthonormal as the CLI's
-        ``--init``); None: the identity.
+        ``--init``); None: from any pose (the global coarse stage, then ICP), as the CLI without ``--init``.
     distances: also return the exact signed distance of every aligned point.
     threads: worker threads for this call (None or 0: all hardware threads).
     icp_options: the CLI's ICP options by name: method ("point-to-plane" or "point-to-point"),

@@ -98,6 +98,8 @@ class PyAligner {
                  const std::optional<int>& threads) {
     const PointsArg scan(scan_object, "scan");
     const Eigen::Isometry3d init = initial_pose(init_object);
+    // As the CLI: no init means from any pose (the global coarse stage, then ICP).
+    const bool from_any_pose = init_object.is_none();
     const int thread_limit = thread_count(threads);
     auto frame = std::make_shared<AlignmentFrame>();
     frame->method = method_;
@@ -114,7 +116,8 @@ class PyAligner {
           frame->index = std::move(finite.rows);
           if (finite.points.empty()) return;
           try {
-            frame->result = aligner_->align(finite.points, init);
+            frame->result = from_any_pose ? aligner_->align(finite.points)
+                                          : aligner_->align(finite.points, init);
           } catch (const std::invalid_argument& e) {
             throw std::invalid_argument(std::string("scan: ") + e.what());
           }

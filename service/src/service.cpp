@@ -431,8 +431,10 @@ void Service::Impl::align(const httplib::Request& req, httplib::Response& res,
     pooled = std::make_unique<registration::Aligner>(*model->prepared, icp_options);
     aligner = pooled.get();
   }
-  const Eigen::Isometry3d start_pose = init.value_or(Eigen::Isometry3d::Identity());
-  const registration::AlignmentResult frame = aligner->align(cloud.points, start_pose);
+  // As `align` does: from the given (or the session's previous) pose, else from any pose (the
+  // global coarse stage, then ICP).
+  const registration::AlignmentResult frame =
+      init ? aligner->align(cloud.points, *init) : aligner->align(cloud.points);
 
   const io::AlignmentReport report = io::make_alignment_report(
       frame, icp_options.method, cloud.skipped_nonfinite, seconds_since(start));
@@ -441,7 +443,7 @@ void Service::Impl::align(const httplib::Request& req, httplib::Response& res,
   const registration::DeviationSummary& d = frame.deviation;
   answer["deviation"] = Json{{"count", d.count}, {"mean", d.mean}, {"rms", d.rms}, {"p50", d.p50},
                              {"p95", d.p95},     {"p99", d.p99},   {"max", d.max}};
-  answer["init"] = init ? (session && !param(req, "init") ? "session" : "request") : "identity";
+  answer["init"] = init ? (session && !param(req, "init") ? "session" : "request") : "global";
   if (session) {
     answer["session"] = session->id;
     answer["frame"] = ++session->frames;

@@ -219,7 +219,7 @@ TEST_F(Serve, SessionsStartFromThePreviousPose) {
   ASSERT_EQ(first->status, 200) << first->body;
   const Json a = Json::parse(first->body);
   EXPECT_EQ(a.at("frame"), 1);
-  EXPECT_EQ(a.at("init"), "identity");
+  EXPECT_EQ(a.at("init"), "global");
   const auto second = c->Post("/v1/align?model=panel&session=cam-1", scan, kPcd);
   ASSERT_TRUE(second);
   ASSERT_EQ(second->status, 200);
