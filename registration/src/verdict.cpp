@@ -50,7 +50,12 @@ FitVerdict judge_fit(std::span<const engine::Vec3> aligned, std::span<const doub
   FitVerdict v;
   v.evaluated = true;
   v.noise = noise;
-  v.tolerance = std::max(o.tolerance_sigmas * noise, 1e-5 * scan_diagonal);
+  // A scan too sparse for its noise to be estimated (no neighbourhood of six points within a
+  // voxel) is judged at a twentieth of the model's sample spacing instead: looser, but a
+  // noise of 0 would call every real scan poor.
+  const double floor =
+      noise > 0.0 ? 1e-5 * scan_diagonal : std::max(1e-5 * scan_diagonal, 0.05 * features.voxel());
+  v.tolerance = std::max(o.tolerance_sigmas * noise, floor);
   std::size_t inliers = 0;
   double sum_sq = 0.0;
   for (double d : distances) {
