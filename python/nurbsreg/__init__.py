@@ -126,7 +126,8 @@ class Aligner:
         scan: (N, 3) float64 or float32 array (any layout; copied only when it is not C-ordered
             float64 or has NaN/infinite rows, which are skipped and counted).
         init: starting pose, a 4x4 rigid matrix (checked and made exactly orthonormal as the
-            CLI's ``--init``); None: the identity.
+            CLI's ``--init``); None: ICP from the identity (the global alignment from any pose
+            of issue 25 is not exposed yet).
         distances: also return the exact signed distance of every aligned point
             (``result.signed_distance``, NaN for skipped rows).
         threads: worker threads for this call (None or 0: all).
@@ -157,7 +158,8 @@ def align(model, scan, *, init=None, distances=False, threads=None, **icp_option
     scan: (N, 3) float64 or float32 array (any layout; copied only when it is not C-ordered
         float64 or has NaN/infinite rows, which are skipped and counted in ``skipped``).
     init: starting pose, a 4x4 rigid matrix (checked and made exactly orthonormal as the CLI's
-        ``--init``); None: the identity.
+        ``--init``); None: ICP from the identity (as ``align --init`` with the identity; the
+        global alignment from any pose of issue 25 is not exposed yet).
     distances: also return the exact signed distance of every aligned point.
     threads: worker threads for this call (None or 0: all hardware threads).
     icp_options: the CLI's ICP options by name: method ("point-to-plane" or "point-to-point"),
