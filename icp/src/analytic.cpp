@@ -20,6 +20,9 @@ template <class... Fs>
 struct Overloaded : Fs... {
   using Fs::operator()...;
 };
+// Clang 14 (the sanitizer builds) does not deduce aggregate template arguments without it.
+template <class... Fs>
+Overloaded(Fs...) -> Overloaded<Fs...>;
 
 bool finite(const Vec3& v) {
   return v.allFinite();
