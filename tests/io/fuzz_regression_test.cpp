@@ -184,7 +184,7 @@ TEST(FuzzRegression, ModelCoordinatesBeyondTheProjectionsRangeAreRejected) {
   // Was: `project` wrote NaN rows with exit 0 (1e155), or ran for minutes (1e150).
   for (const char* name :
        {"json_cp1e155_project_nonfinite.json", "json_cp1e150_project_timeout.json"}) {
-    const std::string message = error_of([&] { read_model(kFindings + name); });
+    const std::string message = error_of([&] { read_model_json(kFindings + name); });
     EXPECT_HAS(message, "surface 0: control_points[");
     EXPECT_HAS(message, "is beyond the supported range |coordinate| <= 1e15");
   }
