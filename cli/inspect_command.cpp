@@ -186,7 +186,9 @@ void add_inspect_command(CLI::App& app) {
   auto args = std::make_shared<InspectArgs>();
   cmd->add_option("--model", args->model, "Model file (.json, .step/.stp, .iges/.igs)")->required();
   cmd->add_option("--scan", args->scan, "Scan: .pcd, .ply, .xyz/.txt/.csv")->required();
-  cmd->add_option("--init", args->init, "Initial pose T0 for the alignment (4 lines of 4 numbers); none: global alignment from any pose first");
+  cmd->add_option("--init", args->init,
+                  "Initial pose T0 for the alignment (4 lines of 4 numbers); none: global "
+                  "alignment from any pose first");
   cmd->add_option("--pose", args->pose,
                   "The final pose T: no alignment (model_point = T * scan_point)");
   cmd->add_option("--out-dir", args->out_dir, "Output folder (created; its parent must exist)")

@@ -21,7 +21,8 @@ using Eigen::Isometry3d;
 using engine::Vec3;
 
 const engine::PreparedModel& panel() {
-  static const engine::PreparedModel model(io::read_model_json(NURBSREG_EXAMPLES_DIR "/panel.json"));
+  static const engine::PreparedModel model(
+      io::read_model_json(NURBSREG_EXAMPLES_DIR "/panel.json"));
   return model;
 }
 
