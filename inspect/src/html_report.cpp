@@ -82,6 +82,16 @@ std::string percent_text(double f) {
   return fmt::format("{:.2f} %", 100.0 * f);
 }
 
+// The fit verdict beside the iteration count: a poor fit is what the reader must not miss.
+std::string fit_word(const io::AlignmentReport& a) {
+  if (!a.has_fit) return "";
+  return a.fit.fit == "good" ? ", fit good"
+                             : ", <b class=\"poor\">fit " + escape(a.fit.fit) + "</b>";
+}
+std::string degenerate_word(const InspectionReport& r) {
+  return r.degeneracy.empty() ? "" : ", <b>degenerate</b>";
+}
+
 std::string summary(const InspectionReport& r) {
   const DeviationStats& s = r.stats.overall;
   const auto card = [](const std::string& label, const std::string& value,
@@ -119,9 +129,9 @@ std::string summary(const InspectionReport& r) {
               r.pose_given ? std::string("given (--pose)")
                            : number("alignment_rms", a.rms, fmt::format("rms {:.4g}", a.rms)),
               r.pose_given ? "no alignment run"
-                           : fmt::format("{} iterations, {}{}", a.iterations,
-                                         a.converged ? "converged" : "not converged",
-                                         r.degeneracy.empty() ? "" : ", <b>degenerate</b>"));
+                           : fmt::format("{} iterations, {}{}{}", a.iterations,
+                                         a.converged ? "converged" : "not converged", fit_word(a),
+                                         degenerate_word(r)));
   out += card("Skipped",
               number("skipped_points", double(r.alignment.skipped_points),
                      fmt::format("{}", r.alignment.skipped_points)),
@@ -261,6 +271,28 @@ std::string alignment_section(const InspectionReport& r) {
     fact("inliers", fmt::format("{} of {}", a.inliers, r.scan_points));
     fact("iterations", fmt::format("{}", a.iterations));
     fact("termination", escape(a.termination));
+    if (a.has_fit) {
+      const io::FitRecord& f = a.fit;
+      fact("fit",
+           fmt::format("<span data-key=\"fit\">{}</span>: {:.1f} % of the points within "
+                       "{:.4g} {} (estimated noise {:.4g}), rms {:.4g}, model coverage {:.1f} %{}",
+                       escape(f.fit), 100.0 * f.inlier_fraction, f.tolerance, escape(r.units),
+                       f.noise, f.rms, 100.0 * f.coverage,
+                       f.reason.empty() ? "" : " &mdash; " + escape(f.reason)));
+    }
+    if (a.has_coarse) {
+      const io::CoarseRecord& c = a.coarse;
+      fact("coarse stage",
+           fmt::format("{}: {} hypotheses verified in {:.2f} s; winner {:.1f} % inliers{}",
+                       escape(c.method), c.verified, c.seconds, 100.0 * c.winner.inlier_fraction,
+                       c.has_runner_up ? fmt::format(", runner-up {:.1f} %",
+                                                     100.0 * c.runner_up.inlier_fraction)
+                                       : std::string()));
+      if (!c.symmetry.empty())
+        fact("symmetry", "<b>" + escape(c.symmetry) + "</b> (" +
+                             fmt::format("{}", c.alternatives.size()) +
+                             " other pose(s) fit as well; inspect.json lists them)");
+    }
   }
   fact("degeneracy", r.degeneracy.empty() ? "none: the scan constrains all six degrees of freedom"
                                           : "<b>free directions: " + escape(r.degeneracy) + "</b>");
@@ -303,6 +335,13 @@ std::string html_report(const InspectionReport& r, const PointDeviations& dev,
       number("tolerance_upper", sc.band.upper, fmt::format("{:+g}", sc.band.upper)),
       escape(r.units), number("min_inside", r.min_inside, percent_text(r.min_inside)));
   out += "</header>\n<main>\n";
+  // A poor fit accepted with --accept-poor: the deviations are measured in a pose nobody can
+  // stand behind, so the page says so before any number.
+  if (const io::AlignmentReport& a = r.alignment; a.has_fit && a.fit.fit != "good")
+    out += "<section class=\"warning\" data-key=\"fit_warning\"><b>Alignment: " +
+           escape(a.fit.reason.empty() ? a.fit.fit + " fit" : a.fit.reason) +
+           "</b>. The deviations below are measured in that pose (accepted with "
+           "--accept-poor).</section>\n";
   out += summary(r);
   out +=
       "<section class=\"view\">\n<div id=\"viewer\"><canvas id=\"canvas\"></canvas>"

@@ -188,6 +188,34 @@ TEST(InspectCli, AlignsFirstWithoutAPose) {
   EXPECT_FALSE(j["pose_given"].get<bool>());
   EXPECT_LT(j["rms"].get<double>(), 0.02);
   EXPECT_GT(j["inside_tolerance"].get<double>(), 0.95);  // noise 0.01 against a band of 0.03
+  EXPECT_EQ(j["fit"].get<std::string>(), "good");
+  const std::string html = read_text(out + "/report.html");
+  EXPECT_NE(html.find("<span data-key=\"fit\">good</span>"), std::string::npos);
+  EXPECT_EQ(html.find("data-key=\"fit_warning\""), std::string::npos);
+}
+
+// A poor fit accepted with --accept-poor: the page says so above every number, not only the JSON.
+TEST(InspectCli, AcceptedPoorFitIsShownOnThePage) {
+  ScratchDir dir("inspect-cli-poor");
+  const std::string panel = std::string(NURBSREG_EXAMPLES_DIR) + "/panel.json";
+  const std::string scan = dir / "scan.pcd";
+  ASSERT_EQ(run_nurbsreg("-q synth --model " + panel +
+                             " --points 3000 --noise 0.01 --outliers 0.2 --seed 5 --out " + scan,
+                         dir.path())
+                .status,
+            0);
+  const std::string out = dir / "out";
+  const std::string base = "-q inspect --model " + panel + " --scan " + scan +
+                           " --tolerance 0.03 --min-inlier-fraction 0.95 --out-dir " + out;
+  const CommandResult refused = run_nurbsreg(base, dir.path());
+  EXPECT_EQ(refused.status, 1) << refused.err;
+  EXPECT_FALSE(fs::exists(out));
+  const CommandResult r = run_nurbsreg(base + " --accept-poor", dir.path());
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_EQ(read_json(out + "/inspect.json")["fit"].get<std::string>(), "poor");
+  const std::string html = read_text(out + "/report.html");
+  EXPECT_NE(html.find("data-key=\"fit_warning\""), std::string::npos);
+  EXPECT_NE(html.find("<span data-key=\"fit\">poor</span>"), std::string::npos);
 }
 
 void expect_clean_failure(const ScratchDir& dir, const std::string& args, int status,
