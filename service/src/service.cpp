@@ -409,9 +409,19 @@ void Service::Impl::align(const httplib::Request& req, httplib::Response& res,
   std::optional<std::string> session_id;
   if (const auto text = param(req, "session")) session_id = parse_session_id(*text);
   const bool with_distances = param(req, "distances").value_or("") == "true";
+  std::optional<double> frame_limit;
+  if (const auto text = param(req, "time_limit")) {
+    frame_limit = parse_time_limit(*text, options.time_limit_seconds);
+  }
 
   const AdmittedFrame admitted = admit_frame(req, reader, deadline, consumed);
   const io::PointCloud& cloud = admitted.cloud;
+  // The frame's own limit counts from here (its body is in); the server's from the start.
+  const Clock::time_point work_deadline =
+      frame_limit
+          ? std::min(deadline, Clock::now() + std::chrono::duration_cast<Clock::duration>(
+                                                  std::chrono::duration<double>(*frame_limit)))
+          : deadline;
   if (cloud.size() == 0) {
     throw HttpError(400, cloud.total == 0
                              ? std::string("request body: the scan has no points")
@@ -442,7 +452,7 @@ void Service::Impl::align(const httplib::Request& req, httplib::Response& res,
                       1);
     }
     session_lock = std::unique_lock(session->busy, std::defer_lock);
-    if (!session_lock.try_lock_until(deadline)) {
+    if (!session_lock.try_lock_until(work_deadline)) {
       throw HttpError(
           409, "session \"" + *session_id + "\" is busy with another frame beyond the time limit");
     }
@@ -468,7 +478,7 @@ void Service::Impl::align(const httplib::Request& req, httplib::Response& res,
   // global coarse stage, then ICP); the work stops at the request's deadline.
   registration::AlignRequest request;
   request.init = init;
-  request.deadline = deadline;
+  request.deadline = work_deadline;
   const registration::AlignmentResult frame = aligner->align(cloud.points, request);
 
   const io::AlignmentReport report = io::make_alignment_report(
@@ -493,9 +503,10 @@ void Service::Impl::align(const httplib::Request& req, httplib::Response& res,
   if (frame.icp.termination == icp::IcpTermination::time_limit) {
     // The request's time ran out mid-computation: 504, naming the limit (the report says how
     // far the work got); the pose is not a result.
-    answer["error"] =
-        *frame.failure + " (--time-limit " + fmt_seconds(options.time_limit_seconds) + " s)";
-    answer["time_limit_seconds"] = options.time_limit_seconds;
+    const double limit = frame_limit ? *frame_limit : options.time_limit_seconds;
+    answer["error"] = *frame.failure + " (" + (frame_limit ? "time_limit " : "--time-limit ") +
+                      fmt_seconds(limit) + " s)";
+    answer["time_limit_seconds"] = limit;
     res.status = 504;
   } else if (frame.failure) {
     // No pose to use: the report says what happened; the status says it is not a result.
