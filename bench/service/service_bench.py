@@ -5,7 +5,7 @@ For each model (the freeform panel and a real part, NIST CTC-02), in the same ru
   1. synthesise --distinct frames of --points points (moved and noisy scans, binary PCD);
   2. `nurbsreg batch` over clients x frames of them (symlinks to the distinct files);
   3. `nurbsreg serve` on a loopback ephemeral port, --clients concurrent keep-alive clients
-     (http.client) posting --frames frames each to /v1/align, after one warm-up frame each;
+     (http.client) posting --frames frames each to /v1/align, after two warm-up frames each;
 and prints frames/s, points/s, the ratio to batch, p50/p95/p99 latency and the server's
 resident memory (VmRSS, and the peak VmHWM) after the warm-up and at the end.
 
@@ -117,7 +117,11 @@ def bench_serve(binary, model, files, clients, frames, threads, max_seconds, log
                 if answer.status != 200:
                     failures.append(f"{answer.status}: {text[:200]!r}")
                 return time.monotonic() - t
-            frame(c)  # warm-up: first touch of the aligner's buffers
+            # Warm-up, two frames: the first fills an aligner's coarse-stage buffers (and, in
+            # a session, is its global frame), the second the aligner's own ICP buffers (a
+            # session's first frame from a previous pose); the memory is sampled after them.
+            frame(c)
+            frame(c + 1)
             barrier.wait()
             for k in range(frames):
                 if time.monotonic() > deadline[0]:
