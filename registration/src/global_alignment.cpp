@@ -154,6 +154,7 @@ CoarseOutcome coarse_align(std::span<const Vec3> scan, const ModelFeatures& feat
   lap("model features (once per model)");
   const ScanKeypoints keys = scan_keypoints(scan, features);
   lap("scan keypoints");
+  if (past_deadline("after the scan's keypoints")) return out;
   r.scan_keypoints = keys.points.size();
   const ModelKeypoints& model_keys = features.keypoints();
   r.model_keypoints = model_keys.points.size();
@@ -173,6 +174,7 @@ CoarseOutcome coarse_align(std::span<const Vec3> scan, const ModelFeatures& feat
   if (past_deadline("after the scan's features")) return out;
   const std::vector<Match> matches = match_descriptors(scan_desc, features.descriptors());
   lap("matches");
+  if (past_deadline("after matching features")) return out;
   r.matches = matches.size();
   RansacParams rp;
   rp.seeds = o.ransac_seeds;
