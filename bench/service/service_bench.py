@@ -89,10 +89,12 @@ def bench_batch(binary, model, files, total, threads, work, max_seconds):
     return done, time.monotonic() - start
 
 
-def bench_serve(binary, model, files, clients, frames, threads, max_seconds, log, session=False):
+def bench_serve(binary, model, files, clients, frames, threads, max_seconds, log, session=False,
+                time_limit=600):
     server = subprocess.Popen(
         [binary, "serve", "--model", model, "--id", "m", "--port", "0", "--threads", str(threads),
-         "--max-inflight", str(clients), "--connections", str(clients + 2)],
+         "--max-inflight", str(clients), "--connections", str(clients + 2),
+         "--time-limit", str(time_limit)],
         stdout=subprocess.PIPE, stderr=log, text=True)
     try:
         line = server.stdout.readline()
@@ -215,6 +217,9 @@ def main():
     p.add_argument("--binary", default=os.path.join(ROOT, "build", "bin", "nurbsreg"))
     p.add_argument("--soak", type=int, default=0, help="memory soak: this many small requests")
     p.add_argument("--session", action="store_true", help="each client one session (warm frames)")
+    p.add_argument("--time-limit", type=float, default=600,
+                   help="the server's --time-limit (s): frames over it are answered 504 and count "
+                        "as failed")
     a = p.parse_args()
     load_start = os.getloadavg()[0]
     if a.soak:
@@ -238,7 +243,7 @@ def main():
             print(f"[{name}] serve: {a.clients} clients x {a.frames} frames ...", flush=True)
             latencies, seconds, m0, m1, failures = bench_serve(
                 a.binary, model, files, a.clients, a.frames, a.threads, a.max_seconds, log,
-                a.session)
+                a.session, a.time_limit)
             if failures:
                 print(f"[{name}] {len(failures)} failed frames, first: {failures[0]}")
             served = len(latencies)
