@@ -119,8 +119,10 @@ void add_serve_command(CLI::App& app) {
                   "Require 'Authorization: Bearer <token>' with the file's first line");
   cmd->add_option("--model-root", s.model_root,
                   "Allow POST /v1/models to load model files from below this directory");
-  cmd->add_option("--time-limit", s.time_limit_seconds,
-                  "Seconds a request may take to upload its body or wait for its session")
+  cmd->add_option(
+         "--time-limit", s.time_limit_seconds,
+         "Seconds a request may take in all: its upload (408), its wait for a busy session "
+         "(409) and its computation (504)")
       ->check(CLI::PositiveNumber);
   cmd->add_option("--session-timeout", s.session_idle_seconds,
                   "Seconds after which an idle session expires")

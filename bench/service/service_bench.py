@@ -5,7 +5,7 @@ For each model (the freeform panel and a real part, NIST CTC-02), in the same ru
   1. synthesise --distinct frames of --points points (moved and noisy scans, binary PCD);
   2. `nurbsreg batch` over clients x frames of them (symlinks to the distinct files);
   3. `nurbsreg serve` on a loopback ephemeral port, --clients concurrent keep-alive clients
-     (http.client) posting --frames frames each to /v1/align, after one warm-up frame each;
+     (http.client) posting --frames frames each to /v1/align, after two warm-up frames each;
 and prints frames/s, points/s, the ratio to batch, p50/p95/p99 latency and the server's
 resident memory (VmRSS, and the peak VmHWM) after the warm-up and at the end.
 
@@ -15,6 +15,12 @@ server is always killed at the end. The machine is shared: use fewer frames (--f
   bench/service/service_bench.py [--frames 100] [--clients 8] [--points 100000]
                                  [--models panel,nist] [--threads 0]
   bench/service/service_bench.py --soak 3000 [--points 5000]   # memory over many requests
+  bench/service/service_bench.py --session ...   # each client one session (warm frames)
+
+--session: each client streams its frames into its own session, so every frame after the
+warm-up starts from the previous frame's pose (ICP only, no global stage): the warm-frame
+latency of a camera stream. Batch has no sessions and still runs the global stage per frame.
+The load average (1 min) is printed at the start and the end: the machine may be shared.
 
 --soak N: N small frames (--points each, default here 5000) from --clients clients to one
 server, the resident memory sampled every N/10 frames: it must stay flat.
@@ -83,10 +89,12 @@ def bench_batch(binary, model, files, total, threads, work, max_seconds):
     return done, time.monotonic() - start
 
 
-def bench_serve(binary, model, files, clients, frames, threads, max_seconds, log):
+def bench_serve(binary, model, files, clients, frames, threads, max_seconds, log, session=False,
+                time_limit=600):
     server = subprocess.Popen(
         [binary, "serve", "--model", model, "--id", "m", "--port", "0", "--threads", str(threads),
-         "--max-inflight", str(clients), "--connections", str(clients + 2)],
+         "--max-inflight", str(clients), "--connections", str(clients + 2),
+         "--time-limit", str(time_limit)],
         stdout=subprocess.PIPE, stderr=log, text=True)
     try:
         line = server.stdout.readline()
@@ -102,15 +110,20 @@ def bench_serve(binary, model, files, clients, frames, threads, max_seconds, log
 
         def client(c):
             conn = http.client.HTTPConnection("127.0.0.1", port, timeout=300)
+            path = f"/v1/align?model=m&session=client{c}" if session else "/v1/align?model=m"
             def frame(k):
                 t = time.monotonic()
-                conn.request("POST", "/v1/align?model=m", bodies[k % len(bodies)], headers)
+                conn.request("POST", path, bodies[k % len(bodies)], headers)
                 answer = conn.getresponse()
                 text = answer.read()
                 if answer.status != 200:
                     failures.append(f"{answer.status}: {text[:200]!r}")
                 return time.monotonic() - t
-            frame(c)  # warm-up: first touch of the aligner's buffers
+            # Warm-up, two frames: the first fills an aligner's coarse-stage buffers (and, in
+            # a session, is its global frame), the second the aligner's own ICP buffers (a
+            # session's first frame from a previous pose); the memory is sampled after them.
+            frame(c)
+            frame(c + 1)
             barrier.wait()
             for k in range(frames):
                 if time.monotonic() > deadline[0]:
@@ -203,10 +216,16 @@ def main():
     p.add_argument("--max-seconds", type=float, default=900, help="per stage")
     p.add_argument("--binary", default=os.path.join(ROOT, "build", "bin", "nurbsreg"))
     p.add_argument("--soak", type=int, default=0, help="memory soak: this many small requests")
+    p.add_argument("--session", action="store_true", help="each client one session (warm frames)")
+    p.add_argument("--time-limit", type=float, default=600,
+                   help="the server's --time-limit (s): frames over it are answered 504 and count "
+                        "as failed")
     a = p.parse_args()
+    load_start = os.getloadavg()[0]
     if a.soak:
         with tempfile.TemporaryDirectory(prefix="nurbsreg-service-soak-") as work:
             soak(a.binary, a.soak, a.clients, a.points if a.points != 100000 else 5000, work)
+        print(f"load average (1 min): {load_start:.1f} at the start, {os.getloadavg()[0]:.1f} at the end")
         return 0
     rows = []
     with tempfile.TemporaryDirectory(prefix="nurbsreg-service-bench-") as work:
@@ -223,7 +242,8 @@ def main():
                                                     model_work, a.max_seconds)
             print(f"[{name}] serve: {a.clients} clients x {a.frames} frames ...", flush=True)
             latencies, seconds, m0, m1, failures = bench_serve(
-                a.binary, model, files, a.clients, a.frames, a.threads, a.max_seconds, log)
+                a.binary, model, files, a.clients, a.frames, a.threads, a.max_seconds, log,
+                a.session, a.time_limit)
             if failures:
                 print(f"[{name}] {len(failures)} failed frames, first: {failures[0]}")
             served = len(latencies)
@@ -240,8 +260,9 @@ def main():
                 "hwm_start": m0["VmHWM"], "hwm_end": m1["VmHWM"],
                 "cut_short": served < total or batch_done < total, "failed": len(failures)})
     print()
-    print(f"{a.clients} clients, {a.points} points a frame, threads {a.threads or 'all'}, "
-          f"{os.cpu_count()} hardware threads")
+    print(f"{a.clients} clients{' (one session each)' if a.session else ''}, {a.points} points a "
+          f"frame, threads {a.threads or 'all'}, {os.cpu_count()} hardware threads, load average "
+          f"(1 min) {load_start:.1f} at the start, {os.getloadavg()[0]:.1f} at the end")
     print("| model | frames (serve/batch) | serve frames/s | batch frames/s | serve/batch | "
           "serve Mpoints/s | p50 ms | p95 ms | p99 ms | RSS start -> end MB | peak RSS start -> end MB |")
     print("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |")

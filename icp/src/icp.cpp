@@ -652,6 +652,11 @@ IcpResult IcpSolver::align(CorrespondenceFinder& finder, std::span<const Vec3> s
     double previous_step = std::numeric_limits<double>::quiet_NaN();
     for (int iteration = 0; iteration < o.max_iterations; ++iteration) {
       const auto t0 = Clock::now();
+      if (t0 >= o.deadline) {
+        termination = IcpTermination::time_limit;
+        message = "time limit exceeded after " + std::to_string(result.iterations) + " iterations";
+        break;
+      }
       final_system.reset();
       transform_points(T, scan, b, o.parallel);
       find_correspondences(finder, o.max_correspondence_distance, o.parallel, expected_motion, b);
@@ -711,7 +716,8 @@ IcpResult IcpSolver::align(CorrespondenceFinder& finder, std::span<const Vec3> s
       previous_rms = it.rms;
     }
     if (termination == IcpTermination::too_few_correspondences ||
-        termination == IcpTermination::numerical_failure) {
+        termination == IcpTermination::numerical_failure ||
+        termination == IcpTermination::time_limit) {
       break;
     }
   }

@@ -62,6 +62,8 @@ std::string_view to_string(IcpTermination termination) {
       return "invalid_input";
     case IcpTermination::numerical_failure:
       return "numerical_failure";
+    case IcpTermination::time_limit:
+      return "time_limit";
   }
   return "unknown";
 }

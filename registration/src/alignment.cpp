@@ -22,6 +22,9 @@ icp::IcpOptions validated(icp::IcpOptions options) {
 std::optional<std::string> failure_of(const icp::IcpResult& result, const icp::IcpOptions& options,
                                       const ScanSize& sizes) {
   using icp::IcpTermination;
+  if (result.termination == IcpTermination::time_limit) {
+    return fmt::format("alignment failed: {} (the pose is not final)", result.message);
+  }
   if (result.termination != IcpTermination::too_few_correspondences &&
       result.termination != IcpTermination::numerical_failure) {
     return std::nullopt;
@@ -63,6 +66,12 @@ const ModelFeatures& Aligner::features() {
 AlignmentResult Aligner::align(std::span<const engine::Vec3> scan, const AlignRequest& request) {
   const bool global = request.global == GlobalMode::on ||
                       (request.global == GlobalMode::automatic && !request.init);
+  // The deadline holds for this call only (the solver is reused by the next one).
+  struct DeadlineScope {
+    icp::IcpSolver& solver;
+    ~DeadlineScope() { solver.set_deadline(std::chrono::steady_clock::time_point::max()); }
+  } scope{solver_};
+  solver_.set_deadline(request.deadline);
   if (!global) return align(scan, request.init.value_or(Eigen::Isometry3d::Identity()));
   return align(scan);
 }
@@ -94,11 +103,13 @@ AlignmentResult Aligner::align(std::span<const engine::Vec3> scan) {
   }
   const ModelFeatures& f = features();
   const double noise = detail::estimate_noise(scan, f.voxel(), g.seed);
-  detail::CoarseOutcome coarse = detail::coarse_align(scan, f, g, noise, finder_);
+  detail::CoarseOutcome coarse =
+      detail::coarse_align(scan, f, g, noise, finder_, options().deadline);
   frame.coarse = std::move(coarse.report);
   if (coarse.failure) {
     frame.icp.T_model_scan = Eigen::Isometry3d::Identity();
-    frame.icp.termination = icp::IcpTermination::too_few_correspondences;
+    frame.icp.termination = coarse.timed_out ? icp::IcpTermination::time_limit
+                                             : icp::IcpTermination::too_few_correspondences;
     frame.icp.points = scan.size();
     frame.icp.message = *coarse.failure;
     frame.failure = "alignment failed: " + *coarse.failure;

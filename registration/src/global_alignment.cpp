@@ -126,9 +126,16 @@ bool better(const PoseScore& a, const PoseScore& b) {
 
 CoarseOutcome coarse_align(std::span<const Vec3> scan, const ModelFeatures& features,
                            const GlobalOptions& o, double noise,
-                           icp::ModelCorrespondenceFinder& finder) {
+                           icp::ModelCorrespondenceFinder& finder, Clock::time_point deadline) {
   const auto start = Clock::now();
   CoarseOutcome out;
+  // Past the deadline: a failure that says how far the stage got.
+  const auto past_deadline = [&](const std::string& where) {
+    if (Clock::now() < deadline) return false;
+    out.failure = "time limit exceeded in the global alignment " + where;
+    out.timed_out = true;
+    return true;
+  };
   CoarseReport& r = out.report;
   r.method = "fpfh-ransac";
   r.noise = noise;
@@ -147,6 +154,7 @@ CoarseOutcome coarse_align(std::span<const Vec3> scan, const ModelFeatures& feat
   lap("model features (once per model)");
   const ScanKeypoints keys = scan_keypoints(scan, features);
   lap("scan keypoints");
+  if (past_deadline("after the scan's keypoints")) return out;
   r.scan_keypoints = keys.points.size();
   const ModelKeypoints& model_keys = features.keypoints();
   r.model_keypoints = model_keys.points.size();
@@ -163,8 +171,10 @@ CoarseOutcome coarse_align(std::span<const Vec3> scan, const ModelFeatures& feat
 
   // 2. Matches and hypotheses.
   lap("scan descriptors");
+  if (past_deadline("after the scan's features")) return out;
   const std::vector<Match> matches = match_descriptors(scan_desc, features.descriptors());
   lap("matches");
+  if (past_deadline("after matching features")) return out;
   r.matches = matches.size();
   RansacParams rp;
   rp.seeds = o.ransac_seeds;
@@ -195,11 +205,16 @@ CoarseOutcome coarse_align(std::span<const Vec3> scan, const ModelFeatures& feat
   vo.kernel = icp::RobustKernel::tukey;
   vo.auto_coarse = false;
   vo.min_correspondences = 12;
+  vo.deadline = deadline;
   icp::IcpSolver solver(vo);
   const double tolerance = std::max(3.0 * noise, 0.02 * v);
   std::vector<PoseScore> scored;
   std::vector<double> d;
   for (const Hypothesis& h : hypotheses) {
+    if (past_deadline(
+            fmt::format("after verifying {} of {} hypotheses", scored.size(), hypotheses.size()))) {
+      return out;
+    }
     const icp::IcpResult res = solver.align(finder, sub, h.T_model_scan);
     const bool usable = res.termination != icp::IcpTermination::too_few_correspondences &&
                         res.termination != icp::IcpTermination::numerical_failure &&

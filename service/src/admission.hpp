@@ -19,6 +19,7 @@
 #include <functional>
 #include <mutex>
 #include <thread>
+#include <utility>
 #include <vector>
 
 namespace nurbsreg::service::detail {
@@ -78,8 +79,10 @@ class InflightSlot {
  public:
   InflightSlot() = default;
   explicit InflightSlot(InflightGate* gate) : gate_(gate) {}
+  InflightSlot(InflightSlot&& other) noexcept : gate_(std::exchange(other.gate_, nullptr)) {}
   InflightSlot(const InflightSlot&) = delete;
   InflightSlot& operator=(const InflightSlot&) = delete;
+  InflightSlot& operator=(InflightSlot&&) = delete;
   ~InflightSlot() {
     if (gate_) gate_->leave();
   }

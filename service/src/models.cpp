@@ -1,10 +1,18 @@
 #include "models.hpp"
 
+#include <spdlog/spdlog.h>
+
 #include <chrono>
 #include <filesystem>
 #include <stdexcept>
 
 namespace nurbsreg::service::detail {
+
+std::unique_ptr<registration::Aligner> ServedModel::make_aligner(
+    const icp::IcpOptions& options) const {
+  return std::make_unique<registration::Aligner>(*prepared, options,
+                                                 registration::RegistrationOptions{}, features);
+}
 
 std::unique_ptr<registration::Aligner> ServedModel::take_aligner(const icp::IcpOptions& defaults) {
   {
@@ -15,7 +23,7 @@ std::unique_ptr<registration::Aligner> ServedModel::take_aligner(const icp::IcpO
       return aligner;
     }
   }
-  return std::make_unique<registration::Aligner>(*prepared, defaults);
+  return make_aligner(defaults);
 }
 
 void ServedModel::give_back(std::unique_ptr<registration::Aligner> aligner) {
@@ -53,6 +61,20 @@ std::shared_ptr<ServedModel> serve_model(engine::Model model, const std::string&
   served->prepare_seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   served->patches = served->prepared->patch_count();
+  if (served->surfaces > 0) {
+    const auto features_start = std::chrono::steady_clock::now();
+    try {
+      // The options every served aligner uses (RegistrationOptions{}), built now in full.
+      auto features = std::make_shared<const registration::ModelFeatures>(
+          *served->prepared, registration::RegistrationOptions{}.global.features);
+      features->descriptors();
+      served->features = std::move(features);
+    } catch (const std::runtime_error& e) {
+      spdlog::warn("{}: no features for the global alignment: {}", file, e.what());
+    }
+    served->features_seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - features_start).count();
+  }
   return served;
 }
 

@@ -27,8 +27,15 @@ struct ServedModel {
   std::size_t skipped_faces = 0;
   std::size_t patches = 0;
   double prepare_seconds = 0.0;
+  double features_seconds = 0.0;
   std::unique_ptr<const engine::PreparedModel> prepared;
+  // The global stage's model data (keypoints, descriptors), built once when the model is
+  // served and shared by every aligner over it (pooled and per session), so no request pays
+  // for it. Null for a model without surface area (its aligners then fail with that reason).
+  std::shared_ptr<const registration::ModelFeatures> features;
 
+  // A new aligner over this model (the shared features) with `options`.
+  std::unique_ptr<registration::Aligner> make_aligner(const icp::IcpOptions& options) const;
   std::unique_ptr<registration::Aligner> take_aligner(const icp::IcpOptions& defaults);
   void give_back(std::unique_ptr<registration::Aligner> aligner);
   std::unique_ptr<engine::Projector> take_projector();

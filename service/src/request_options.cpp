@@ -4,6 +4,7 @@
 #include <cctype>
 #include <charconv>
 #include <cmath>
+#include <sstream>
 #include <stdexcept>
 #include <system_error>
 
@@ -93,6 +94,21 @@ Eigen::Matrix4d parse_init_pose(std::string_view text) {
   } catch (const io::InputError& e) {
     throw std::invalid_argument(std::string(e.what()) + " (lines are the rows of the 16 numbers)");
   }
+}
+
+double parse_time_limit(std::string_view text, double server_limit) {
+  const double seconds = parse_number<double>("time_limit", std::string(trim(text)));
+  if (!std::isfinite(seconds) || !(seconds > 0.0)) {
+    throw std::invalid_argument("time_limit: must be a number of seconds > 0, got \"" +
+                                printable(text) + "\"");
+  }
+  if (seconds > server_limit) {
+    std::ostringstream limit;
+    limit << server_limit;
+    throw std::invalid_argument("time_limit: at most " + limit.str() +
+                                " s (the server's --time-limit)");
+  }
+  return seconds;
 }
 
 std::string parse_session_id(std::string_view text) {

@@ -44,6 +44,12 @@ double seconds_since(Clock::time_point start) {
   return std::chrono::duration<double>(Clock::now() - start).count();
 }
 
+std::string fmt_seconds(double seconds) {
+  std::ostringstream out;
+  out << seconds;
+  return out.str();
+}
+
 std::string error_json(const std::string& message) {
   return Json{{"error", message}}.dump() + "\n";
 }
@@ -126,7 +132,9 @@ Json model_json(const detail::ServedModel& m) {
               {"skipped_faces", m.skipped_faces},
               {"patches", m.patches},
               {"prepared", true},
-              {"prepare_seconds", m.prepare_seconds}};
+              {"prepare_seconds", m.prepare_seconds},
+              {"features", m.features != nullptr},
+              {"features_seconds", m.features_seconds}};
 }
 
 }  // namespace
@@ -180,6 +188,20 @@ struct Service::Impl {
                         Clock::time_point deadline, bool& consumed) const;
   void drain(const httplib::ContentReader& reader) const;
   detail::Metrics::Gauges gauges() const;
+  Clock::time_point deadline_from(Clock::time_point start) const;
+
+  // A frame admitted to computation: its in-flight slot (held until the answer is built) and
+  // the point cloud of its body.
+  struct AdmittedFrame {
+    detail::InflightSlot slot;
+    io::PointCloud cloud;
+  };
+  // The admission align and project share, after their own options are checked and before
+  // any work: a point-cloud content type (400, before any body byte), a free in-flight slot
+  // (503 with Retry-After beyond --max-inflight), the body (413 over --max-body, 408 past
+  // `deadline`) and its parsed cloud (400 naming the problem).
+  AdmittedFrame admit_frame(const httplib::Request& req, const httplib::ContentReader& reader,
+                            Clock::time_point deadline, bool& consumed);
 
   // A request with a body (align, project, model loading): `work` reads it (through
   // read_body) and answers; any exception becomes an error answer; the body is drained when
@@ -284,6 +306,36 @@ detail::Metrics::Gauges Service::Impl::gauges() const {
   return g;
 }
 
+Clock::time_point Service::Impl::deadline_from(Clock::time_point start) const {
+  return start + std::chrono::duration_cast<Clock::duration>(
+                     std::chrono::duration<double>(options.time_limit_seconds));
+}
+
+Service::Impl::AdmittedFrame Service::Impl::admit_frame(const httplib::Request& req,
+                                                        const httplib::ContentReader& reader,
+                                                        Clock::time_point deadline,
+                                                        bool& consumed) {
+  const std::string content_type = req.get_header_value("Content-Type");
+  if (!is_cloud_content_type(content_type)) {
+    throw HttpError(400, "Content-Type \"" + content_type +
+                             "\": expected application/octet-stream or text/plain (a PCD or "
+                             "PLY body), application/x-pcd, application/x-ply or "
+                             "application/x-nurbsreg-xyz-float32");
+  }
+  if (!gate.try_enter()) {
+    metrics.count_overload();
+    throw HttpError(
+        503,
+        "busy: " + std::to_string(gate.limit()) + " frames in flight (--max-inflight); retry later",
+        1);
+  }
+  AdmittedFrame frame{detail::InflightSlot(&gate), {}};
+  std::string body = read_body(req, reader, deadline, consumed);
+  const auto encoding = encoding_for_content_type(content_type, body);
+  frame.cloud = io::parse_point_cloud(body, *encoding, "request body");
+  return frame;
+}
+
 template <class Work>
 void Service::Impl::with_body(Endpoint endpoint, const httplib::Request& req,
                               httplib::Response& res, const httplib::ContentReader& reader,
@@ -318,7 +370,8 @@ void Service::Impl::with_body(Endpoint endpoint, const httplib::Request& req,
     } catch (...) {
     }
   }
-  if (res.status >= 400 && res.status != 422 && res.status != 400) {
+  // Answers after a fully read body keep the connection; the others may leave bytes of it.
+  if (res.status >= 400 && res.status != 422 && res.status != 400 && res.status != 504) {
     res.set_header("Connection", "close");
   }
   metrics.record(endpoint, res.status, seconds_since(start), res.status == 200 ? points : 0);
@@ -329,20 +382,11 @@ void Service::Impl::align(const httplib::Request& req, httplib::Response& res,
                           const httplib::ContentReader& reader, bool& consumed,
                           std::size_t& points) {
   const Clock::time_point start = Clock::now();
-  const Clock::time_point deadline =
-      start + std::chrono::duration_cast<Clock::duration>(
-                  std::chrono::duration<double>(options.time_limit_seconds));
+  const Clock::time_point deadline = deadline_from(start);
   // Everything but the body first, so a bad option costs no upload.
   const std::shared_ptr<detail::ServedModel> model = model_of(req);
   if (model->surfaces == 0) {
     throw HttpError(400, "model \"" + model->id + "\" has no surfaces to align to");
-  }
-  const std::string content_type = req.get_header_value("Content-Type");
-  if (!is_cloud_content_type(content_type)) {
-    throw HttpError(400, "Content-Type \"" + content_type +
-                             "\": expected application/octet-stream or text/plain (a PCD or "
-                             "PLY body), application/x-pcd, application/x-ply or "
-                             "application/x-nurbsreg-xyz-float32");
   }
   std::optional<Eigen::Isometry3d> init;
   if (const auto text = param(req, "init")) {
@@ -365,20 +409,19 @@ void Service::Impl::align(const httplib::Request& req, httplib::Response& res,
   std::optional<std::string> session_id;
   if (const auto text = param(req, "session")) session_id = parse_session_id(*text);
   const bool with_distances = param(req, "distances").value_or("") == "true";
-
-  if (!gate.try_enter()) {
-    metrics.count_overload();
-    throw HttpError(
-        503,
-        "busy: " + std::to_string(gate.limit()) + " frames in flight (--max-inflight); retry later",
-        1);
+  std::optional<double> frame_limit;
+  if (const auto text = param(req, "time_limit")) {
+    frame_limit = parse_time_limit(*text, options.time_limit_seconds);
   }
-  const detail::InflightSlot slot(&gate);
 
-  std::string body = read_body(req, reader, deadline, consumed);
-  const auto encoding = encoding_for_content_type(content_type, body);
-  io::PointCloud cloud = io::parse_point_cloud(body, *encoding, "request body");
-  std::string().swap(body);
+  const AdmittedFrame admitted = admit_frame(req, reader, deadline, consumed);
+  const io::PointCloud& cloud = admitted.cloud;
+  // The frame's own limit counts from here (its body is in); the server's from the start.
+  const Clock::time_point work_deadline =
+      frame_limit
+          ? std::min(deadline, Clock::now() + std::chrono::duration_cast<Clock::duration>(
+                                                  std::chrono::duration<double>(*frame_limit)))
+          : deadline;
   if (cloud.size() == 0) {
     throw HttpError(400, cloud.total == 0
                              ? std::string("request body: the scan has no points")
@@ -409,7 +452,7 @@ void Service::Impl::align(const httplib::Request& req, httplib::Response& res,
                       1);
     }
     session_lock = std::unique_lock(session->busy, std::defer_lock);
-    if (!session_lock.try_lock_until(deadline)) {
+    if (!session_lock.try_lock_until(work_deadline)) {
       throw HttpError(
           409, "session \"" + *session_id + "\" is busy with another frame beyond the time limit");
     }
@@ -419,7 +462,7 @@ void Service::Impl::align(const httplib::Request& req, httplib::Response& res,
   registration::Aligner* aligner = nullptr;
   if (session) {
     if (!session->aligner || session->overrides != overrides) {
-      session->aligner = std::make_unique<registration::Aligner>(*model->prepared, icp_options);
+      session->aligner = model->make_aligner(icp_options);
       session->overrides = overrides;
     }
     aligner = session->aligner.get();
@@ -428,13 +471,15 @@ void Service::Impl::align(const httplib::Request& req, httplib::Response& res,
     pooled = model->take_aligner(options.icp);
     aligner = pooled.get();
   } else {
-    pooled = std::make_unique<registration::Aligner>(*model->prepared, icp_options);
+    pooled = model->make_aligner(icp_options);
     aligner = pooled.get();
   }
   // As `align` does: from the given (or the session's previous) pose, else from any pose (the
-  // global coarse stage, then ICP).
-  const registration::AlignmentResult frame =
-      init ? aligner->align(cloud.points, *init) : aligner->align(cloud.points);
+  // global coarse stage, then ICP); the work stops at the request's deadline.
+  registration::AlignRequest request;
+  request.init = init;
+  request.deadline = work_deadline;
+  const registration::AlignmentResult frame = aligner->align(cloud.points, request);
 
   const io::AlignmentReport report = io::make_alignment_report(
       frame, icp_options.method, cloud.skipped_nonfinite, seconds_since(start));
@@ -455,7 +500,15 @@ void Service::Impl::align(const httplib::Request& req, httplib::Response& res,
         std::vector<double>(signed_distance.begin(), signed_distance.end());
   }
   if (pooled && overrides.empty()) model->give_back(std::move(pooled));
-  if (frame.failure) {
+  if (frame.icp.termination == icp::IcpTermination::time_limit) {
+    // The request's time ran out mid-computation: 504, naming the limit (the report says how
+    // far the work got); the pose is not a result.
+    const double limit = frame_limit ? *frame_limit : options.time_limit_seconds;
+    answer["error"] = *frame.failure + " (" + (frame_limit ? "time_limit " : "--time-limit ") +
+                      fmt_seconds(limit) + " s)";
+    answer["time_limit_seconds"] = limit;
+    res.status = 504;
+  } else if (frame.failure) {
     // No pose to use: the report says what happened; the status says it is not a result.
     answer["error"] = *frame.failure;
     res.status = 422;
@@ -470,9 +523,7 @@ void Service::Impl::align(const httplib::Request& req, httplib::Response& res,
 void Service::Impl::project(const httplib::Request& req, httplib::Response& res,
                             const httplib::ContentReader& reader, bool& consumed,
                             std::size_t& points) {
-  const Clock::time_point deadline =
-      Clock::now() + std::chrono::duration_cast<Clock::duration>(
-                         std::chrono::duration<double>(options.time_limit_seconds));
+  const Clock::time_point deadline = deadline_from(Clock::now());
   const std::shared_ptr<detail::ServedModel> model = model_of(req);
   const engine::ProjectionTarget target =
       parse_projection_target(param(req, "target").value_or("surfaces"));
@@ -482,25 +533,8 @@ void Service::Impl::project(const httplib::Request& req, httplib::Response& res,
   if (target == engine::ProjectionTarget::curves && model->curves == 0) {
     throw HttpError(400, "model \"" + model->id + "\" has no curves; use target=surfaces");
   }
-  const std::string content_type = req.get_header_value("Content-Type");
-  if (!is_cloud_content_type(content_type)) {
-    throw HttpError(400, "Content-Type \"" + content_type +
-                             "\": expected application/octet-stream or text/plain (a PCD or "
-                             "PLY body), application/x-pcd, application/x-ply or "
-                             "application/x-nurbsreg-xyz-float32");
-  }
-  if (!gate.try_enter()) {
-    metrics.count_overload();
-    throw HttpError(
-        503,
-        "busy: " + std::to_string(gate.limit()) + " frames in flight (--max-inflight); retry later",
-        1);
-  }
-  const detail::InflightSlot slot(&gate);
-  std::string body = read_body(req, reader, deadline, consumed);
-  const auto encoding = encoding_for_content_type(content_type, body);
-  const io::PointCloud cloud = io::parse_point_cloud(body, *encoding, "request body");
-  std::string().swap(body);
+  const AdmittedFrame admitted = admit_frame(req, reader, deadline, consumed);
+  const io::PointCloud& cloud = admitted.cloud;
 
   std::unique_ptr<engine::Projector> projector = model->take_projector();
   const io::ProjectedCloud projected = io::project_cloud(*projector, cloud, target);

@@ -23,6 +23,20 @@ TEST(RequestOptions, InitPoseIsReadLikeAPoseFile) {
   EXPECT_THROW(parse_init_pose("2,0,0,0,0,1,0,0,0,0,1,0,0,0,0,1"), std::invalid_argument);
 }
 
+TEST(RequestOptions, TimeLimitIsPositiveAndAtMostTheServers) {
+  EXPECT_EQ(parse_time_limit("0.25", 30.0), 0.25);
+  EXPECT_EQ(parse_time_limit("1e-9", 30.0), 1e-9);
+  EXPECT_EQ(parse_time_limit("30", 30.0), 30.0);
+  for (const char* bad : {"0", "-1", "nan", "inf", "", "1s", "x"})
+    EXPECT_THROW(parse_time_limit(bad, 30.0), std::invalid_argument) << bad;
+  try {
+    parse_time_limit("31", 30.0);
+    ADD_FAILURE() << "31 s accepted above a 30 s server limit";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("--time-limit"), std::string::npos) << e.what();
+  }
+}
+
 TEST(RequestOptions, IdsAndContentTypes) {
   EXPECT_EQ(parse_session_id("cam-1.left_2"), "cam-1.left_2");
   EXPECT_THROW(parse_session_id(""), std::invalid_argument);

@@ -22,6 +22,7 @@
 // threads and equal to the serial path (IcpOptions::parallel = false). The library never sets
 // the thread count: run it inside a tbb::task_arena or under tbb::global_control.
 
+#include <chrono>
 #include <cstddef>
 #include <cstdint>
 #include <limits>
@@ -132,6 +133,11 @@ struct IcpOptions {
   double degeneracy_threshold = 1e-6;
   // false: every loop on the calling thread (debugging, parallel == serial tests).
   bool parallel = true;
+  // A bound on the run's wall time (a service's per-request limit): checked once before every
+  // iteration (never per point), and once past it the run stops with IcpTermination::time_limit
+  // and the pose reached so far. An iteration already begun is finished, so a run may end up to
+  // one iteration (plus the final statistics) after it. max(): no limit.
+  std::chrono::steady_clock::time_point deadline = std::chrono::steady_clock::time_point::max();
 
   // An error naming the field (`keep_fraction: must be in (0, 1] (got 0)`), or nothing.
   std::optional<std::string> validate() const;
@@ -144,6 +150,7 @@ enum class IcpTermination {
   too_few_correspondences,  // fewer than min_correspondences inliers
   invalid_input,            // options or scan rejected (message names the field or point)
   numerical_failure,        // non-finite normal equations or pose
+  time_limit,               // IcpOptions::deadline passed before convergence (not a result)
 };
 std::string_view to_string(IcpTermination termination);
 
@@ -204,6 +211,11 @@ class IcpSolver {
   IcpSolver(IcpSolver&&) noexcept;
   IcpSolver& operator=(IcpSolver&&) noexcept;
   const IcpOptions& options() const { return options_; }
+  // Sets options().deadline for the calls that follow (a per-request limit for a reused
+  // solver).
+  void set_deadline(std::chrono::steady_clock::time_point deadline) {
+    options_.deadline = deadline;
+  }
 
   // Aligns `scan` (scan frame, finite coordinates) to the model behind `finder`, starting
   // from T_model_scan_init. Never throws for bad options or input: they give

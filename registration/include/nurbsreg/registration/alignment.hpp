@@ -13,6 +13,7 @@
 // ICP inside is parallel with TBB and deterministic (results do not depend on the thread count).
 
 #include <Eigen/Geometry>
+#include <chrono>
 #include <memory>
 #include <optional>
 #include <span>
@@ -58,6 +59,11 @@ struct RegistrationOptions {
 struct AlignRequest {
   std::optional<Eigen::Isometry3d> init;
   GlobalMode global = GlobalMode::automatic;
+  // A bound on the call's wall time (a service's --time-limit): checked between the coarse
+  // stage's steps and hypotheses and before every ICP iteration (icp::IcpOptions::deadline).
+  // Past it the call returns a failure "time limit exceeded ..." with icp.termination
+  // IcpTermination::time_limit. max(): no limit.
+  std::chrono::steady_clock::time_point deadline = std::chrono::steady_clock::time_point::max();
 };
 
 class Aligner {

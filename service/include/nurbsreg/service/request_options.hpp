@@ -25,6 +25,11 @@ Eigen::Matrix4d parse_init_pose(std::string_view text);
 // Session ids: 1 to 64 characters of [A-Za-z0-9._-].
 std::string parse_session_id(std::string_view text);
 
+// `time_limit`: seconds (> 0, finite, at most `server_limit`, the server's --time-limit) for
+// one frame's computation, counted from when its body has been read: a client's own deadline
+// for a frame, which may be tighter than the server's, never looser.
+double parse_time_limit(std::string_view text, double server_limit);
+
 // Model ids (the same alphabet), for POST /v1/models.
 std::string parse_model_id(std::string_view text);
 

@@ -52,7 +52,9 @@ struct ServiceOptions {
   // Models may be loaded at run time (POST /v1/models) from below this directory only; empty:
   // POST /v1/models is refused.
   std::string model_root;
-  // Per request: the body must arrive and a busy session must free up within this (408, 409).
+  // Per request, from its start: the body must arrive (408), a busy session free up (409) and
+  // the alignment finish (504: registration::AlignRequest::deadline stops the coarse stage and
+  // ICP) within this. A request's `time_limit` may tighten it for its computation.
   double time_limit_seconds = 30.0;
   double session_idle_seconds = 300.0;  // sessions unused this long expire
   std::size_t max_sessions = 64;
