@@ -24,8 +24,10 @@ run() {  # name, command...
   rss=$(grep 'Maximum resident set size' "$work/time.txt" | awk '{print $NF}')
   [ "$status" = 124 ] && status="timeout ${limit}s"
   local msg
+  # The error line if there is one, else the first log line (what an accepted file printed),
+  # without its timestamp; control bytes shown as ^X.
   msg=$(grep -v '^\[' "$work/err.txt" | head -1 | cut -c1-150 | cat -v)
-  [ -z "$msg" ] && msg=$(head -1 "$work/err.txt" | cut -c1-150 | cat -v)
+  [ -z "$msg" ] && msg=$(head -1 "$work/err.txt" | sed 's/^\[[0-9:.]*\] //' | cut -c1-150 | cat -v)
   printf '| %s | %s | %s | %s | %s MB |\n' "$name" "$status" "$msg" "$wall" "$((rss / 1024))"
 }
 echo "| finding | exit | first stderr line | time | peak RSS |"

@@ -17,19 +17,19 @@
 
 namespace nurbsreg::fuzz {
 
-// A scratch file of this process with the given extension (".pcd"), rewritten per input.
-inline const std::string& scratch_file(const char* extension) {
-  static const std::string path = [&] {
+// A scratch file of this process with the given extension (".pcd"), rewritten per input (one
+// per extension: a harness may write the same bytes as .pcd and as .ply).
+inline std::string scratch_file(const char* extension) {
+  static const std::string stem = [] {
     std::string dir = std::filesystem::exists("/dev/shm") ? "/dev/shm" : "/tmp";
     if (const char* tmp = std::getenv("NURBSREG_FUZZ_TMPDIR")) dir = tmp;
-    return dir + "/nurbsreg_fuzz_" + std::to_string(::getpid()) + extension;
+    return dir + "/nurbsreg_fuzz_" + std::to_string(::getpid());
   }();
-  return path;
+  return stem + extension;
 }
 
-inline const std::string& write_input(const char* extension, const std::uint8_t* data,
-                                      std::size_t size) {
-  const std::string& path = scratch_file(extension);
+inline std::string write_input(const char* extension, const std::uint8_t* data, std::size_t size) {
+  std::string path = scratch_file(extension);
   std::ofstream out(path, std::ios::binary | std::ios::trunc);
   out.write(reinterpret_cast<const char*>(data), static_cast<std::streamsize>(size));
   return path;
