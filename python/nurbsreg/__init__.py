@@ -23,11 +23,11 @@ from dataclasses import dataclass as _dataclass
 import numpy as _np
 
 from . import _core
-from ._errors import AlignmentError, InputError, NurbsregWarning, OutputError
+from ._errors import AlignmentError, InputError, NurbsregWarning, OutputError, PoorFitError
 
 __all__ = [
-    "AlignmentError", "AlignmentResult", "Aligner", "InputError", "Model", "NurbsregWarning",
-    "OutputError", "PointCloud", "ProjectionResult", "SyntheticScan", "align", "load_model",
+    "AlignmentError", "AlignmentResult", "Aligner", "CoarseReport", "FitVerdict", "InputError",
+    "Model", "NurbsregWarning", "OutputError", "PointCloud", "PoorFitError", "PoseScore", "ProjectionResult", "SyntheticScan", "align", "load_model",
     "project", "read_point_cloud", "synth", "write_point_cloud", "STATUS_OK", "STATUS_SKIPPED",
     "STATUS_NO_GEOMETRY", "STATUS_BEYOND_MAX_DISTANCE",
 ]
@@ -38,6 +38,9 @@ _core._register_types(InputError, OutputError)
 Model = _core.Model
 ProjectionResult = _core.ProjectionResult
 AlignmentResult = _core.AlignmentResult
+FitVerdict = _core.FitVerdict
+CoarseReport = _core.CoarseReport
+PoseScore = _core.PoseScore
 
 #: ProjectionResult.status values.
 STATUS_OK = 0
@@ -95,88 +98,116 @@ def project(model, points, *, target="surfaces", threads=None, certify=False, hi
     return result
 
 
-class Aligner:
-    """ICP of scans to one model on exact projections, as ``nurbsreg align``; one Aligner keeps
-    its warm state (per-point arrays, projection hints) from frame to frame, so a sequence of
-    frames aligns faster than fresh calls of :func:`align`.
+_ALIGN_DOC = """
+    scan: (N, 3) float64 or float32 array (any layout; copied only when it is not C-ordered
+        float64 or has NaN/infinite rows, which are skipped and counted in ``skipped``), or a
+        :class:`PointCloud`.
+    init: None (default): from any pose, as the CLI without ``--init``: the global coarse stage
+        (features, sample consensus, hypotheses verified by exact ICP), then robust ICP from its
+        winner. A 4x4 rigid matrix: exactly the CLI's ``--init`` (checked and made exactly
+        orthonormal as a pose file is): local ICP from it, no global stage.
+    global_alignment: None (default): the global stage exactly when ``init`` is None. False: the
+        CLI's ``--no-global`` (ICP from ``init`` or from the identity). True: the CLI's
+        ``--init auto`` (the global stage; contradicts ``init``, ValueError).
+    distances: also return the exact signed distance of every aligned point
+        (``result.signed_distance``, NaN for skipped rows).
+    threads: worker threads for this call (None or 0: all hardware threads); the results do not
+        depend on it.
 
+    Returns an AlignmentResult: ``T_model_scan`` (4x4, model_point = T * scan_point),
+    ``converged``, ``termination``, ``iterations``, ``rms``, ``inliers``, ``points``,
+    ``fitness`` (inliers / points), ``fit`` (the verdict: a FitVerdict with ``fit`` "good" or
+    "poor", ``inlier_fraction``, ``rms``, ``noise``, ``rms_over_noise``, ``tolerance``,
+    ``coverage``, ``reason``), ``coarse`` (the global stage's CoarseReport: ``method``,
+    ``hypotheses``, ``verified``, ``winner`` and ``runner_up`` PoseScores, symmetric
+    ``alternatives``, ``seconds``; None when it did not run), ``covariance`` (6x6),
+    ``degeneracy``, ``history`` (one dict per iteration), ``deviation`` (mean, rms, median,
+    p95, p99, max of |d| within max_distance), ``aligned`` (the scan moved onto the model, by
+    input row), ``signed_distance`` (with distances=True), ``report()`` / ``to_json()`` (the
+    CLI's ``align --report``, field for field; ``seconds`` is this call's wall time).
+
+    Raises PoorFitError (an AlignmentError) when the fit verdict is poor, unless
+    ``accept_poor=True`` (then it warns and returns the result, as ``--accept-poor``); raises
+    AlignmentError when no pose could be found. Both carry the result (``.result``) and the
+    message the CLI prints before it exits 1. ValueError/TypeError name a bad argument or
+    option; NurbsregWarning where the CLI warns. Releases the GIL; Ctrl-C stops it.
+"""
+
+_OPTIONS_DOC = """
     The options are the CLI's, by the same names: ``method`` ("point-to-plane" or
-    "point-to-point"), ``max_iterations`` (per stage), ``max_distance`` (reject correspondences
-    farther apart, model units), ``keep_fraction`` (trimmed ICP), ``kernel`` ("none", "huber",
-    "tukey", "geman-mcclure"), ``kernel_scale`` (0: from the MAD), ``coarse`` (increasing
-    subsample sizes). Bad values raise ValueError naming the option. One ``align`` at a time per
-    Aligner (calls from other threads wait); use one Aligner per thread to run in parallel.
+    "point-to-point"), ``max_iterations`` (per stage, 50), ``max_distance`` (reject
+    correspondences farther apart, model units; inf), ``keep_fraction`` (trimmed ICP, 1),
+    ``kernel`` ("none", "huber", "tukey", "geman-mcclure"), ``kernel_scale`` (0: from the MAD),
+    ``coarse`` (increasing subsample sizes); and the verdict's: ``accept_poor`` (a poor fit is
+    returned with a warning instead of raised: ``--accept-poor``), ``min_inlier_fraction`` (a fit
+    with fewer scan points within 3 x the scan's noise of the model is poor; 0.5). Bad values
+    raise ValueError naming the option.
+"""
+
+
+def _global_mode(global_alignment):
+    if global_alignment is None:
+        return "auto"
+    if global_alignment is True:
+        return "on"
+    if global_alignment is False:
+        return "off"
+    raise TypeError("global_alignment: expected None, True or False, got %r" % (global_alignment,))
+
+
+def _checked(result):
+    """The CLI's exit 1 as an exception; its warnings as warnings."""
+    if result.failure is not None:
+        fit = result.fit
+        error = PoorFitError if fit is not None and not fit.good else AlignmentError
+        raise error("scan: " + result.failure, result)
+    _warn_all(result.warnings)
+    return result
+
+
+class Aligner:
+    """Alignment of scans to one model, as ``nurbsreg align``; one Aligner keeps its warm state
+    (per-point arrays, projection hints, the model's coarse-stage features) from frame to
+    frame, so a sequence of frames aligns faster than fresh calls of :func:`align`.
+    """ + _OPTIONS_DOC + """
+    One ``align`` at a time per Aligner (calls from other threads wait); use one Aligner per
+    thread to run in parallel.
     """
 
     def __init__(self, model, *, method="point-to-plane", max_iterations=50,
                  max_distance=_math.inf, keep_fraction=1.0, kernel="none", kernel_scale=0.0,
-                 coarse=()):
+                 coarse=(), accept_poor=False, min_inlier_fraction=0.5):
         self._aligner = _core.Aligner(model, method, int(max_iterations), float(max_distance),
                                       float(keep_fraction), kernel, float(kernel_scale),
-                                      [int(n) for n in coarse])
+                                      [int(n) for n in coarse], bool(accept_poor),
+                                      float(min_inlier_fraction))
 
     @property
     def model(self):
         """The model scans are aligned to."""
         return self._aligner.model
 
-    def align(self, scan, init=None, *, distances=False, threads=None):
-        """Align one scan: the rigid pose ``T_model_scan`` (model_point = T * scan_point).
-
-        scan: (N, 3) float64 or float32 array (any layout; copied only when it is not C-ordered
-            float64 or has NaN/infinite rows, which are skipped and counted).
-        init: starting pose, a 4x4 rigid matrix (checked and made exactly orthonormal as the
-            CLI's ``--init``); None: from any pose (the global coarse stage, then ICP), as the CLI without ``--init``.
-        distances: also return the exact signed distance of every aligned point
-            (``result.signed_distance``, NaN for skipped rows).
-        threads: worker threads for this call (None or 0: all).
-
-        Returns an AlignmentResult: ``T_model_scan`` (4x4), ``converged``, ``termination``,
-        ``iterations``, ``rms``, ``inliers``, ``points``, ``fitness`` (inliers / points),
-        ``covariance`` (6x6, twist (omega, v) in the model frame), ``degeneracy`` (free
-        directions), ``history`` (one dict per iteration), ``deviation`` (mean, rms, median,
-        p95, p99, max of |d| within max_distance), ``aligned`` (the scan moved onto the model,
-        by input row), ``report()`` (the fields of ``align --report``).
-
-        Raises AlignmentError (with ``.result``) when no pose could be found, as the CLI exits
-        1; warns (NurbsregWarning) where the CLI warns. Releases the GIL; Ctrl-C stops it.
-        """
+    def align(self, scan, init=None, *, global_alignment=None, distances=False, threads=None):
         if isinstance(scan, PointCloud):
             scan = scan.points
-        result = self._aligner.align(scan, init, bool(distances), threads)
-        if result.failure is not None:
-            raise AlignmentError("scan: " + result.failure, result)
-        _warn_all(result.warnings)
-        return result
+        return _checked(self._aligner.align(scan, init, _global_mode(global_alignment),
+                                            bool(distances), threads))
+
+    align.__doc__ = ("Align one scan: the rigid pose ``T_model_scan`` (model_point = T * "
+                     "scan_point).\n" + _ALIGN_DOC)
 
 
-def align(model, scan, *, init=None, distances=False, threads=None, **icp_options):
-    """Align ``scan`` to ``model`` (ICP on exact projections), as ``nurbsreg align``:
-    ``Aligner(model, **icp_options).align(scan, init, distances=..., threads=...)``.
+def align(model, scan, *, init=None, global_alignment=None, distances=False, threads=None,
+          accept_poor=False, min_inlier_fraction=0.5, **icp_options):
+    return Aligner(model, accept_poor=accept_poor, min_inlier_fraction=min_inlier_fraction,
+                   **icp_options).align(scan, init, global_alignment=global_alignment,
+                                        distances=distances, threads=threads)
 
-    scan: (N, 3) float64 or float32 array (any layout; copied only when it is not C-ordered
-        float64 or has NaN/infinite rows, which are skipped and counted in ``skipped``).
-    init: starting pose, a 4x4 rigid matrix (checked and made exactly orthonormal as the CLI's
-        ``--init``); None: from any pose (the global coarse stage, then ICP), as the CLI without ``--init``.
-    distances: also return the exact signed distance of every aligned point.
-    threads: worker threads for this call (None or 0: all hardware threads).
-    icp_options: the CLI's ICP options by name: method ("point-to-plane" or "point-to-point"),
-        max_iterations (per stage, 50), max_distance (reject correspondences farther apart,
-        model units; inf), keep_fraction (trimmed ICP, 1), kernel ("none", "huber", "tukey",
-        "geman-mcclure"), kernel_scale (0: from the MAD), coarse (increasing subsample sizes).
 
-    Returns an AlignmentResult: ``T_model_scan`` (4x4, model_point = T * scan_point),
-    ``converged``, ``termination``, ``iterations``, ``rms``, ``inliers``, ``points``,
-    ``fitness`` (inliers / points), ``covariance`` (6x6), ``degeneracy``, ``history`` (one dict
-    per iteration), ``deviation`` (mean, rms, median, p95, p99, max of |d|), ``aligned`` (the
-    scan moved onto the model, by input row), ``signed_distance`` (with distances=True),
-    ``report()`` (the fields of ``align --report``).
-
-    Raises AlignmentError (with ``.result``) when no pose could be found (the CLI exits 1),
-    ValueError/TypeError naming a bad argument or option; warns (NurbsregWarning) where the CLI
-    warns. Releases the GIL; Ctrl-C stops it. For frame after frame keep one :class:`Aligner`.
-    """
-    return Aligner(model, **icp_options).align(scan, init, distances=distances, threads=threads)
+align.__doc__ = ("""Align ``scan`` to ``model``, as ``nurbsreg align`` (same pose, same report):
+    ``Aligner(model, **options).align(scan, init, ...)``; for frame after frame keep one
+    :class:`Aligner`.
+""" + _ALIGN_DOC + _OPTIONS_DOC)
 
 
 def _fitness(self):
@@ -185,14 +216,20 @@ def _fitness(self):
 
 
 def _report(self):
-    """The alignment report as ``nurbsreg align --report`` writes it (dict; ``seconds`` is
-    ICP's own time here)."""
+    """The alignment report as ``nurbsreg align --report`` writes it (a dict, the CLI's fields
+    and numbers; ``seconds`` is this call's wall time)."""
     import json
     return json.loads(self.report_json())
 
 
+def _to_json(self):
+    """The alignment report as the text ``nurbsreg align --report`` writes."""
+    return self.report_json()
+
+
 AlignmentResult.fitness = property(_fitness)
 AlignmentResult.report = _report
+AlignmentResult.to_json = _to_json
 
 
 @_dataclass

@@ -24,7 +24,42 @@ class AlignmentError(RuntimeError):
     result: Optional[AlignmentResult]
     def __init__(self, message: str, result: Optional[AlignmentResult] = ...) -> None: ...
 
+class PoorFitError(AlignmentError): ...
+
 class NurbsregWarning(UserWarning): ...
+
+class FitVerdict:
+    @property
+    def fit(self) -> str: ...  # "good" or "poor"
+    good: bool
+    noise: float
+    tolerance: float
+    inlier_fraction: float
+    rms: float
+    rms_over_noise: float
+    coverage: float
+    reason: str
+
+class PoseScore:
+    @property
+    def T_model_scan(self) -> npt.NDArray[np.float64]: ...  # (4, 4)
+    inlier_fraction: float
+    trimmed_rms: float
+
+class CoarseReport:
+    method: str
+    scan_keypoints: int
+    model_keypoints: int
+    matches: int
+    hypotheses: int
+    verified: int
+    voxel: float
+    noise: float
+    winner: PoseScore
+    runner_up: Optional[PoseScore]
+    alternatives: list[PoseScore]
+    symmetry: str
+    seconds: float
 
 class Model:
     @property
@@ -104,6 +139,10 @@ class AlignmentResult:
     @property
     def failure(self) -> Optional[str]: ...
     @property
+    def fit(self) -> Optional[FitVerdict]: ...  # None when there was no pose to judge
+    @property
+    def coarse(self) -> Optional[CoarseReport]: ...  # None when the global stage did not run
+    @property
     def scan_size(self) -> float: ...
     @property
     def model_size(self) -> float: ...
@@ -115,6 +154,7 @@ class AlignmentResult:
     def warnings(self) -> list[str]: ...
     def report(self) -> dict[str, Any]: ...
     def report_json(self) -> str: ...
+    def to_json(self) -> str: ...
 
 def load_model(path: PathLike) -> Model: ...
 def project(model: Model, points: Union[Points, PointCloud], *, target: str = ...,
@@ -124,14 +164,18 @@ def project(model: Model, points: Union[Points, PointCloud], *, target: str = ..
 class Aligner:
     def __init__(self, model: Model, *, method: str = ..., max_iterations: int = ...,
                  max_distance: float = ..., keep_fraction: float = ..., kernel: str = ...,
-                 kernel_scale: float = ..., coarse: Sequence[int] = ...) -> None: ...
+                 kernel_scale: float = ..., coarse: Sequence[int] = ...,
+                 accept_poor: bool = ..., min_inlier_fraction: float = ...) -> None: ...
     @property
     def model(self) -> Model: ...
     def align(self, scan: Union[Points, PointCloud], init: Optional[npt.ArrayLike] = ..., *,
-              distances: bool = ..., threads: Optional[int] = ...) -> AlignmentResult: ...
+              global_alignment: Optional[bool] = ..., distances: bool = ...,
+              threads: Optional[int] = ...) -> AlignmentResult: ...
 
 def align(model: Model, scan: Union[Points, PointCloud], *, init: Optional[npt.ArrayLike] = ...,
-          distances: bool = ..., threads: Optional[int] = ..., method: str = ...,
+          global_alignment: Optional[bool] = ..., distances: bool = ...,
+          threads: Optional[int] = ..., accept_poor: bool = ...,
+          min_inlier_fraction: float = ..., method: str = ...,
           max_iterations: int = ..., max_distance: float = ..., keep_fraction: float = ...,
           kernel: str = ..., kernel_scale: float = ..., coarse: Sequence[int] = ...
           ) -> AlignmentResult: ...

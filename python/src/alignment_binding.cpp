@@ -5,15 +5,17 @@
 #include <pybind11/eigen.h>
 #include <pybind11/numpy.h>
 #include <pybind11/stl.h>
+#include <spdlog/fmt/fmt.h>
 
+#include <chrono>
 #include <cmath>
 #include <limits>
 #include <mutex>
 
+#include "alignment_frame.hpp"
 #include "bindings.hpp"
 #include "model_handle.hpp"
 #include "nurbsreg/io/alignment_report.hpp"
-#include "nurbsreg/io/pose.hpp"
 #include "nurbsreg/registration/alignment.hpp"
 #include "points_arg.hpp"
 #include "released_call.hpp"
@@ -21,111 +23,37 @@
 namespace nurbsreg::python {
 namespace {
 
-// One aligned frame, with what the Python result reports of it.
-struct AlignmentFrame {
-  registration::AlignmentResult result;
-  std::string method;
-  std::size_t rows = 0;                 // input rows
-  std::size_t skipped = 0;              // rows with a NaN or infinite coordinate
-  std::vector<std::uint64_t> index;     // row of each aligned point; empty: the identity
-  std::vector<double> signed_distance;  // per input row (NaN: skipped), when asked for
-  bool has_distances = false;
-  std::vector<std::string> warnings;
-};
-using FramePtr = std::shared_ptr<AlignmentFrame>;
-
-// The ICP options as the CLI spells them (cli/frame_jobs.cpp icp_options), validated.
-icp::IcpOptions make_options(const std::string& method, int max_iterations, double max_distance,
-                             double keep_fraction, const std::string& kernel, double kernel_scale,
-                             const std::vector<std::size_t>& coarse) {
-  icp::IcpOptions options;
-  const auto m = icp::parse_icp_method(method);
-  if (!m)
-    throw py::value_error("method: expected \"point-to-plane\" or \"point-to-point\", got \"" +
-                          method + "\"");
-  options.method = *m;
-  const auto k = icp::parse_robust_kernel(kernel);
-  if (!k) {
-    throw py::value_error(
-        "kernel: expected \"none\", \"huber\", \"tukey\" or \"geman-mcclure\", "
-        "got \"" +
-        kernel + "\"");
-  }
-  options.kernel = *k;
-  options.kernel_scale = kernel_scale;
-  options.max_iterations = max_iterations;
-  options.max_correspondence_distance = max_distance;
-  options.keep_fraction = keep_fraction;
-  options.coarse_sizes = coarse;
-  if (auto error = options.validate()) throw py::value_error(*error);
-  return options;
-}
-
-// `init` as the CLI reads --init: the same rigidity check and exact rotation (io::parse_pose on
-// the matrix's exact text), so a pose gives the same start as its file.
-Eigen::Isometry3d initial_pose(const py::object& init) {
-  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-  if (init.is_none()) return T;
-  py::array a;
-  try {
-    a = py::module_::import("numpy").attr("asarray")(init, py::arg("dtype") = "float64");
-  } catch (py::error_already_set&) {
-    throw py::type_error("init: expected a 4x4 array of numbers");
-  }
-  if (a.ndim() != 2 || a.shape(0) != 4 || a.shape(1) != 4) {
-    throw py::value_error("init: expected shape (4, 4)");
-  }
-  const auto values = a.unchecked<double, 2>();
-  Eigen::Matrix4d M;
-  for (int r = 0; r < 4; ++r)
-    for (int c = 0; c < 4; ++c)
-      M(r, c) = values(r, c);
-  T.matrix() = io::parse_pose(io::pose_to_text(M), "init");
-  return T;
-}
-
 class PyAligner {
  public:
-  PyAligner(ModelPtr model, icp::IcpOptions options, std::string method)
-      : model_(std::move(model)), options_(std::move(options)), method_(std::move(method)) {
+  PyAligner(ModelPtr model, icp::IcpOptions options, registration::RegistrationOptions registration)
+      : model_(std::move(model)), options_(std::move(options)), registration_(registration) {
     if (model_->model().surfaces.empty()) {
       throw py::value_error(model_->path() + ": align needs a model with surfaces");
     }
-    aligner_ = std::make_unique<registration::Aligner>(model_->prepared(), options_);
+    aligner_ = make_aligner();
   }
 
-  FramePtr align(const py::handle& scan_object, const py::object& init_object, bool distances,
-                 const std::optional<int>& threads) {
+  AlignmentFramePtr align(const py::handle& scan_object, const py::object& init_object,
+                          const std::string& global, bool distances,
+                          const std::optional<int>& threads) {
+    const auto start = std::chrono::steady_clock::now();
     const PointsArg scan(scan_object, "scan");
-    const Eigen::Isometry3d init = initial_pose(init_object);
-    // As the CLI: no init means from any pose (the global coarse stage, then ICP).
-    const bool from_any_pose = init_object.is_none();
+    const registration::AlignRequest request = make_request(init_object, global);
     const int thread_limit = thread_count(threads);
     auto frame = std::make_shared<AlignmentFrame>();
-    frame->method = method_;
-    frame->rows = scan.size();
+    frame->method = options_.method;
+    frame->max_iterations = options_.max_iterations;
     frame->has_distances = distances;
     {
       py::gil_scoped_release release;
       const std::lock_guard lock(mutex_);  // one align() at a time per Aligner
       py::gil_scoped_acquire gil;
       try {
-        run_released(thread_limit, scan.size() >= kWatchedPoints, [&] {
-          PointsArg::Finite finite = scan.contiguous_finite();
-          frame->skipped = finite.skipped;
-          frame->index = std::move(finite.rows);
-          if (finite.points.empty()) return;
-          try {
-            frame->result = from_any_pose ? aligner_->align(finite.points)
-                                          : aligner_->align(finite.points, init);
-          } catch (const std::invalid_argument& e) {
-            throw std::invalid_argument(std::string("scan: ") + e.what());
-          }
-          if (distances) fill_distances(*frame);
-        });
+        run_released(thread_limit, scan.size() >= kWatchedPoints,
+                     [&] { align_rows(*aligner_, scan, request, *frame); });
       } catch (py::error_already_set&) {
         // Ctrl-C: the cancelled run may have left the warm state half written. Start afresh.
-        aligner_ = std::make_unique<registration::Aligner>(model_->prepared(), options_);
+        aligner_ = make_aligner();
         throw;
       }
     }
@@ -133,65 +61,25 @@ class PyAligner {
       throw py::value_error("scan: no finite points to align (" + std::to_string(frame->skipped) +
                             " skipped)");
     }
-    const icp::IcpResult& r = frame->result.icp;
-    if (r.termination == icp::IcpTermination::max_iterations) {
-      frame->warnings.push_back("scan: no convergence within " +
-                                std::to_string(options_.max_iterations) +
-                                " iterations per stage; the pose may be inaccurate");
-    }
-    if (const auto note = frame->result.sizes.warning())
-      frame->warnings.push_back("scan: " + *note);
-    if (r.degeneracy.degenerate()) {
-      frame->warnings.push_back("the scan does not constrain the pose fully; free directions: " +
-                                r.degeneracy.describe());
-    }
+    if (!frame->result.failure) add_warnings(*frame);
+    frame->seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     return frame;
   }
 
-  const icp::IcpOptions& options() const { return options_; }
   const ModelPtr& model() const { return model_; }
 
  private:
-  // The final exact signed distances (the aligner's last projections) by input row.
-  void fill_distances(AlignmentFrame& frame) const {
-    const engine::ProjectionResults& proj = aligner_->last_projections();
-    frame.signed_distance.assign(frame.rows, std::numeric_limits<double>::quiet_NaN());
-    for (std::size_t i = 0; i < proj.size(); ++i)
-      frame.signed_distance[frame.index.empty() ? i : frame.index[i]] = proj.signed_distance[i];
+  std::unique_ptr<registration::Aligner> make_aligner() const {
+    return std::make_unique<registration::Aligner>(model_->prepared(), options_, registration_);
   }
 
   ModelPtr model_;
   icp::IcpOptions options_;
-  std::string method_;
+  registration::RegistrationOptions registration_;
   std::mutex mutex_;
   std::unique_ptr<registration::Aligner> aligner_;
 };
-
-// The alignment report as `align --report` writes it (cli/frame_jobs.cpp write_align_outputs),
-// without "seconds" of the whole command: ICP's own.
-io::AlignmentReport report_of(const AlignmentFrame& f) {
-  const icp::IcpResult& result = f.result.icp;
-  io::AlignmentReport report;
-  report.pose = result.T_model_scan.matrix();
-  report.rms = result.rms;
-  report.iterations = result.iterations;
-  report.converged = result.converged() || result.termination == icp::IcpTermination::degenerate;
-  report.inliers = result.inliers;
-  report.points = result.points;
-  report.skipped_points = f.skipped;
-  report.seconds = result.seconds;
-  report.method = f.method;
-  report.termination = std::string(icp::to_string(result.termination)) + ": " + result.message;
-  if (result.degeneracy.degenerate()) {
-    report.termination += "; free directions: " + result.degeneracy.describe();
-  }
-  int k = 0;
-  for (const icp::IcpIteration& it : result.log) {
-    report.history.push_back(
-        {++k, it.rms, it.inliers, it.rotation_step, it.translation_step, it.seconds});
-  }
-  return report;
-}
 
 py::dict degeneracy_of(const icp::DegeneracyReport& d) {
   py::list free;
@@ -255,8 +143,78 @@ py::array_t<double> aligned_rows(const AlignmentFrame& f) {
 
 }  // namespace
 
+void bind_verdict(py::module_& m) {
+  using registration::FitVerdict;
+  py::class_<FitVerdict>(m, "FitVerdict",
+                         "The verdict on a final pose: good or poor, with the numbers behind it.")
+      .def_property_readonly(
+          "fit", [](const FitVerdict& f) { return std::string(f.word()); }, "\"good\" or \"poor\".")
+      .def_readonly("good", &FitVerdict::good)
+      .def_readonly("noise", &FitVerdict::noise,
+                    "The scan's own noise estimate sigma (model units).")
+      .def_readonly("tolerance", &FitVerdict::tolerance,
+                    "Inlier tolerance: 3 x noise (with a floor of 1e-5 x the scan's size).")
+      .def_readonly("inlier_fraction", &FitVerdict::inlier_fraction,
+                    "Fraction of all scan points with exact distance <= tolerance.")
+      .def_readonly("rms", &FitVerdict::rms, "RMS of the inliers' exact distances.")
+      .def_readonly("rms_over_noise", &FitVerdict::rms_ratio,
+                    "rms / noise (about 1 for a good fit; 0 when the noise is 0).")
+      .def_readonly("coverage", &FitVerdict::coverage,
+                    "Fraction of the model's keypoints near an inlier.")
+      .def_readonly("reason", &FitVerdict::reason, "Why poor; empty when good.")
+      .def("__repr__", [](const FitVerdict& f) {
+        return fmt::format(
+            "<nurbsreg.FitVerdict {}: inliers {:.4g}, rms {:.4g} (noise {:.4g}), coverage "
+            "{:.4g}>",
+            f.word(), f.inlier_fraction, f.rms, f.noise, f.coverage);
+      });
+
+  using registration::PoseScore;
+  py::class_<PoseScore>(m, "PoseScore", "One verified hypothesis of the global coarse stage.")
+      .def_property_readonly(
+          "T_model_scan",
+          [](const PoseScore& p) { return Eigen::Matrix4d(p.T_model_scan.matrix()); },
+          "(4, 4) the pose after the hypothesis' short exact ICP.")
+      .def_readonly("inlier_fraction", &PoseScore::inlier_fraction,
+                    "Its inlier fraction on the verification subsample.")
+      .def_readonly("trimmed_rms", &PoseScore::trimmed_rms,
+                    "RMS of the closer half of its exact distances.")
+      .def("__repr__", [](const PoseScore& p) {
+        return fmt::format("<nurbsreg.PoseScore inliers {:.4g}, trimmed rms {:.4g}>",
+                           p.inlier_fraction, p.trimmed_rms);
+      });
+
+  using registration::CoarseReport;
+  py::class_<CoarseReport>(m, "CoarseReport",
+                           "The global coarse stage of an alignment from any pose.")
+      .def_readonly("method", &CoarseReport::method)
+      .def_readonly("scan_keypoints", &CoarseReport::scan_keypoints)
+      .def_readonly("model_keypoints", &CoarseReport::model_keypoints)
+      .def_readonly("matches", &CoarseReport::matches)
+      .def_readonly("hypotheses", &CoarseReport::hypotheses, "Kept from sample consensus.")
+      .def_readonly("verified", &CoarseReport::verified, "Refined by exact ICP and scored.")
+      .def_readonly("voxel", &CoarseReport::voxel)
+      .def_readonly("noise", &CoarseReport::noise)
+      .def_readonly("winner", &CoarseReport::winner)
+      .def_readonly("runner_up", &CoarseReport::runner_up,
+                    "The best pose clearly different from the winner, or None.")
+      .def_readonly("alternatives", &CoarseReport::alternatives,
+                    "Distinct poses that fit as well as the winner (a symmetry of the part).")
+      .def_readonly("symmetry", &CoarseReport::symmetry,
+                    "The symmetry the alternatives show, in words; empty when the pose is unique.")
+      .def_readonly("seconds", &CoarseReport::seconds)
+      .def("__repr__", [](const CoarseReport& c) {
+        return fmt::format("<nurbsreg.CoarseReport {}: {} hypotheses, winner {:.4g}{}>", c.method,
+                           c.verified, c.winner.inlier_fraction,
+                           c.runner_up
+                               ? fmt::format(", runner-up {:.4g}", c.runner_up->inlier_fraction)
+                               : std::string());
+      });
+}
+
 void bind_alignment(py::module_& m) {
-  py::class_<AlignmentFrame, FramePtr>(m, "AlignmentResult")
+  bind_verdict(m);
+  py::class_<AlignmentFrame, AlignmentFramePtr>(m, "AlignmentResult")
       .def_property_readonly("T_model_scan",
                              [](const AlignmentFrame& f) {
                                return Eigen::Matrix4d(f.result.icp.T_model_scan.matrix());
@@ -280,8 +238,7 @@ void bind_alignment(py::module_& m) {
                              [](const AlignmentFrame& f) { return f.result.icp.inliers; })
       .def_property_readonly("points", [](const AlignmentFrame& f) { return f.result.icp.points; })
       .def_property_readonly("skipped", [](const AlignmentFrame& f) { return f.skipped; })
-      .def_property_readonly("seconds",
-                             [](const AlignmentFrame& f) { return f.result.icp.seconds; })
+      .def_property_readonly("seconds", [](const AlignmentFrame& f) { return f.seconds; })
       .def_property_readonly(
           "covariance", [](const AlignmentFrame& f) { return icp::Mat6(f.result.icp.covariance); })
       .def_property_readonly(
@@ -303,6 +260,13 @@ void bind_alignment(py::module_& m) {
                                return out;
                              })
       .def_property_readonly("failure", [](const AlignmentFrame& f) { return f.result.failure; })
+      .def_property_readonly(
+          "fit",
+          [](const AlignmentFrame& f) -> std::optional<registration::FitVerdict> {
+            if (!f.result.fit.evaluated) return std::nullopt;
+            return f.result.fit;
+          })
+      .def_property_readonly("coarse", [](const AlignmentFrame& f) { return f.result.coarse; })
       .def_property_readonly("scan_size",
                              [](const AlignmentFrame& f) { return f.result.sizes.scan; })
       .def_property_readonly("model_size",
@@ -324,16 +288,19 @@ void bind_alignment(py::module_& m) {
   py::class_<PyAligner>(m, "Aligner")
       .def(py::init([](ModelPtr model, const std::string& method, int max_iterations,
                        double max_distance, double keep_fraction, const std::string& kernel,
-                       double kernel_scale, const std::vector<std::size_t>& coarse) {
-             icp::IcpOptions options = make_options(method, max_iterations, max_distance,
-                                                    keep_fraction, kernel, kernel_scale, coarse);
-             const std::string name(icp::to_string(options.method));
-             return std::make_unique<PyAligner>(std::move(model), std::move(options), name);
+                       double kernel_scale, const std::vector<std::size_t>& coarse,
+                       bool accept_poor, double min_inlier_fraction) {
+             return std::make_unique<PyAligner>(
+                 std::move(model),
+                 make_icp_options(method, max_iterations, max_distance, keep_fraction, kernel,
+                                  kernel_scale, coarse),
+                 make_registration_options(accept_poor, min_inlier_fraction));
            }),
            py::arg("model"), py::arg("method"), py::arg("max_iterations"), py::arg("max_distance"),
-           py::arg("keep_fraction"), py::arg("kernel"), py::arg("kernel_scale"), py::arg("coarse"))
-      .def("align", &PyAligner::align, py::arg("scan"), py::arg("init"), py::arg("distances"),
-           py::arg("threads"))
+           py::arg("keep_fraction"), py::arg("kernel"), py::arg("kernel_scale"), py::arg("coarse"),
+           py::arg("accept_poor"), py::arg("min_inlier_fraction"))
+      .def("align", &PyAligner::align, py::arg("scan"), py::arg("init"), py::arg("global_mode"),
+           py::arg("distances"), py::arg("threads"))
       .def_property_readonly("model", &PyAligner::model);
 }
 

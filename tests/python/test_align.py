@@ -6,7 +6,35 @@ import numpy as np
 import pytest
 
 import nurbsreg
-from conftest import PANEL, read_pose_file, run_cli
+from conftest import EXAMPLES, PANEL, read_pose_file, run_cli
+
+
+def without_times(report):
+    """A report without its wall times (the only fields two runs may differ in)."""
+    report = json.loads(json.dumps(report))
+    report.pop("seconds")
+    for entry in report["history"]:
+        entry.pop("seconds")
+    if "coarse" in report:
+        report["coarse"].pop("seconds")
+    return report
+
+
+def cli_align(scan, out, *options, model=PANEL):
+    """`nurbsreg align` with `options`: (pose, report dict), or (None, report, stderr's last
+    line) when it exits 1."""
+    done = run_cli("align", "--model", model, "--scan", scan, "--out-pose", out / "pose.txt",
+                   "--report", out / "report.json", *options, check=False)
+    report = json.loads((out / "report.json").read_text())
+    if done.returncode == 1:
+        return None, report, done.stderr.strip().splitlines()[-1]
+    assert done.returncode == 0, done.stderr
+    return read_pose_file(out / "pose.txt"), report, None
+
+
+def write_pose(path, T):
+    """A pose file with every number in its exact (repr) form: --init reads back these bits."""
+    path.write_text("\n".join(" ".join(repr(float(x)) for x in row) for row in T) + "\n")
 
 
 @pytest.fixture(scope="module")
@@ -27,11 +55,98 @@ def test_same_pose_and_report_as_the_cli(panel, scan_points, cli_alignment):
     pose, report = cli_alignment
     a = nurbsreg.align(panel, scan_points)
     np.testing.assert_array_equal(a.T_model_scan, pose)
-    mine = a.report()
-    for field in ("pose", "rms", "iterations", "converged", "inliers", "points",
-                  "skipped_points", "method", "termination"):
-        assert mine[field] == report[field], field
-    assert [h["rms"] for h in mine["history"]] == [h["rms"] for h in report["history"]]
+    # The whole report, field for field (io::make_alignment_report), but for the wall times.
+    assert without_times(a.report()) == without_times(report)
+    assert json.loads(a.to_json()) == a.report()
+    assert "coarse" in report and "fit_details" in report
+
+
+def test_fit_verdict_and_coarse_stage_are_the_reports(panel, scan_points, cli_alignment):
+    _, report = cli_alignment
+    a = nurbsreg.align(panel, scan_points)
+    assert isinstance(a.fit, nurbsreg.FitVerdict) and a.fit.fit == "good" and a.fit.good
+    details = report["fit_details"]
+    assert report["fit"] == a.fit.fit
+    for field in ("noise", "tolerance", "inlier_fraction", "rms", "rms_over_noise",
+                  "coverage"):
+        assert getattr(a.fit, field) == details[field], field
+    assert a.fit.reason == ""
+    c, expected = a.coarse, report["coarse"]
+    assert isinstance(c, nurbsreg.CoarseReport) and c.method == expected["method"]
+    assert (c.hypotheses, c.verified) == (expected["hypotheses"], expected["verified"])
+    assert c.winner.inlier_fraction == expected["winner"]["inlier_fraction"]
+    np.testing.assert_array_equal(c.winner.T_model_scan, expected["winner"]["pose"])
+    assert (c.runner_up is None) == (expected["runner_up"] is None)
+    assert c.alternatives == [] and c.symmetry == "" and c.seconds > 0
+
+
+@pytest.mark.parametrize("model_name", ["panel.json", "folded.json"])
+def test_init_gives_the_cli_init_pose_bits(model_name, tmp_path):
+    model_path = EXAMPLES / model_name
+    model = nurbsreg.load_model(model_path)
+    scan = tmp_path / "scan.pcd"
+    run_cli("synth", "--model", model_path, "--points", 8000, "--noise", 0.02, "--seed", 5,
+            "--pose", "3 -2 1 1.5 -1 0.5", "--out", scan)
+    points = nurbsreg.read_point_cloud(scan).points
+    # A start near the truth, not exactly orthonormal (as a pose printed by another tool).
+    c, s = np.cos(0.03), np.sin(0.03)
+    init = np.array([[c, -s, 0, -1.2], [s, c, 0, 0.8], [0, 0, 1, -0.3], [0, 0, 0, 1]])
+    init[0, 0] += 2e-7
+    write_pose(tmp_path / "init.txt", init)
+    pose, report, _ = cli_align(scan, tmp_path, "--init", tmp_path / "init.txt", model=model_path)
+    a = nurbsreg.align(model, points, init=init)
+    np.testing.assert_array_equal(a.T_model_scan, pose)
+    assert without_times(a.report()) == without_times(report)
+    assert a.coarse is None and "coarse" not in report and a.fit.fit == report["fit"]
+    # And from any pose (no init: the global stage), on this model too: the same pose, or the
+    # same failure (the folded part's poor fit from any pose) as the CLI's exit 1.
+    (tmp_path / "any").mkdir()
+    pose, report, cli_line = cli_align(scan, tmp_path / "any", model=model_path)
+    if pose is None:
+        with pytest.raises(nurbsreg.AlignmentError) as caught:
+            nurbsreg.align(model, points)
+        assert str(caught.value) == "scan: " + cli_line.split("scan.pcd: ", 1)[1]
+        a = caught.value.result
+    else:
+        a = nurbsreg.align(model, points)
+        np.testing.assert_array_equal(a.T_model_scan, pose)
+    assert without_times(a.report()) == without_times(report)
+
+
+def test_no_global_is_icp_from_the_identity(panel, panel_scan, scan_points, tmp_path):
+    pose, report, _ = cli_align(panel_scan[0], tmp_path, "--no-global")
+    a = nurbsreg.align(panel, scan_points, global_alignment=False)
+    np.testing.assert_array_equal(a.T_model_scan, pose)
+    assert without_times(a.report()) == without_times(report) and a.coarse is None
+    np.testing.assert_array_equal(
+        nurbsreg.align(panel, scan_points, init=np.eye(4)).T_model_scan, pose)
+    with pytest.raises(ValueError, match="init and global_alignment=True contradict"):
+        nurbsreg.align(panel, scan_points, init=np.eye(4), global_alignment=True)
+    with pytest.raises(TypeError, match="global_alignment"):
+        nurbsreg.align(panel, scan_points, global_alignment="yes")
+
+
+def test_poor_fit_raises_unless_accepted_as_the_cli_exits(panel, panel_scan, scan_points,
+                                                          tmp_path):
+    # Every point must be within 3 sigma for a good fit: this noisy scan's is poor.
+    strict = ("--min-inlier-fraction", "1")
+    _, report, cli_line = cli_align(panel_scan[0], tmp_path, *strict)
+    with pytest.raises(nurbsreg.PoorFitError) as caught:
+        nurbsreg.align(panel, scan_points, min_inlier_fraction=1.0)
+    assert isinstance(caught.value, nurbsreg.AlignmentError)
+    assert str(caught.value) == "scan: " + cli_line.split("scan.pcd: ", 1)[1]
+    poor = caught.value.result
+    assert poor.fit.fit == "poor" and poor.fit.reason and poor.fit.inlier_fraction < 1.0
+    assert without_times(poor.report()) == without_times(report)
+
+    pose, report, _ = cli_align(panel_scan[0], tmp_path, *strict, "--accept-poor")
+    with pytest.warns(nurbsreg.NurbsregWarning, match="accepted although"):
+        accepted = nurbsreg.align(panel, scan_points, min_inlier_fraction=1.0, accept_poor=True)
+    np.testing.assert_array_equal(accepted.T_model_scan, pose)
+    assert accepted.fit.fit == "poor" == report["fit"] and accepted.failure is None
+    assert without_times(accepted.report()) == without_times(report)
+    with pytest.raises(ValueError, match=r"min_inlier_fraction: must be in \[0, 1\]"):
+        nurbsreg.align(panel, scan_points, min_inlier_fraction=1.5)
 
 
 def test_result_fields(panel, panel_scan, scan_points):
@@ -135,7 +250,7 @@ def test_bad_options(panel, scan_points):
 def test_options_reach_icp(panel, scan_points):
     # Two point-to-point iterations per stage from the identity stop short of the pose; the fit
     # verdict then judges it poor, and the error carries the run's result.
-    with pytest.raises(nurbsreg.AlignmentError, match="poor fit") as caught:
+    with pytest.raises(nurbsreg.PoorFitError, match="poor fit") as caught:
         nurbsreg.align(panel, scan_points, init=np.eye(4), method="point-to-point",
                        max_iterations=2, coarse=[2000])
     a = caught.value.result
