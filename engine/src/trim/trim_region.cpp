@@ -328,6 +328,9 @@ TrimRegion::TrimRegion(const NurbsSurface& surface) {
     }
   }
   const MonotoneSplitter splitter(1e-14 * scale, 1e-13 * scale);
+  // The region is defined only to the splitter's chord tolerance: loop parts within it of the
+  // grid box's edge are taken to lie on that edge (see mark_piece and classify).
+  band_ = 1e-13 * scale;
 
   // 1. Monotone pieces, loop by loop, chained end to start.
   for (const TrimLoop& loop : surface.trim_loops) {
@@ -456,6 +459,14 @@ void TrimRegion::mark_piece(const Vec3* a, int n, std::int32_t piece, int depth,
     v_lo = std::min(v_lo, v);
     v_hi = std::max(v_hi, v);
   }
+  // A (sub-)piece within band_ of an edge of the grid box (CAD loops that run along the
+  // domain's edge, often a few ulps off it) marks no cell: the region beside it is uniform up to
+  // that band, so the cells there stay inside or outside and a patch along the edge is not
+  // `boundary` for it. It stays in its rows' lists: contains() in boundary cells and the row
+  // sweep count its crossings exactly (a piece along u = du_.lo crosses left of every cell
+  // centre, one along du_.hi right of every one, one along v = dv_.lo or dv_.hi no centre line).
+  const bool along_edge = u_hi <= du_.lo + band_ || u_lo >= du_.hi - band_ ||
+                          v_hi <= dv_.lo + band_ || v_lo >= dv_.hi - band_;
   u_lo -= eps_u;
   u_hi += eps_u;
   v_lo -= eps_v;
@@ -464,10 +475,10 @@ void TrimRegion::mark_piece(const Vec3* a, int n, std::int32_t piece, int depth,
   const int j0 = cell_v(std::max(v_lo, dv_.lo)), j1 = cell_v(std::min(v_hi, dv_.hi));
   const bool right_of_box = u_lo > du_.hi;
   const int i0 = cell_u(std::max(u_lo, du_.lo)), i1 = cell_u(std::min(u_hi, du_.hi));
-  if (right_of_box || depth >= kMaxMarkDepth || (i1 - i0 <= 1 && j1 - j0 <= 1)) {
+  if (right_of_box || along_edge || depth >= kMaxMarkDepth || (i1 - i0 <= 1 && j1 - j0 <= 1)) {
     for (int j = j0; j <= j1; ++j) {
       rows.emplace_back(j, piece);
-      if (right_of_box) continue;
+      if (right_of_box || along_edge) continue;
       for (int i = i0; i <= i1; ++i)
         cell_class_[static_cast<std::size_t>(i) * cells_v_ + j] =
             static_cast<std::uint8_t>(RegionClass::boundary);
@@ -486,8 +497,10 @@ std::size_t TrimRegion::piece_count() const {
 
 bool TrimRegion::contains(double u, double v) const {
   if (cells_u_ == 0) return false;
-  // Written so that NaN is outside.
-  if (!(u >= du_.lo && u <= du_.hi && v >= dv_.lo && v <= dv_.hi)) return false;
+  // Written so that NaN is outside. Within band_ of the grid box a point is on a loop to the
+  // region's tolerance: it gets its edge cell's answer, as classify() assumes.
+  if (!(u >= du_.lo - band_ && u <= du_.hi + band_ && v >= dv_.lo - band_ && v <= dv_.hi + band_))
+    return false;
   const int j = cell_v(v);
   const std::uint8_t c = cell_class_[static_cast<std::size_t>(cell_u(u)) * cells_v_ + j];
   if (c != static_cast<std::uint8_t>(RegionClass::boundary)) {
@@ -510,8 +523,9 @@ RegionClass TrimRegion::classify(double u0, double u1, double v0, double v1) con
   }
   if (cells_u_ == 0 || u0 > u1 || v0 > v1) return RegionClass::outside;  // (empty box)
   if (u1 < du_.lo || u0 > du_.hi || v1 < dv_.lo || v0 > dv_.hi) return RegionClass::outside;
-  // Parts of the box beyond the grid box are outside the region.
-  const bool beyond = u0 < du_.lo || u1 > du_.hi || v0 < dv_.lo || v1 > dv_.hi;
+  // Parts of the box beyond the grid box (by more than band_) are outside the region.
+  const bool beyond =
+      u0 < du_.lo - band_ || u1 > du_.hi + band_ || v0 < dv_.lo - band_ || v1 > dv_.hi + band_;
   const int i0 = cell_u(std::max(u0, du_.lo)), i1 = cell_u(std::min(u1, du_.hi));
   const int j0 = cell_v(std::max(v0, dv_.lo)), j1 = cell_v(std::min(v1, dv_.hi));
   const int stride = cells_v_ + 1;

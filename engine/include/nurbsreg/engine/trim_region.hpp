@@ -36,8 +36,10 @@ class TrimRegion {
   // Is (u, v) in the region? Exact up to rounding: a precomputed grid answers at once for points
   // away from the loops; near a loop, the crossings of a ray with the loops' monotone rational
   // Bézier pieces are counted exactly (a bracketing root search on the piece, not a polygon).
-  // Points outside the surface's domain are outside. A point on a loop (within about 1e-14 of
-  // the parameter space's scale) may get either answer. NaN is outside.
+  // Points outside the surface's domain are outside. A point on a loop (within about 1e-13 of
+  // the parameter space's scale: the tolerance to which the loops are split and chained) may get
+  // either answer; so may a point within that tolerance of the domain's edge, or of the loops'
+  // bounding box, where a loop runs along it. NaN is outside.
   bool contains(double u, double v) const;
 
   // Conservative classification of the closed box [u0, u1] x [v0, v1]: outside and inside are
@@ -56,9 +58,10 @@ class TrimRegion {
   // Grid of cells over the grid box; see trim_region.cpp.
   int cells_u_ = 0, cells_v_ = 0;
   double inv_cell_u_ = 0.0, inv_cell_v_ = 0.0;  // cells per unit of u, v
-  std::vector<std::uint8_t> cell_class_;        // RegionClass per cell, [iu * cells_v_ + iv]
-  std::vector<std::int32_t> boundary_sum_;      // 2-D prefix sums of boundary cells
-  std::vector<std::int32_t> inside_sum_;        // 2-D prefix sums of inside cells
+  double band_ = 0.0;  // the loops' tolerance (1e-13 x the parameter space's scale)
+  std::vector<std::uint8_t> cell_class_;    // RegionClass per cell, [iu * cells_v_ + iv]
+  std::vector<std::int32_t> boundary_sum_;  // 2-D prefix sums of boundary cells
+  std::vector<std::int32_t> inside_sum_;    // 2-D prefix sums of inside cells
   std::vector<Piece> pieces_;
   // Per grid row (v band): the pieces whose v range meets it, for the exact crossing count.
   std::vector<std::int32_t> row_first_;

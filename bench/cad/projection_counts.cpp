@@ -1,0 +1,166 @@
+// projection_counts: a small, deterministic run of one model for instruction counts (callgrind)
+// on a shared machine (issue 26): load a JSON model (e.g. from `nurbsreg convert`), prepare it,
+// project N near points (a synthetic scan, noise 0.5% of the trimmed diagonal) and N mixed points
+// (half near, half anywhere in the box enlarged by 10% of its diagonal; the same recipe and
+// seeds as real_models_bench), optionally align an --align-point scan (3 degrees and 2% of the
+// diagonal off). Prints load / prepare CPU seconds, the per-point counters and a checksum of
+// every answer (status, distance, entity, u, v bit for bit), so that a change can be shown not
+// to move a single result. See bench/README.md, "Real CAD models" (issue 26).
+//
+//   valgrind --tool=callgrind --collect-atstart=no
+//       --toggle-collect='nurbsreg::engine::Projector::project(*'
+//       build/bench/cad/projection_counts model.json --points 2000 --sets near   (one line)
+
+#include <tbb/task_arena.h>
+#include <CLI/CLI.hpp>
+
+#include <cmath>
+#include <cstdint>
+#include <cstdio>
+#include <cstring>
+#include <ctime>
+#include <random>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "nurbsreg/engine/prepared_model.hpp"
+#include "nurbsreg/engine/projection.hpp"
+#include "nurbsreg/engine/synthetic_scan.hpp"
+#include "nurbsreg/icp/icp.hpp"
+#include "nurbsreg/icp/model_finder.hpp"
+#include "nurbsreg/io/model_file.hpp"
+
+namespace engine = nurbsreg::engine;
+namespace io = nurbsreg::io;
+namespace icp = nurbsreg::icp;
+using engine::Vec3;
+
+namespace {
+
+double cpu_seconds() {
+  timespec t{};
+  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &t);
+  return static_cast<double>(t.tv_sec) + 1e-9 * static_cast<double>(t.tv_nsec);
+}
+
+// FNV-1a over the answers' bytes.
+struct Checksum {
+  std::uint64_t h = 1469598103934665603ull;
+  void add(const void* data, std::size_t n) {
+    const auto* b = static_cast<const unsigned char*>(data);
+    for (std::size_t i = 0; i < n; ++i)
+      h = (h ^ b[i]) * 1099511628211ull;
+  }
+  void add_double(double x) { add(&x, sizeof x); }
+};
+
+std::uint64_t checksum(const engine::ProjectionResults& r, std::size_t n) {
+  Checksum c;
+  for (std::size_t i = 0; i < n; ++i) {
+    c.add(&r.status[i], sizeof r.status[i]);
+    c.add(&r.entity[i], sizeof r.entity[i]);
+    c.add_double(r.distance[i]);
+    c.add_double(r.u[i]);
+    c.add_double(r.v[i]);
+  }
+  return c.h;
+}
+
+void print_counters(const char* what, const engine::ProjectionCounters& c) {
+  const double n = std::max<double>(1.0, static_cast<double>(c.points - c.skipped));
+  std::printf(
+      "%s: items %.2f edges %.2f trimmed %.2f rational %.2f splits %.2f newton %.2f drops %.2f "
+      "rejections %.2f certified %.3f\n",
+      what, c.patches_visited / n, c.edge_pieces_visited / n, c.trimmed_patches_visited / n,
+      c.rational_patches_visited / n, c.subdivisions / n, c.newton_iterations / n,
+      c.region_drops / n, c.region_rejections / n, (c.certified + c.reach_proven) / n);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  std::string path;
+  std::size_t points = 2000, align_points = 0;
+  int threads = 1;
+  std::string sets = "near,mixed";
+  CLI::App app{"One model: prepare, project near and mixed points, align (instruction counts)"};
+  app.add_option("model", path, "a JSON model (nurbsreg convert)")->required();
+  app.add_option("--points", points, "near and mixed points");
+  app.add_option("--align", align_points, "points of an alignment (0: none)");
+  app.add_option("--threads", threads);
+  app.add_option("--sets", sets, "which point sets to project: near, mixed (comma-separated)");
+  CLI11_PARSE(app, argc, argv);
+
+  tbb::task_arena arena(threads);
+  double c = cpu_seconds();
+  io::ModelFileOptions no_cache;
+  no_cache.cache.enabled = false;
+  const engine::Model model = io::read_model_file(path, no_cache);
+  const double load_s = cpu_seconds() - c;
+  c = cpu_seconds();
+  const engine::PreparedModel prepared(model);
+  const double prepare_s = cpu_seconds() - c;
+  c = cpu_seconds();
+  const engine::ModelBounds& bounds = prepared.geometry_bounds();
+  const double bounds_s = cpu_seconds() - c;
+  std::printf("%s: load %.3f s, prepare %.3f s, bounds %.3f s (CPU)\n", path.c_str(), load_s,
+              prepare_s, bounds_s);
+  const double diagonal = bounds.box.diagonal();
+
+  engine::SyntheticScanOptions synth;
+  synth.points = points;
+  synth.noise_sigma = 0.005 * diagonal;
+  synth.seed = 26;
+  const std::vector<Vec3> near = engine::make_synthetic_scan(model, synth).points;
+  const std::vector<Vec3>& near_ref = near;
+  std::vector<Vec3> mixed(near.begin(),
+                          near.begin() + static_cast<std::ptrdiff_t>(near.size() / 2));
+  {
+    std::mt19937_64 rng(2026);
+    std::uniform_real_distribution<double> u(0.0, 1.0);
+    const Vec3 margin = Vec3::Constant(0.1 * diagonal);
+    const Vec3 lo = bounds.box.lo - margin, extent = bounds.box.hi + margin - lo;
+    while (mixed.size() < near.size())
+      mixed.push_back(lo + Vec3(u(rng) * extent.x(), u(rng) * extent.y(), u(rng) * extent.z()));
+  }
+  for (const auto& [name, pts] :
+       {std::pair{"near", &near_ref}, std::pair{"mixed", &std::as_const(mixed)}}) {
+    if (sets.find(name) == std::string::npos) continue;
+    engine::ProjectionResults out;
+    engine::ProjectionCounters counters;
+    c = cpu_seconds();
+    arena.execute([&] {
+      engine::Projector projector(prepared);
+      projector.project(engine::PointView::of(*pts), {}, out, {}, &counters);
+    });
+    const double s = cpu_seconds() - c;
+    std::printf("%s: %zu points, %.0f pts per CPU-s, checksum %016llx\n", name, pts->size(),
+                pts->size() / s, static_cast<unsigned long long>(checksum(out, pts->size())));
+    print_counters(name, counters);
+  }
+  if (align_points > 0) {
+    engine::SyntheticScanOptions scan = synth;
+    scan.points = align_points;
+    scan.seed = 27;
+    const double d = 0.02 * diagonal / std::sqrt(3.0);
+    scan.T_scan_model = engine::pose_from_euler_degrees(2.0, 1.5, 1.5, Vec3(d, d, d));
+    const engine::SyntheticScan s = engine::make_synthetic_scan(model, scan);
+    arena.execute([&] {
+      icp::ModelCorrespondenceFinder finder(prepared);
+      icp::IcpSolver solver;
+      c = cpu_seconds();
+      const icp::IcpResult result = solver.align(finder, s.points, Eigen::Isometry3d::Identity());
+      const double t = cpu_seconds() - c;
+      Checksum pose;
+      for (int i = 0; i < 4; ++i)
+        for (int j = 0; j < 4; ++j)
+          pose.add_double(result.T_model_scan.matrix()(i, j));
+      std::printf("align: %zu points, %.3f CPU s, %d iterations, rms %.6g, pose checksum %016llx\n",
+                  align_points, t, result.iterations, result.rms,
+                  static_cast<unsigned long long>(pose.h));
+      print_counters("last ICP pass", finder.last_counters());
+    });
+  }
+  return 0;
+}
