@@ -87,6 +87,16 @@ def test_arrays_summary_and_single_files(panel, holey_scan, cli_inspection, tmp_
     assert (tmp_path / "p.png").read_bytes()[:4] == b"\x89PNG"
 
 
+def test_float32_strided_scan_inspects_as_float64(panel, holey_scan):
+    _, points = holey_scan
+    single = points.astype(np.float32)
+    reference = nurbsreg.inspect(panel, single.astype(np.float64), tolerance=0.05)
+    strided = np.asfortranarray(single)[::1]
+    r = nurbsreg.inspect(panel, strided, tolerance=0.05)
+    np.testing.assert_array_equal(r.signed_distance, reference.signed_distance)
+    assert r.summary == reference.summary and r.skipped == 2
+
+
 def test_given_pose_and_asymmetric_band_as_the_cli(panel, holey_scan, cli_inspection, tmp_path):
     scan_file, _ = holey_scan
     T = np.array(json.loads((cli_inspection / "inspect.json").read_text())["pose"])
@@ -121,6 +131,10 @@ def test_errors(panel, holey_scan, tmp_path):
         nurbsreg.inspect(panel, points, tolerance=0.1, colour_scale="rainbow")
     with pytest.raises(ValueError, match="scan: no finite points to align"):
         nurbsreg.inspect(panel, np.full((4, 3), np.nan), tolerance=0.1)
+    with pytest.raises(ValueError, match="scan: no finite points to align"):
+        nurbsreg.inspect(panel, np.zeros((0, 3)), tolerance=0.1)
+    with pytest.raises(ValueError, match="scan: no finite points to inspect"):
+        nurbsreg.inspect(panel, np.zeros((0, 3), np.float32), tolerance=0.1, pose=np.eye(4))
     # A poor fit is the CLI's exit 1: nothing is written.
     with pytest.raises(nurbsreg.PoorFitError) as caught:
         nurbsreg.inspect(panel, points, tolerance=0.1, min_inlier_fraction=1.0,
