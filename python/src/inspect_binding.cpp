@@ -177,7 +177,6 @@ InspectionFramePtr run_inspect(PyAligner& aligner, const py::handle& scan_object
   report.units = model->model().units;
 
   const auto alignment_start = std::chrono::steady_clock::now();
-  std::size_t input_rows = 0;
   if (pose.is_none()) {
     // As the CLI: from any pose without init (the global stage), from init as given.
     f->alignment = aligner.align(
@@ -191,19 +190,16 @@ InspectionFramePtr run_inspect(PyAligner& aligner, const py::handle& scan_object
         });
     const AlignmentFrame& frame = *f->alignment;
     if (frame.result.failure) return f;  // the package raises AlignmentError with it
-    input_rows = frame.rows;
     report.scan_points = frame.rows - frame.skipped;
     if (frame.result.icp.degeneracy.degenerate())
       report.degeneracy = frame.result.icp.degeneracy.describe();
-    AlignmentFrame in_file = frame;  // the report counts the file's skipped points too
-    in_file.skipped += file_skipped;
-    in_file.seconds = since_start();
-    report.alignment = report_of(in_file);
+    // The report counts the file's skipped points too, as the CLI's does.
+    report.alignment = io::make_alignment_report(frame.result, frame.method,
+                                                 file_skipped + frame.skipped, since_start());
   } else {
     // The final pose is given: the exact projection of every transformed point.
     const Eigen::Isometry3d T = pose_argument(pose, "pose");
     const PointsArg scan(scan_object, "scan");
-    input_rows = scan.size();
     run_released(thread_count(threads), scan.size() >= kWatchedPoints, [&] {
       PointsArg::Finite finite = scan.contiguous_finite();
       std::vector<engine::Vec3> aligned(finite.points.size());
@@ -234,7 +230,6 @@ InspectionFramePtr run_inspect(PyAligner& aligner, const py::handle& scan_object
         f->deviations.size() ? std::sqrt(sum_sq / double(f->deviations.size())) : std::nan("");
     report.alignment.seconds = since_start();
   }
-  (void)input_rows;
   report.alignment_seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - alignment_start).count();
   if (f->deviations.unprojected > 0) {
