@@ -7,8 +7,10 @@ The same library calls as the ``nurbsreg`` command line, so the same numbers::
     r = nurbsreg.project(model, np.array([[10.0, 20, 5], [50, 50, 30]]))
     r.distance, r.foot, r.entity, r.u, r.v, r.normal       # NumPy arrays, one row per point
     scan = nurbsreg.read_point_cloud("scan.pcd").points    # (N, 3) float64
-    a = nurbsreg.align(model, scan)                         # ICP on exact projections
-    a.T_model_scan, a.rms, a.fitness, a.deviation
+    a = nurbsreg.align(model, scan)                         # from any pose, as the CLI
+    a.T_model_scan, a.rms, a.fitness, a.deviation, a.fit.fit   # fit "good" (poor: raises)
+    i = nurbsreg.inspect(model, "scan.pcd", tolerance=0.05, ply="deviations.ply")
+    i.signed_distance, i.summary, i.passed                  # as ``nurbsreg inspect``
 
 Points are (N, 3) float64 or float32 arrays of any memory layout. Long calls release the GIL
 (other Python threads run meanwhile) and stop on Ctrl-C. ``threads=`` limits a call's worker
@@ -167,9 +169,9 @@ def _checked(result):
 
 
 class Aligner:
-    """Alignment of scans to one model, as ``nurbsreg align``; one Aligner keeps its warm state
-    (per-point arrays, projection hints, the model's coarse-stage features) from frame to
-    frame, so a sequence of frames aligns faster than fresh calls of :func:`align`.
+    __doc__ = """Alignment of scans to one model, as ``nurbsreg align``; one Aligner keeps its
+    warm state (per-point arrays, projection hints, the model's coarse-stage features) from
+    frame to frame, so a sequence of frames aligns faster than fresh calls of :func:`align`.
     """ + _OPTIONS_DOC + """
     One ``align`` at a time per Aligner (calls from other threads wait); use one Aligner per
     thread to run in parallel.
