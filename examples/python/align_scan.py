@@ -22,6 +22,8 @@ else:
     scan = synthetic.points
     print(f"synthetic scan: {len(scan)} points")
 
+# No init: from any pose (the global stage, then ICP), as `nurbsreg align` without --init. A
+# poor fit raises nurbsreg.PoorFitError (the CLI's exit 1) unless accept_poor=True.
 result = nurbsreg.align(model, scan)
 np.set_printoptions(precision=6, suppress=True)
 print("pose (model_point = T * scan_point):")
@@ -32,5 +34,12 @@ d = result.deviation
 print(f"deviation |d| of {d['count']} points: mean {d['mean']:.4g}  rms {d['rms']:.4g}  "
       f"median {d['median']:.4g}  p95 {d['p95']:.4g}  p99 {d['p99']:.4g}  max {d['max']:.4g} "
       f"{model.units}")
+fit = result.fit
+print(f"fit {fit.fit}: {100 * fit.inlier_fraction:.1f}% of the points within {fit.tolerance:.3g} "
+      f"(3 x noise {fit.noise:.3g}), rms {fit.rms:.3g}, model coverage {100 * fit.coverage:.1f}%")
+if result.coarse is not None:
+    c = result.coarse
+    print(f"coarse: {c.method}, {c.verified} hypotheses verified in {c.seconds:.2f} s; winner "
+          f"{100 * c.winner.inlier_fraction:.1f}% inliers")
 if result.degeneracy["degenerate"]:
     print("unconstrained:", result.degeneracy["description"])

@@ -7,8 +7,10 @@ The same library calls as the ``nurbsreg`` command line, so the same numbers::
     r = nurbsreg.project(model, np.array([[10.0, 20, 5], [50, 50, 30]]))
     r.distance, r.foot, r.entity, r.u, r.v, r.normal       # NumPy arrays, one row per point
     scan = nurbsreg.read_point_cloud("scan.pcd").points    # (N, 3) float64
-    a = nurbsreg.align(model, scan)                         # ICP on exact projections
-    a.T_model_scan, a.rms, a.fitness, a.deviation
+    a = nurbsreg.align(model, scan)                         # from any pose, as the CLI
+    a.T_model_scan, a.rms, a.fitness, a.deviation, a.fit.fit   # fit "good" (poor: raises)
+    i = nurbsreg.inspect(model, "scan.pcd", tolerance=0.05, ply="deviations.ply")
+    i.signed_distance, i.summary, i.passed                  # as ``nurbsreg inspect``
 
 Points are (N, 3) float64 or float32 arrays of any memory layout. Long calls release the GIL
 (other Python threads run meanwhile) and stop on Ctrl-C. ``threads=`` limits a call's worker
@@ -27,7 +29,8 @@ from ._errors import AlignmentError, InputError, NurbsregWarning, OutputError, P
 
 __all__ = [
     "AlignmentError", "AlignmentResult", "Aligner", "CoarseReport", "FitVerdict", "InputError",
-    "Model", "NurbsregWarning", "OutputError", "PointCloud", "PoorFitError", "PoseScore", "ProjectionResult", "SyntheticScan", "align", "load_model",
+    "InspectionResult", "Model", "NurbsregWarning", "OutputError", "PointCloud", "PoorFitError",
+    "PoseScore", "ProjectionResult", "SyntheticScan", "align", "inspect", "load_model",
     "project", "read_point_cloud", "synth", "write_point_cloud", "STATUS_OK", "STATUS_SKIPPED",
     "STATUS_NO_GEOMETRY", "STATUS_BEYOND_MAX_DISTANCE",
 ]
@@ -166,9 +169,9 @@ def _checked(result):
 
 
 class Aligner:
-    """Alignment of scans to one model, as ``nurbsreg align``; one Aligner keeps its warm state
-    (per-point arrays, projection hints, the model's coarse-stage features) from frame to
-    frame, so a sequence of frames aligns faster than fresh calls of :func:`align`.
+    __doc__ = """Alignment of scans to one model, as ``nurbsreg align``; one Aligner keeps its
+    warm state (per-point arrays, projection hints, the model's coarse-stage features) from
+    frame to frame, so a sequence of frames aligns faster than fresh calls of :func:`align`.
     """ + _OPTIONS_DOC + """
     One ``align`` at a time per Aligner (calls from other threads wait); use one Aligner per
     thread to run in parallel.
@@ -230,6 +233,94 @@ def _to_json(self):
 AlignmentResult.fitness = property(_fitness)
 AlignmentResult.report = _report
 AlignmentResult.to_json = _to_json
+
+
+def inspect(model, scan, *, tolerance=None, tolerance_upper=None, tolerance_lower=None,
+            init=None, pose=None, global_alignment=None, out_dir=None, ply=None, html=None,
+            png=None, colour_scale="metrology", colour_min=None, colour_max=None,
+            min_inside=0.99, viewer_points=300_000, model_mesh=True, threads=None,
+            accept_poor=False, min_inlier_fraction=0.5, **icp_options):
+    """Inspect a scan against ``model`` as ``nurbsreg inspect``: align it (unless ``pose`` is
+    the final pose), then the signed deviation of every point, its statistics overall and per
+    face, the pass/fail verdict, and the output files asked for.
+
+    scan: a point-cloud file name (read as the CLI reads ``--scan``: the report names it and
+        ``index`` is each point's position in the file), a :class:`PointCloud`, or an (N, 3)
+        float64/float32 array (NaN/infinite rows are skipped and counted).
+    tolerance: t > 0, the band [-t, +t] (model units); or ``tolerance_upper`` and
+        ``tolerance_lower`` (signed) for an asymmetric band. One of the two is required.
+    init, global_alignment, accept_poor, min_inlier_fraction and the ICP options (method,
+        max_iterations, max_distance, keep_fraction, kernel, kernel_scale, coarse): the
+        alignment, as :func:`align` (None: from any pose, the global stage first).
+    pose: the final pose T (4x4, model_point = T * scan_point): no alignment, as ``--pose``.
+    out_dir: write every output of the CLI into this folder (its parent must exist; all or
+        nothing): inspect.json, inspect_faces.csv, deviations.ply, report.html, deviations.png.
+    ply, html, png: without ``out_dir``, write just these: the coloured cloud (binary PLY with
+        colours, signed_distance, face, u, v, tolerance, index), the self-contained HTML report,
+        the PNG picture. Every file is written atomically.
+    colour_scale ("metrology" or "blue-red"), colour_min, colour_max (where the colours
+        saturate; default 3 x the band), min_inside (pass when at least this fraction of the
+        points is inside; 0.99), viewer_points (at most this many points in the HTML's 3-D
+        view), model_mesh (the model's faces in grey in the HTML and PNG): as the CLI.
+    threads: worker threads (None or 0: all hardware threads).
+
+    Returns an InspectionResult: per inspected point (one row each, scan order; points without
+    a foot on the model are left out and counted in ``unprojected``) ``points`` (N, 3, aligned,
+    model coordinates), ``signed_distance``, ``face``, ``u``, ``v``, ``index`` (row in the file
+    or input array); ``summary`` (points, inside, below, above, inside_tolerance, mean, std,
+    rms, min, max, p5, p95), ``faces`` (the same per face), ``tolerance`` (lower, upper),
+    ``passed``, ``alignment`` (the AlignmentResult; None with ``pose``), ``report()`` /
+    ``to_json()`` (inspect.json's fields and numbers) and ``faces_csv()``.
+
+    Raises PoorFitError / AlignmentError (with ``.result``) when the alignment gives no pose to
+    use, as the CLI exits 1 (no file is written then); ValueError naming a bad argument;
+    InputError for a bad scan file; OutputError when a file cannot be written. Releases the
+    GIL; Ctrl-C stops the alignment.
+    """
+    if tolerance is None and (tolerance_upper is None or tolerance_lower is None):
+        raise ValueError("tolerance is required (or both tolerance_upper and tolerance_lower)")
+    if tolerance is not None and not (float(tolerance) > 0 and _math.isfinite(tolerance)):
+        raise ValueError("tolerance: must be a positive number (got %r)" % (tolerance,))
+    upper = float(tolerance_upper if tolerance_upper is not None else tolerance)
+    lower = float(tolerance_lower if tolerance_lower is not None else -tolerance)
+    index, file_skipped, name = None, 0, ""
+    if isinstance(scan, (str, bytes, _os.PathLike)):
+        name = _os.fsdecode(scan)
+        scan = read_point_cloud(name)
+        if len(scan.points) == 0:
+            raise InputError(name + ": no finite points to inspect")
+    if isinstance(scan, PointCloud):
+        index, file_skipped, scan = scan.index, scan.skipped, scan.points
+    aligner = Aligner(model, accept_poor=accept_poor, min_inlier_fraction=min_inlier_fraction,
+                      **icp_options)
+    paths = [None if p is None else _os.fspath(p) for p in (out_dir, ply, html, png)]
+    if paths[0] is not None and any(p is not None for p in paths[1:]):
+        raise ValueError("out_dir writes every output; ply, html and png are for single files")
+    result = _core.inspect(
+        aligner._aligner, scan, index, int(file_skipped), name, init, pose,
+        _global_mode(global_alignment), lower, upper, colour_scale,
+        None if colour_min is None else float(colour_min),
+        None if colour_max is None else float(colour_max), float(min_inside), int(viewer_points),
+        bool(model_mesh), paths[0], *(p or "" for p in paths[1:]), threads)
+    if result.alignment is not None:
+        _checked(result.alignment)
+    _warn_all(result.warnings)
+    return result
+
+
+InspectionResult = _core.InspectionResult
+
+
+def _inspection_report(self):
+    """inspect.json as a dict: the alignment report's fields, "tolerance", the overall
+    statistics at the top level, "faces", "verdict" (the CLI's, number for number)."""
+    import json
+    return json.loads(self.report_json())
+
+
+InspectionResult.report = _inspection_report
+InspectionResult.to_json = lambda self: self.report_json()
+InspectionResult.to_json.__doc__ = "inspect.json's text."
 
 
 @_dataclass

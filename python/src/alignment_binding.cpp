@@ -18,68 +18,10 @@
 #include "nurbsreg/io/alignment_report.hpp"
 #include "nurbsreg/registration/alignment.hpp"
 #include "points_arg.hpp"
-#include "released_call.hpp"
+#include "py_aligner.hpp"
 
 namespace nurbsreg::python {
 namespace {
-
-class PyAligner {
- public:
-  PyAligner(ModelPtr model, icp::IcpOptions options, registration::RegistrationOptions registration)
-      : model_(std::move(model)), options_(std::move(options)), registration_(registration) {
-    if (model_->model().surfaces.empty()) {
-      throw py::value_error(model_->path() + ": align needs a model with surfaces");
-    }
-    aligner_ = make_aligner();
-  }
-
-  AlignmentFramePtr align(const py::handle& scan_object, const py::object& init_object,
-                          const std::string& global, bool distances,
-                          const std::optional<int>& threads) {
-    const auto start = std::chrono::steady_clock::now();
-    const PointsArg scan(scan_object, "scan");
-    const registration::AlignRequest request = make_request(init_object, global);
-    const int thread_limit = thread_count(threads);
-    auto frame = std::make_shared<AlignmentFrame>();
-    frame->method = options_.method;
-    frame->max_iterations = options_.max_iterations;
-    frame->has_distances = distances;
-    {
-      py::gil_scoped_release release;
-      const std::lock_guard lock(mutex_);  // one align() at a time per Aligner
-      py::gil_scoped_acquire gil;
-      try {
-        run_released(thread_limit, scan.size() >= kWatchedPoints,
-                     [&] { align_rows(*aligner_, scan, request, *frame); });
-      } catch (py::error_already_set&) {
-        // Ctrl-C: the cancelled run may have left the warm state half written. Start afresh.
-        aligner_ = make_aligner();
-        throw;
-      }
-    }
-    if (frame->rows == frame->skipped) {
-      throw py::value_error("scan: no finite points to align (" + std::to_string(frame->skipped) +
-                            " skipped)");
-    }
-    if (!frame->result.failure) add_warnings(*frame);
-    frame->seconds =
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    return frame;
-  }
-
-  const ModelPtr& model() const { return model_; }
-
- private:
-  std::unique_ptr<registration::Aligner> make_aligner() const {
-    return std::make_unique<registration::Aligner>(model_->prepared(), options_, registration_);
-  }
-
-  ModelPtr model_;
-  icp::IcpOptions options_;
-  registration::RegistrationOptions registration_;
-  std::mutex mutex_;
-  std::unique_ptr<registration::Aligner> aligner_;
-};
 
 py::dict degeneracy_of(const icp::DegeneracyReport& d) {
   py::list free;
@@ -299,8 +241,14 @@ void bind_alignment(py::module_& m) {
            py::arg("model"), py::arg("method"), py::arg("max_iterations"), py::arg("max_distance"),
            py::arg("keep_fraction"), py::arg("kernel"), py::arg("kernel_scale"), py::arg("coarse"),
            py::arg("accept_poor"), py::arg("min_inlier_fraction"))
-      .def("align", &PyAligner::align, py::arg("scan"), py::arg("init"), py::arg("global_mode"),
-           py::arg("distances"), py::arg("threads"))
+      .def(
+          "align",
+          [](PyAligner& a, const py::handle& scan, const py::object& init,
+             const std::string& global, bool distances, const std::optional<int>& threads) {
+            return a.align(scan, init, global, distances, threads);
+          },
+          py::arg("scan"), py::arg("init"), py::arg("global_mode"), py::arg("distances"),
+          py::arg("threads"))
       .def_property_readonly("model", &PyAligner::model);
 }
 

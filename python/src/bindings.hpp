@@ -16,6 +16,7 @@ void bind_model(py::module_& m);
 void bind_projection(py::module_& m);
 void bind_alignment(py::module_& m);
 void bind_point_io(py::module_& m);
+void bind_inspect(py::module_& m);
 
 // threads= of every call: None or 0 = all hardware threads, else that many (ValueError below 0).
 int thread_count(const std::optional<int>& threads);

@@ -32,4 +32,5 @@ PYBIND11_MODULE(_core, m) {
   bind_projection(m);
   bind_alignment(m);
   bind_point_io(m);
+  bind_inspect(m);
 }

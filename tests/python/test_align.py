@@ -190,6 +190,10 @@ def test_layouts_and_nan_rows(panel, scan_points):
     np.testing.assert_array_equal(as_float32.T_model_scan, reference.T_model_scan)
     fortran = nurbsreg.align(panel, np.asfortranarray(scan_points))
     np.testing.assert_array_equal(fortran.T_model_scan, reference.T_model_scan)
+    strided32 = np.repeat(scan_points.astype(np.float32), 2, axis=0)[::2]
+    assert not strided32.flags.c_contiguous
+    np.testing.assert_array_equal(nurbsreg.align(panel, strided32).T_model_scan,
+                                  reference.T_model_scan)
     holes = np.insert(scan_points, [0, 500, 20000], np.nan, axis=0)
     with_nan = nurbsreg.align(panel, holes, distances=True)
     assert with_nan.skipped == 3 and with_nan.points == 20000

@@ -25,6 +25,19 @@ def test_align_scan_prints_pose_and_deviations(panel_scan):
     assert "pose (model_point = T * scan_point):" in out
     assert re.search(r"rms 0\.0\d+ over \d+/20000 inliers .* converged", out), out
     assert "deviation |d| of 20000 points" in out
+    assert re.search(r"fit good: 99\.\d% of the points", out), out
+    assert "coarse: fpfh-ransac" in out
+
+
+def test_inspect_scan_saves_the_coloured_cloud(panel, panel_scan, tmp_path):
+    out = run_script("inspect_scan.py", PANEL, panel_scan[0], 0.05, tmp_path / "d.ply",
+                     tmp_path / "r.html")
+    assert re.search(r"\d+\.\d\d % of 20000 points inside \[-0\.05, \+0\.05\] mm", out), out
+    assert "signed deviation: mean" in out and "fit good" in out
+    expected = nurbsreg.inspect(panel, panel_scan[0], tolerance=0.05, ply=tmp_path / "e.ply")
+    assert (tmp_path / "d.ply").read_bytes() == (tmp_path / "e.ply").read_bytes()
+    assert ("PASS" if expected.passed else "FAIL") in out
+    assert (tmp_path / "r.html").stat().st_size > 10000
 
 
 def test_project_to_ply_writes_scalar_fields(panel, tmp_path):

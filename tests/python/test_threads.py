@@ -6,6 +6,7 @@ import subprocess
 import sys
 import textwrap
 import threading
+import time
 
 import numpy as np
 
@@ -31,6 +32,23 @@ def test_two_threads_at_once_give_the_serial_answers(panel):
         np.testing.assert_array_equal(mine.foot, reference.foot)
         np.testing.assert_array_equal(mine.distance, reference.distance)
         np.testing.assert_array_equal(mine.entity, reference.entity)
+
+
+def test_python_runs_while_a_projection_runs(panel):
+    # With the GIL held for the call, this thread would stand still until it returned: its
+    # longest pause between two loop turns would be about the call's duration.
+    points = np.random.default_rng(2).uniform([0, 0, -5], [100, 100, 20], (200000, 3))
+    worker = threading.Thread(target=nurbsreg.project, args=(panel, points),
+                              kwargs={"threads": 1})
+    start = time.perf_counter()
+    worker.start()
+    last, longest = time.perf_counter(), 0.0
+    while worker.is_alive():
+        now = time.perf_counter()
+        longest = max(longest, now - last)
+        last = now
+    duration = time.perf_counter() - start
+    assert longest < 0.5 * duration, (longest, duration)
 
 
 def test_two_aligners_in_two_threads(panel):
