@@ -18,9 +18,27 @@ sanitizers="${NURBSREG_SANITIZERS:-0}"
 fuzz_seconds="${NURBSREG_FUZZ_SECONDS:-30}"
 timings=()
 stage_start=0
-begin() { stage_start=$(date +%s); echo "== test.sh: stage $1" >&2; }
-end() { timings+=("$1 $(($(date +%s) - stage_start)) s"); echo "== test.sh: stage $1 took $(($(date +%s) - stage_start)) s" >&2; }
-summary() { printf '== test.sh: %s\n' "${timings[@]}" >&2; }
+stage_cpu=0
+# CPU seconds of this script's finished children (bash `times`, second line: user and system),
+# beside the wall time: on a shared machine the wall time says little about the stage itself.
+# `times` must run in this shell (a pipe or $(...) would report a fresh subshell's zeros).
+cpu_file="$(mktemp)"
+cpu_now=0
+read_cpu() {
+  times >"$cpu_file"
+  cpu_now=$(sed -n 2p "$cpu_file" | awk '{ t = 0; for (i = 1; i <= 2; ++i) { split($i, a, /[ms]/); t += a[1] * 60 + a[2] } printf "%d", t }')
+}
+begin() { stage_start=$(date +%s); read_cpu; stage_cpu=$cpu_now; echo "== test.sh: stage $1" >&2; }
+end() {
+  read_cpu
+  local wall=$(($(date +%s) - stage_start)) cpu=$((cpu_now - stage_cpu))
+  timings+=("$1 ${wall} s wall, ${cpu} s CPU")
+  echo "== test.sh: stage $1 took ${wall} s wall, ${cpu} s CPU" >&2
+}
+summary() {
+  printf '== test.sh: %s\n' "${timings[@]}" >&2
+  rm -f "$cpu_file"
+}
 trap summary EXIT
 
 begin release

@@ -6,6 +6,7 @@
 
 #include "nurbsreg/io/atomic_file.hpp"
 #include "nurbsreg/io/errors.hpp"
+#include "printable.hpp"
 #include "text_io.hpp"
 
 namespace nurbsreg::io {
@@ -143,7 +144,7 @@ AlignmentReport parse_alignment_report(std::string_view text, const std::string&
     throw InputError(file_label, "line " + std::to_string(position.line) + ", column " +
                                      std::to_string(position.column) + ": invalid JSON");
   } catch (const Json::exception& error) {
-    throw InputError(file_label, std::string("invalid JSON: ") + error.what());
+    throw InputError(file_label, "invalid JSON: " + text_detail::printable(error.what()));
   }
   if (!document.is_object()) throw InputError(file_label, "expected a JSON object");
   const ReportReader in(file_label, document);

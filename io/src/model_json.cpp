@@ -6,6 +6,7 @@
 #include "model_ranges.hpp"
 #include "nurbsreg/io/atomic_file.hpp"
 #include "nurbsreg/io/errors.hpp"
+#include "printable.hpp"
 #include "text_io.hpp"
 
 namespace nurbsreg::io {
@@ -358,7 +359,7 @@ std::string syntax_message(std::string_view text, const json::parse_error& error
   // e.byte is 1-based and points one past the offending character.
   const auto position = text_detail::position_of(text, error.byte == 0 ? 0 : error.byte - 1);
   return "line " + std::to_string(position.line) + ", column " + std::to_string(position.column) +
-         ": invalid JSON: " + what;
+         ": invalid JSON: " + text_detail::printable(what);
 }
 
 void append_point(std::string& out, const engine::Vec3& p, int dimension) {
@@ -474,7 +475,8 @@ engine::Model parse_model(std::string_view text, const std::string& file_label) 
     // out_of_range 406: a literal such as 1e999 that no double holds (no position available).
     std::string what = error.what();
     what = what.substr(what.find(']') + 2);
-    throw InputError(file_label, "invalid JSON: " + what + " (numbers must fit a double)");
+    throw InputError(file_label, "invalid JSON: " + text_detail::printable(what) +
+                                     " (numbers must fit a double)");
   }
   EntityReader top(file_label, "");
   if (!document.is_object()) {

@@ -146,7 +146,8 @@ Prescan prescan_header(const std::string& path, const std::string& data) {
   }
   for (std::size_t i = 0; i < h.names.size(); ++i) {
     if (h.types[i] == 'F' && h.sizes[i] != 4 && h.sizes[i] != 8) {
-      throw InputError(path, "PCD field '" + h.names[i] + "': TYPE F needs SIZE 4 or 8");
+      throw InputError(
+          path, "PCD field " + text_detail::quote(h.names[i]) + ": TYPE F needs SIZE 4 or 8");
     }
   }
   if (!h.have_width && !h.have_points) throw InputError(path, "PCD header has no WIDTH or POINTS");
@@ -422,15 +423,15 @@ PcdData parse_pcd_data(const std::string& path, const std::string& data) {
   std::uint64_t offset = 0, first = 0;
   for (std::size_t i = 0; i < h.names.size(); ++i) {
     if (h.counts[i] == 0) {
-      throw InputError(
-          path, "PCD field '" + h.names[i] + "': COUNT 0 (every field holds at least one value)");
+      throw InputError(path, "PCD field " + text_detail::quote(h.names[i]) +
+                                 ": COUNT 0 (every field holds at least one value)");
     }
     out.fields.push_back(PcdField{h.names[i], h.types[i], h.sizes[i], h.counts[i], offset, first});
     std::uint64_t width = 0;
     if (__builtin_mul_overflow(h.sizes[i], h.counts[i], &width) ||
         __builtin_add_overflow(offset, width, &offset) ||
         __builtin_add_overflow(first, h.counts[i], &first)) {
-      throw InputError(path, "PCD field '" + h.names[i] + "': COUNT " +
+      throw InputError(path, "PCD field " + text_detail::quote(h.names[i]) + ": COUNT " +
                                  std::to_string(h.counts[i]) + " makes the row size overflow");
     }
   }

@@ -210,9 +210,10 @@ VertexLayout find_vertex(const std::string& path, const Header& header) {
     const auto p = std::find_if(it->properties.begin(), it->properties.end(),
                                 [&](const Property& q) { return q.name == name; });
     if (p == it->properties.end()) {
-      throw InputError(path, "PLY element 'vertex' has no property '" + name + "'");
+      throw InputError(path, "PLY element 'vertex' has no property " + text_detail::quote(name));
     }
-    if (p->is_list) throw InputError(path, "PLY vertex property '" + name + "' is a list");
+    if (p->is_list)
+      throw InputError(path, "PLY vertex property " + text_detail::quote(name) + " is a list");
     layout.property[axis] = static_cast<std::size_t>(p - it->properties.begin());
   }
   return layout;
@@ -270,8 +271,9 @@ void read_ascii(const std::string& path, const std::string& data, const Header& 
         };
         const auto need = [&]() {
           if (!tokens.next(token)) {
-            throw InputError(path, "unexpected end of data in element '" + element.name + "' " +
-                                       std::to_string(i) + " of " + std::to_string(element.count) +
+            throw InputError(path, "unexpected end of data in element " +
+                                       text_detail::quote(element.name) + " " + std::to_string(i) +
+                                       " of " + std::to_string(element.count) +
                                        " (file truncated?)");
           }
         };
@@ -279,8 +281,8 @@ void read_ascii(const std::string& path, const std::string& data, const Header& 
         if (property.is_list) {
           std::uint64_t length = 0;
           if (!parse_count(token, length)) {
-            throw fail("property '" + property.name +
-                       "': list length is not a non-negative integer: " + quote(token));
+            throw fail("property " + text_detail::quote(property.name) +
+                       ": list length is not a non-negative integer: " + quote(token));
           }
           for (; length > 0; --length)  // each item needs a token: ends at the data's end
             need();
@@ -288,7 +290,8 @@ void read_ascii(const std::string& path, const std::string& data, const Header& 
         }
         double value = 0.0;
         if (!parse_number(token, value)) {
-          throw fail("property '" + property.name + "': " + text_detail::bad_number(token));
+          throw fail("property " + text_detail::quote(property.name) + ": " +
+                     text_detail::bad_number(token));
         }
         if (is_vertex) {
           // A float property holds a float whatever the encoding (binary files agree).
@@ -317,8 +320,8 @@ void read_binary(const std::string& path, const std::string& data, const Header&
   const auto* p = begin + header.data_offset;
   const auto* const end = begin + data.size();
   const auto truncated = [&](const Element& element, std::uint64_t i) {
-    return InputError(path, "binary data ends in element '" + element.name + "' " +
-                                std::to_string(i) + " of " + std::to_string(element.count) +
+    return InputError(path, "binary data ends in element " + text_detail::quote(element.name) +
+                                " " + std::to_string(i) + " of " + std::to_string(element.count) +
                                 " (file truncated?)");
   };
 
@@ -369,7 +372,8 @@ void read_binary(const std::string& path, const std::string& data, const Header&
           const double n = load_scalar(p, property.count_type, swap);
           p += count_size;
           if (n < 0)
-            throw InputError(path, "negative list length in element '" + element.name + "'");
+            throw InputError(path,
+                             "negative list length in element " + text_detail::quote(element.name));
           const auto bytes = static_cast<std::uint64_t>(n) * size_of(property.type);
           if (static_cast<std::uint64_t>(end - p) < bytes) throw truncated(element, i);
           p += bytes;

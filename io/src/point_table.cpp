@@ -37,13 +37,16 @@ std::optional<std::string> PointTable::validate() const {
     if (column.name.empty()) return "a column has an empty name";
     for (const char c : column.name) {
       if (!std::isalnum(static_cast<unsigned char>(c)) && c != '_') {
-        return "column '" + column.name + "': names may hold only letters, digits and '_'";
+        return "column " + text_detail::quote(column.name) +
+               ": names may hold only letters, digits and '_'";
       }
     }
-    if (!seen.insert(column.name).second) return "column '" + column.name + "' appears twice";
+    if (!seen.insert(column.name).second)
+      return "column " + text_detail::quote(column.name) + " appears twice";
     if (column.size() != rows()) {
-      return "column '" + column.name + "' has " + std::to_string(column.size()) +
-             " values, column '" + columns_.front().name + "' has " + std::to_string(rows());
+      return "column " + text_detail::quote(column.name) + " has " + std::to_string(column.size()) +
+             " values, column " + text_detail::quote(columns_.front().name) + " has " +
+             std::to_string(rows());
     }
   }
   return std::nullopt;
@@ -328,7 +331,8 @@ PointTable read_csv_table(const std::string& path) {
         }
         double value = 0.0;
         if (!detail::parse_number(token, value)) {
-          throw fail("column '" + table.columns()[k].name + "': " + text_detail::bad_number(token));
+          throw fail("column " + text_detail::quote(table.columns()[k].name) + ": " +
+                     text_detail::bad_number(token));
         }
         columns[k]->push_back(value);
       }

@@ -182,6 +182,31 @@ TEST(FuzzRegression, CadImportTimeoutAndMemoryLimitsAreReported) {
 
 // ---- JSON models -------------------------------------------------------------------------
 
+TEST(FuzzRegression, FileBytesInMessagesAreEscaped) {
+  // Found in the fuzz stage's first full run (2026-12-02): messages quoted bytes of the file
+  // raw: a PCD field name, a PLY property name, a CSV column name (fuzz_xyz's CSV pass, which
+  // had read the .xyz scratch file until then), nlohmann's "last read" excerpt of a JSON model.
+  // Names from files now go through text_detail::quote, library messages through printable.
+  const std::string pcd =
+      error_of([&] { read_point_cloud(kFindings + "pcd_raw_bytes_in_field_name.pcd"); });
+  EXPECT_TRUE(printable(pcd)) << pcd;
+  EXPECT_HAS(pcd, "PCD field 'z\\xff\\xff");
+  EXPECT_HAS(pcd, "': COUNT 0");
+  const std::string ply =
+      error_of([&] { read_point_cloud(kFindings + "ply_raw_bytes_in_property_name.ply"); });
+  EXPECT_TRUE(printable(ply)) << ply;
+  EXPECT_HAS(ply, "line 13: property '\\x");
+  const std::string csv =
+      error_of([&] { read_point_table(kFindings + "csv_raw_bytes_in_column_name.csv"); });
+  EXPECT_TRUE(printable(csv)) << csv;
+  EXPECT_HAS(csv, "column '\\xc3\\xaf\\xc2\\xbb\\xc2\\xbfindex': names may hold only");
+  const std::string json =
+      error_of([&] { read_model_json(kFindings + "json_raw_bytes_in_syntax_error.json"); });
+  EXPECT_TRUE(printable(json)) << json;
+  EXPECT_HAS(json, "line 11, column 52: invalid JSON: ");
+  EXPECT_HAS(json, "36,\\xe0");
+}
+
 TEST(FuzzRegression, ModelCoordinatesBeyondTheProjectionsRangeAreRejected) {
   // Was: `project` wrote NaN rows with exit 0 (1e155), or ran for minutes (1e150).
   for (const char* name :
