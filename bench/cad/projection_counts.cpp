@@ -89,7 +89,8 @@ int main(int argc, char** argv) {
   app.add_option("--points", points, "near and mixed points");
   app.add_option("--align", align_points, "points of an alignment (0: none)");
   app.add_option("--threads", threads);
-  app.add_option("--sets", sets, "which point sets to project: near, mixed (comma-separated)");
+  app.add_option("--sets", sets,
+                 "which point sets to project: near, mixed, warm (comma-separated)");
   CLI11_PARSE(app, argc, argv);
 
   tbb::task_arena arena(threads);
@@ -138,6 +139,35 @@ int main(int argc, char** argv) {
     std::printf("%s: %zu points, %.0f pts per CPU-s, checksum %016llx\n", name, pts->size(),
                 pts->size() / s, static_cast<unsigned long long>(checksum(out, pts->size())));
     print_counters(name, counters);
+  }
+  if (sets.find("warm") != std::string::npos) {
+    // A tracking frame: the near points certified (a frame made with certify), then the same
+    // points moved by 1e-4 of the diagonal, hinted by the first frame's answers.
+    engine::ProjectionOptions certify;
+    certify.certify = true;
+    engine::ProjectionResults first, out;
+    engine::ProjectionCounters made, counters;
+    std::vector<Vec3> moved(near);
+    std::mt19937_64 rng(28);
+    std::normal_distribution<double> g(0.0, 1e-4 * diagonal / std::sqrt(3.0));
+    for (Vec3& q : moved)
+      q += Vec3(g(rng), g(rng), g(rng));
+    arena.execute([&] {
+      engine::Projector projector(prepared);
+      projector.project(engine::PointView::of(near), certify, first, {}, &made);
+      std::vector<engine::ProjectionHint> hints(near.size());
+      for (std::size_t i = 0; i < near.size(); ++i)
+        hints[i] = first.hint(i);
+      c = cpu_seconds();
+      projector.project(engine::PointView::of(moved), {}, out, hints, &counters);
+    });
+    const double s = cpu_seconds() - c;
+    std::printf(
+        "warm: %zu points, %.0f pts per CPU-s, certificates made %.3f per point, checksum "
+        "%016llx\n",
+        moved.size(), moved.size() / s, double(made.certificates_made) / moved.size(),
+        static_cast<unsigned long long>(checksum(out, moved.size())));
+    print_counters("warm", counters);
   }
   if (align_points > 0) {
     engine::SyntheticScanOptions scan = synth;
