@@ -122,6 +122,8 @@ PreparedModel::PreparedModel(Model model)
     if (region == nullptr) continue;
     const BezierPatch& bp = patches_[i].patch;
     patch_class_[i] = region->classify(bp.param_u.lo, bp.param_u.hi, bp.param_v.lo, bp.param_v.hi);
+    // A polynomial patch proven inside its face can carry warm certificates (patch_certifiable).
+    if (patch_class_[i] == RegionClass::inside && !patches_[i].rational) any_certifiable_ = true;
   }
   // Hierarchy items: the patches that are not trimmed away, then the trim-edge pieces.
   for (std::size_t i = 0; i < patches_.size(); ++i) {
