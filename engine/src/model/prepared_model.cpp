@@ -1,8 +1,12 @@
 #include "nurbsreg/engine/prepared_model.hpp"
 
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <exception>
 #include <limits>
 #include <stdexcept>
 
@@ -147,13 +151,34 @@ bool c1_across_spans(const NurbsSurface& s) {
 PreparedModel::PreparedModel(Model model)
     : model_(std::move(model)), reach_(std::make_shared<ReachState>()), serial_(next_serial++) {
   if (auto error = model_.validate()) throw std::invalid_argument(*error);
+  // The trimmed regions first, in parallel (each is built from its own surface alone, so they are
+  // the same for any number of threads); the error of the first invalid one, in surface order,
+  // is the one reported, as in a serial build.
+  std::vector<std::size_t> trimmed;
+  for (std::size_t s = 0; s < model_.surfaces.size(); ++s) {
+    surface_region_.push_back(-1);
+    if (model_.surfaces[s].is_trimmed()) {
+      surface_region_.back() = static_cast<int>(trimmed.size());
+      trimmed.push_back(s);
+    }
+  }
+  regions_.resize(trimmed.size());
+  std::vector<std::exception_ptr> region_errors(trimmed.size());
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, trimmed.size()),
+                    [&](const tbb::blocked_range<std::size_t>& r) {
+                      for (std::size_t k = r.begin(); k != r.end(); ++k) {
+                        try {
+                          regions_[k] = TrimRegion(model_.surfaces[trimmed[k]]);
+                        } catch (...) {
+                          region_errors[k] = std::current_exception();
+                        }
+                      }
+                    });
+  for (const std::exception_ptr& e : region_errors) {
+    if (e) std::rethrow_exception(e);
+  }
   for (std::size_t s = 0; s < model_.surfaces.size(); ++s) {
     const NurbsSurface& surface = model_.surfaces[s];
-    surface_region_.push_back(-1);
-    if (surface.is_trimmed()) {
-      surface_region_.back() = static_cast<int>(regions_.size());
-      regions_.emplace_back(surface);
-    }
     SurfacePatches layout;
     layout.first = patches_.size();
     const std::vector<BezierPatch> pieces = decompose(model_.surfaces[s]);
