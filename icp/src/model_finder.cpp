@@ -8,7 +8,9 @@
 namespace nurbsreg::icp {
 
 ModelCorrespondenceFinder::ModelCorrespondenceFinder(const engine::PreparedModel& model)
-    : projector_(model), certificate_radius_(1e-2 * model.bounds().diagonal()) {
+    // The cap is a share of the model's size: that of its trimmed faces (geometry_bounds), not
+    // of their untrimmed control nets, which can be many times larger on CAD parts.
+    : projector_(model), certificate_radius_(1e-2 * model.geometry_bounds().box.diagonal()) {
   atlas_.reset(cell_side());
 }
 

@@ -1,8 +1,12 @@
 #include "nurbsreg/engine/prepared_model.hpp"
 
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <exception>
 #include <limits>
 #include <stdexcept>
 
@@ -39,6 +43,88 @@ void oriented_axes(const BezierPatch& bp, Vec3 axis[3]) {
   axis[2] = n;
 }
 
+// Does the 2-D rational Bézier curve (homogeneous (w u, w v, -, w)) meet the open box
+// (u0, u1) x (v0, v1)? Conservative: true unless the control points' box of the curve, or of
+// its halves down to kDepth levels, is proven clear of it (convex hull property).
+bool meets_open_box(const BezierCurve& c, double u0, double u1, double v0, double v1, int depth) {
+  constexpr int kDepth = 24;
+  double lu = std::numeric_limits<double>::infinity(), hu = -lu, lv = lu, hv = -lu;
+  for (int i = 0; i <= c.degree; ++i) {
+    const double u = c.cw[i][0] / c.cw[i][3], v = c.cw[i][1] / c.cw[i][3];
+    lu = std::min(lu, u);
+    hu = std::max(hu, u);
+    lv = std::min(lv, v);
+    hv = std::max(hv, v);
+  }
+  if (hu <= u0 || lu >= u1 || hv <= v0 || lv >= v1) return false;
+  if (depth >= kDepth) return true;
+  BezierCurve left, right;
+  c.split(0.5, left, right);
+  return meets_open_box(left, u0, u1, v0, v1, depth + 1) ||
+         meets_open_box(right, u0, u1, v0, v1, depth + 1);
+}
+
+// The boundary of a trimmed surface's region as TrimRegion builds it: every loop's Bézier
+// pieces, and the straight pieces that close the gaps between consecutive ones (and between the
+// last and the first); and the loops' tolerance (TrimRegion: 1e-13 x the parameter space's scale).
+struct LoopBoundary {
+  std::vector<BezierCurve> pieces;
+  double band = 0.0;
+};
+
+LoopBoundary loop_boundary(const NurbsSurface& surface) {
+  LoopBoundary b;
+  const ParamInterval du = surface.domain_u(), dv = surface.domain_v();
+  double scale = std::max(
+      {std::abs(du.lo), std::abs(du.hi), std::abs(dv.lo), std::abs(dv.hi), du.width(), dv.width()});
+  const auto segment = [](const Vec4& a, const Vec4& z) {
+    BezierCurve c;
+    c.degree = 1;
+    c.cw[0] = Vec4(a[0] / a[3], a[1] / a[3], 0.0, 1.0);
+    c.cw[1] = Vec4(z[0] / z[3], z[1] / z[3], 0.0, 1.0);
+    return c;
+  };
+  for (const TrimLoop& loop : surface.trim_loops) {
+    const std::size_t first = b.pieces.size();
+    for (const TrimCurve& curve : loop.curves) {
+      for (const Vec3& p : curve.uv.control_points)
+        scale = std::max({scale, std::abs(p.x()), std::abs(p.y())});
+      for (const BezierCurve& piece : decompose(curve.uv)) {
+        if (b.pieces.size() > first) {
+          b.pieces.push_back(segment(b.pieces.back().cw[b.pieces.back().degree], piece.cw[0]));
+        }
+        b.pieces.push_back(piece);
+      }
+    }
+    if (b.pieces.size() > first) {
+      b.pieces.push_back(
+          segment(b.pieces.back().cw[b.pieces.back().degree], b.pieces[first].cw[0]));
+    }
+  }
+  b.band = 1e-13 * scale;
+  return b;
+}
+
+// A patch the region's grid calls `boundary` (TrimRegion::classify is conservative: a loop in a
+// grid cell the patch only touches, or one along the patch's side, makes it so): when no loop
+// piece enters the patch's box shrunk by the loops' tolerance, its interior is uniformly in or
+// out of the region (up to that tolerance, within which a point is on a loop), and its centre
+// says which.
+RegionClass refine_patch_class(const LoopBoundary& loops, const TrimRegion& region,
+                               const BezierPatch& bp) {
+  const double e = loops.band;
+  const double u0 = bp.param_u.lo + e, u1 = bp.param_u.hi - e;
+  const double v0 = bp.param_v.lo + e, v1 = bp.param_v.hi - e;
+  if (!(u1 - u0 > 2.0 * e && v1 - v0 > 2.0 * e)) return RegionClass::boundary;
+  for (const BezierCurve& piece : loops.pieces) {
+    if (meets_open_box(piece, u0, u1, v0, v1, 0)) return RegionClass::boundary;
+  }
+  return region.contains(0.5 * (bp.param_u.lo + bp.param_u.hi),
+                         0.5 * (bp.param_v.lo + bp.param_v.hi))
+             ? RegionClass::inside
+             : RegionClass::outside;
+}
+
 }  // namespace
 
 namespace {
@@ -65,13 +151,34 @@ bool c1_across_spans(const NurbsSurface& s) {
 PreparedModel::PreparedModel(Model model)
     : model_(std::move(model)), reach_(std::make_shared<ReachState>()), serial_(next_serial++) {
   if (auto error = model_.validate()) throw std::invalid_argument(*error);
+  // The trimmed regions first, in parallel (each is built from its own surface alone, so they are
+  // the same for any number of threads); the error of the first invalid one, in surface order,
+  // is the one reported, as in a serial build.
+  std::vector<std::size_t> trimmed;
+  for (std::size_t s = 0; s < model_.surfaces.size(); ++s) {
+    surface_region_.push_back(-1);
+    if (model_.surfaces[s].is_trimmed()) {
+      surface_region_.back() = static_cast<int>(trimmed.size());
+      trimmed.push_back(s);
+    }
+  }
+  regions_.resize(trimmed.size());
+  std::vector<std::exception_ptr> region_errors(trimmed.size());
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, trimmed.size()),
+                    [&](const tbb::blocked_range<std::size_t>& r) {
+                      for (std::size_t k = r.begin(); k != r.end(); ++k) {
+                        try {
+                          regions_[k] = TrimRegion(model_.surfaces[trimmed[k]]);
+                        } catch (...) {
+                          region_errors[k] = std::current_exception();
+                        }
+                      }
+                    });
+  for (const std::exception_ptr& e : region_errors) {
+    if (e) std::rethrow_exception(e);
+  }
   for (std::size_t s = 0; s < model_.surfaces.size(); ++s) {
     const NurbsSurface& surface = model_.surfaces[s];
-    surface_region_.push_back(-1);
-    if (surface.is_trimmed()) {
-      surface_region_.back() = static_cast<int>(regions_.size());
-      regions_.emplace_back(surface);
-    }
     SurfacePatches layout;
     layout.first = patches_.size();
     const std::vector<BezierPatch> pieces = decompose(model_.surfaces[s]);
@@ -116,12 +223,24 @@ PreparedModel::PreparedModel(Model model)
     surface_c1_.push_back(c1_across_spans(surface) ? 1 : 0);
     surface_patches_.push_back(std::move(layout));
   }
-  // Classify the trimmed surfaces' patches (regions_ is complete: pointers into it are stable).
+  // Classify the trimmed surfaces' patches (regions_ is complete: pointers into it are stable):
+  // the grid first, then, where it cannot tell, the loops themselves (refine_patch_class).
+  LoopBoundary loops;
+  int loops_of = -1;  // the surface `loops` belongs to (patches come surface by surface)
   for (std::size_t i = 0; i < patches_.size(); ++i) {
     const TrimRegion* region = surface_region(patch_surface_[i]);
     if (region == nullptr) continue;
     const BezierPatch& bp = patches_[i].patch;
     patch_class_[i] = region->classify(bp.param_u.lo, bp.param_u.hi, bp.param_v.lo, bp.param_v.hi);
+    if (patch_class_[i] == RegionClass::boundary) {
+      if (loops_of != patch_surface_[i]) {
+        loops = loop_boundary(model_.surfaces[static_cast<std::size_t>(patch_surface_[i])]);
+        loops_of = patch_surface_[i];
+      }
+      patch_class_[i] = refine_patch_class(loops, *region, bp);
+    }
+    // A polynomial patch proven inside its face can carry warm certificates (patch_certifiable).
+    if (patch_class_[i] == RegionClass::inside && !patches_[i].rational) any_certifiable_ = true;
   }
   // Hierarchy items: the patches that are not trimmed away, then the trim-edge pieces.
   for (std::size_t i = 0; i < patches_.size(); ++i) {

@@ -473,6 +473,42 @@ TEST(TrimRegion, LoopsAlongAndAcrossTheDomainBoundary) {
   check_classify(region, rng, Vec2(-1, 0.5), Vec2(2, 1.5), 3000, 0.1);
 }
 
+// CAD faces' outer loops run along the domain's edge a few ulps off it (a degree-3 curve through
+// points 1e-15 inside): that band is the loops' tolerance, so boxes along the edge are proven
+// inside, not "boundary"; a loop a visible distance inside the edge still makes them boundary.
+TEST(TrimRegion, LoopsWithinToleranceOfTheDomainEdge) {
+  const double ulps = 1e-15;
+  NurbsSurface s = plane(0, 2, 0, 1);
+  TrimLoop outer;
+  outer.curves.push_back(
+      {uv_curve(3, {{ulps, 0}, {1, ulps}, {1.5, 0}, {2 - ulps, ulps}, {2, 0}}), std::nullopt});
+  outer.curves.push_back({uv_line({2, 0}, {2 - ulps, 1}), std::nullopt});
+  outer.curves.push_back({uv_line({2 - ulps, 1}, {0, 1 - ulps}), std::nullopt});
+  outer.curves.push_back({uv_line({0, 1 - ulps}, {ulps, 0}), std::nullopt});
+  s.trim_loops.push_back(outer);
+  const TrimRegion region(s);
+  EXPECT_EQ(region.classify(0, 2, 0, 1), RegionClass::inside);
+  EXPECT_EQ(region.classify(0, 0.5, 0, 0.5), RegionClass::inside);
+  EXPECT_TRUE(region.contains(1e-3, 1e-3));
+  EXPECT_TRUE(region.contains(1.0, 0.5));
+  EXPECT_FALSE(region.contains(2.5, 0.5));
+  std::mt19937_64 rng(11);
+  check_classify(region, rng, Vec2(0, 0), Vec2(2, 1), 2000, 0.3);
+  // A hole: boxes meeting it are boundary, the rest along the edge stay inside.
+  s.trim_loops.push_back(circle_loop(Vec2(1.5, 0.5), 0.2));
+  const TrimRegion holed(s);
+  EXPECT_EQ(holed.classify(0, 2, 0, 1), RegionClass::boundary);
+  EXPECT_EQ(holed.classify(0, 0.5, 0, 0.5), RegionClass::inside);
+  EXPECT_FALSE(holed.contains(1.5, 0.5));
+  check_classify(holed, rng, Vec2(0, 0), Vec2(2, 1), 2000, 0.3);
+  // The same outer loop 1e-6 inside the edge: a real sliver, so edge boxes are boundary.
+  NurbsSurface t = plane(-1e-6, 2 + 1e-6, -1e-6, 1 + 1e-6);
+  t.trim_loops.push_back(outer);
+  const TrimRegion inset(t);
+  EXPECT_EQ(inset.classify(-1e-6, 0.5, -1e-6, 0.5), RegionClass::boundary);
+  EXPECT_FALSE(inset.contains(-5e-7, 0.5));
+}
+
 // Consecutive curves that miss each other by 1e-9 (gaps and overlaps): closed by straight
 // pieces, as the reference polyline does.
 TEST(TrimRegion, TinyGapsBetweenCurves) {
