@@ -19,6 +19,9 @@ struct CoarseOutcome {
   std::optional<std::string> failure;
 };
 
+// CPU seconds of this process so far (all its threads).
+double process_cpu_seconds();
+
 // Keypoints and descriptors of the scan, matches against the model's, sample consensus, and
 // every kept hypothesis refined by a short exact ICP on a seeded subsample (through `finder`,
 // which is reset) and scored by exact distances within a tolerance from `noise`. The winner is
