@@ -5,7 +5,7 @@
 // normals and features are computed once per process (excluded from the times, as run.py does
 // for Open3D and nurbsreg); each scan is then timed from its downsampling on.
 //
-//   pcl_global_peer --model-cloud dense.pcd --voxel V [--threads N] scan.pcd...
+//   pcl_global_peer --model-cloud dense.pcd --voxel V [--threads N] [--iterations K] scan.pcd...
 //
 // prints one line per scan: the scan's path, the 4x4 pose (model_point = T * scan_point) row by
 // row, wall and CPU seconds, and whether the sample consensus converged. PCL stays in bench/.
@@ -83,6 +83,7 @@ int main(int argc, char** argv) {
   std::string model_path;
   double voxel = 0.0;
   int threads = 1;
+  int iterations = 50000;  // PCL's tutorial; each costs a 33-D feature search
   std::vector<std::string> scans;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
@@ -90,13 +91,17 @@ int main(int argc, char** argv) {
       model_path = argv[++i];
     } else if (a == "--voxel" && i + 1 < argc) {
       voxel = std::atof(argv[++i]);
+    } else if (a == "--iterations" && i + 1 < argc) {
+      iterations = std::atoi(argv[++i]);
     } else if (a == "--threads" && i + 1 < argc) {
       threads = std::atoi(argv[++i]);
     } else if (!a.empty() && a[0] != '-') {
       scans.push_back(a);
     } else {
-      std::fprintf(stderr, "usage: %s --model-cloud M.pcd --voxel V [--threads N] scan.pcd...\n",
-                   argv[0]);
+      std::fprintf(
+          stderr,
+          "usage: %s --model-cloud M.pcd --voxel V [--threads N] [--iterations K] scan.pcd...\n",
+          argv[0]);
       return 2;
     }
   }
@@ -124,7 +129,7 @@ int main(int argc, char** argv) {
     sac.setSourceFeatures(source_features);
     sac.setInputTarget(target);
     sac.setTargetFeatures(target_features);
-    sac.setMaximumIterations(100000);  // Open3D peer: 100000 iterations
+    sac.setMaximumIterations(iterations);
     sac.setNumberOfSamples(3);
     sac.setCorrespondenceRandomness(3);  // among the 3 nearest features
     sac.setSimilarityThreshold(0.9f);    // Open3D peer: edge-length checker 0.9
