@@ -1,28 +1,36 @@
 #!/usr/bin/python3
-"""Alignment from any pose: nurbsreg (global stage + exact ICP) vs Open3D (RANSAC on FPFH +
-point-to-plane ICP on a dense model sampling, and FGR + ICP), on the same synthetic scans of
-real CAD parts at random poses. Bounded: --trials poses per row (default 3). Prints a table:
-success rate (rotation < 0.5 deg and translation < 1e-3 x model diagonal), median seconds
-(model loading excluded for both: nurbsreg's "seconds" of the report minus nothing, it counts
-the scan read; Open3D's from its feature computation on), median final errors, and nurbsreg's
-exit-0-but-wrong count (must be 0).
+"""Alignment from any pose: nurbsreg (global stage + exact ICP) against Open3D (RANSAC on FPFH +
+point-to-plane ICP on a dense model sampling, and FGR + ICP) and PCL (SampleConsensusPrerejective
+on FPFH + point-to-plane ICP on the same dense sampling: pcl_global_peer.cpp), on the same
+synthetic scans of real CAD parts at random poses (uniform over SO(3), translation ~ one model
+diagonal). Bounded: --trials poses per row (default 3), --timeout per run.
 
-  /usr/bin/python3 bench/align_global/run.py --nurbsreg build/bin/nurbsreg --trials 3 --threads 1
+Success: rotation error < 0.5 deg and translation error < 1e-3 x the model's diagonal. Times
+exclude loading the model and its features for every peer (computed once per part): nurbsreg's
+from its report (coarse.alignment_seconds / alignment_cpu_seconds: coarse stage, fine ICP and
+verdict), the peers' from their downsampling of the scan on. CPU seconds are the process's over
+the alignment (the machine is shared: wall time alone is disturbed by the others). nurbsreg's
+"wrong-exit0" counts runs that exited 0 with a pose that is not a success (must be 0); a run
+that exits 1 is a failure it reported.
 
-Needs python3-open3d and python3-numpy (Debian). The machine is shared: run the timed part
-when it is quiet and say so.
+  nice /usr/bin/python3 bench/align_global/run.py --nurbsreg build/bin/nurbsreg \\
+      --pcl-peer build/bench/align_global/pcl_global_peer --trials 3 --threads 1
+
+Needs python3-open3d and python3-numpy (Debian); the PCL peer is built when PCL is found.
+--markdown FILE writes the table for bench/README.md, --raw FILE every run as JSON lines.
 """
 import argparse
 import json
 import os
+import resource
 import subprocess
+import sys
 import tempfile
 import time
 
 import numpy as np
-import open3d as o3d
 
-REAL = os.path.join(os.path.dirname(__file__), "../../../shared/data/real")
+REAL = os.path.join(os.path.dirname(os.path.abspath(__file__)), "../../../shared/data/real")
 PARTS = {
     "nist": "nist/nist_ctc_02_asme1_ap242-1.stp",
     "linkrods": "occt/linkrods.step",
@@ -30,117 +38,215 @@ PARTS = {
     "bearing": "occt/bearing.iges",
 }
 CONDITIONS = {"full": [], "outliers20": ["--outliers", "0.2"], "half": ["--view-fraction", "0.5"]}
+PEERS = ("nurbsreg", "o3d-ransac", "o3d-fgr", "pcl")
 
 
-def run(cmd):
-    return subprocess.run(cmd, capture_output=True, text=True)
+def run(cmd, timeout=None):
+    try:
+        return subprocess.run(cmd, capture_output=True, text=True, timeout=timeout)
+    except subprocess.TimeoutExpired:
+        return None
+
+
+def children_cpu():
+    r = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return r.ru_utime + r.ru_stime
 
 
 def errors(truth, found, diag):
     e = truth @ np.linalg.inv(found)
     ang = np.degrees(np.arccos(np.clip((np.trace(e[:3, :3]) - 1) / 2, -1, 1)))
-    return ang, np.linalg.norm(e[:3, 3]) / diag
+    return float(ang), float(np.linalg.norm(e[:3, 3]) / diag)
 
 
-def open3d_align(scan_path, model_pcd, voxel, method, threads):
+def open3d_model(o3d, dense_path, voxel):
+    d = o3d.io.read_point_cloud(dense_path)
+    d.estimate_normals()
+    down = d.voxel_down_sample(voxel)
+    down.estimate_normals(o3d.geometry.KDTreeSearchParamHybrid(radius=2 * voxel, max_nn=30))
+    fpfh = o3d.pipelines.registration.compute_fpfh_feature(
+        down, o3d.geometry.KDTreeSearchParamHybrid(radius=5 * voxel, max_nn=100))
+    return {"dense": d, "down": down, "fpfh": fpfh}
+
+
+def open3d_align(o3d, scan_path, model, voxel, method):
     src = o3d.io.read_point_cloud(scan_path)
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     s = src.voxel_down_sample(voxel)
-    t = model_pcd["down"]
     s.estimate_normals(o3d.geometry.KDTreeSearchParamHybrid(radius=2 * voxel, max_nn=30))
     fs = o3d.pipelines.registration.compute_fpfh_feature(
         s, o3d.geometry.KDTreeSearchParamHybrid(radius=5 * voxel, max_nn=100))
-    ft = model_pcd["fpfh"]
     reg = o3d.pipelines.registration
     if method == "ransac":
         r = reg.registration_ransac_based_on_feature_matching(
-            s, t, fs, ft, True, 1.5 * voxel,
+            s, model["down"], fs, model["fpfh"], True, 1.5 * voxel,
             reg.TransformationEstimationPointToPoint(False), 3,
             [reg.CorrespondenceCheckerBasedOnEdgeLength(0.9),
              reg.CorrespondenceCheckerBasedOnDistance(1.5 * voxel)],
             reg.RANSACConvergenceCriteria(100000, 0.999))
     else:
         r = reg.registration_fgr_based_on_feature_matching(
-            s, t, fs, ft, reg.FastGlobalRegistrationOption(maximum_correspondence_distance=voxel))
-    fine = reg.registration_icp(src, model_pcd["dense"], 1.0 * voxel, r.transformation,
+            s, model["down"], fs, model["fpfh"],
+            reg.FastGlobalRegistrationOption(maximum_correspondence_distance=voxel))
+    fine = reg.registration_icp(src, model["dense"], 1.0 * voxel, r.transformation,
                                 reg.TransformationEstimationPointToPlane(),
                                 reg.ICPConvergenceCriteria(max_iteration=50))
-    return fine.transformation, time.perf_counter() - t0
+    return np.asarray(fine.transformation), time.perf_counter() - t0, time.process_time() - c0
+
+
+def nurbsreg_align(a, model, scan, tmp):
+    out_pose = os.path.join(tmp, "found.txt")
+    report = os.path.join(tmp, "report.json")
+    for f in (out_pose, report):
+        if os.path.exists(f):
+            os.remove(f)
+    c0 = children_cpu()
+    p = run([a.nurbsreg, "-q", "align", "--model", model, "--scan", scan, "--threads",
+             str(a.threads), "--out-pose", out_pose, "--report", report], a.timeout)
+    process_cpu = children_cpu() - c0
+    if p is None:
+        return {"exit": "timeout"}
+    r = {"exit": p.returncode, "stderr": p.stderr.strip()[-300:], "process_cpu": process_cpu}
+    if os.path.exists(report):
+        c = json.load(open(report)).get("coarse") or {}
+        r["wall"] = c.get("alignment_seconds")
+        r["cpu"] = c.get("alignment_cpu_seconds")
+    if p.returncode == 0:
+        r["pose"] = np.loadtxt(out_pose)
+    return r
+
+
+def pcl_align(a, dense, voxel, scans):
+    """One peer process per row: the model's features once, then every scan."""
+    p = run([a.pcl_peer, "--model-cloud", dense, "--voxel", repr(voxel), "--threads",
+             str(a.threads), *scans], a.timeout * max(1, len(scans)))
+    out = {}
+    if p is None or p.returncode != 0:
+        return out
+    for line in p.stdout.splitlines():
+        f = line.split()
+        if len(f) != 20:
+            continue
+        out[f[0]] = (np.array([float(x) for x in f[1:17]]).reshape(4, 4), float(f[17]),
+                     float(f[18]))
+    return out
+
+
+def summarise(part, cond, name, runs, wrong_exit0):
+    ok = sum(r["ok"] for r in runs)
+    med = lambda k: float(np.nanmedian([r.get(k, np.nan) if r.get(k) is not None else np.nan
+                                        for r in runs])) if runs else float("nan")
+    ok_runs = [r for r in runs if r.get("ang") is not None]
+    med_ok = lambda k: float(np.median([r[k] for r in ok_runs])) if ok_runs else float("nan")
+    return {"part": part, "condition": cond, "peer": name, "success": ok, "runs": len(runs),
+            "wall": med("wall"), "cpu": med("cpu"), "rot": med_ok("ang"), "trans": med_ok("te"),
+            "wrong_exit0": wrong_exit0 if name == "nurbsreg" else None}
+
+
+def line(s):
+    w = "-" if s["wrong_exit0"] is None else str(s["wrong_exit0"])
+    return ("| %s | %s | %s | %d/%d | %.2f | %.2f | %.2e | %.2e | %s |"
+            % (s["part"], s["condition"], s["peer"], s["success"], s["runs"], s["wall"],
+               s["cpu"], s["rot"], s["trans"], w))
 
 
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--nurbsreg", default="build/bin/nurbsreg")
+    ap.add_argument("--pcl-peer", default="build/bench/align_global/pcl_global_peer")
     ap.add_argument("--trials", type=int, default=3)
     ap.add_argument("--points", type=int, default=50000)
     ap.add_argument("--threads", type=int, default=1)
     ap.add_argument("--parts", default=",".join(PARTS))
+    ap.add_argument("--conditions", default=",".join(CONDITIONS))
+    ap.add_argument("--peers", default=",".join(PEERS))
+    ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--timeout", type=float, default=120.0, help="seconds per run")
+    ap.add_argument("--markdown", help="write the table here")
+    ap.add_argument("--raw", help="append every run here as JSON lines")
     a = ap.parse_args()
-    o3d.utility.set_verbosity_level(o3d.utility.VerbosityLevel.Error)
-    rng = np.random.default_rng(1)
+    peers = a.peers.split(",")
+    # Open3D's OpenMP team: the thread count asked for (spinning idle threads on a shared
+    # machine cost more than they give).
+    os.environ["OMP_NUM_THREADS"] = str(a.threads)
+    o3d = None
+    if any(p.startswith("o3d") for p in peers):
+        import open3d as o3d
+        o3d.utility.set_verbosity_level(o3d.utility.VerbosityLevel.Error)
+    if "pcl" in peers and not os.path.exists(a.pcl_peer):
+        sys.exit(f"error: {a.pcl_peer}: no PCL peer (build pcl_global_peer or leave out pcl)")
+    rng = np.random.default_rng(a.seed)
     rows = []
+    raw = open(a.raw, "a") if a.raw else None
+    header = ("| part | condition | peer | success | median wall s | median CPU s | "
+              "median rot deg | median trans / diag | wrong exit 0 |\n"
+              "|---|---|---|---|---|---|---|---|---|")
+    print(header, flush=True)
     with tempfile.TemporaryDirectory() as tmp:
         for part in a.parts.split(","):
             model = os.path.join(REAL, PARTS[part])
             info = run([a.nurbsreg, "info", "--model", model, "--json"])
             box = json.loads(info.stdout)["bounding_box"]
             diag = float(np.linalg.norm(np.array(box["max"]) - np.array(box["min"])))
-            dense = os.path.join(tmp, part + ".dense.pcd")
-            run([a.nurbsreg, "synth", "--model", model, "--points", "200000", "--out", dense])
-            d = o3d.io.read_point_cloud(dense)
-            d.estimate_normals()
             voxel = diag / 150.0
-            down = d.voxel_down_sample(voxel)
-            down.estimate_normals(o3d.geometry.KDTreeSearchParamHybrid(radius=2 * voxel, max_nn=30))
-            fpfh = o3d.pipelines.registration.compute_fpfh_feature(
-                down, o3d.geometry.KDTreeSearchParamHybrid(radius=5 * voxel, max_nn=100))
-            mp = {"dense": d, "down": down, "fpfh": fpfh}
-            for cond, extra in CONDITIONS.items():
-                res = {k: [] for k in ("nurbsreg", "o3d-ransac", "o3d-fgr")}
-                wrong_exit0 = 0
+            dense = os.path.join(tmp, part + ".dense.pcd")
+            if o3d or "pcl" in peers:
+                run([a.nurbsreg, "-q", "synth", "--model", model, "--points", "200000", "--out",
+                     dense])
+            o3d_model = open3d_model(o3d, dense, voxel) if o3d else None
+            for cond in a.conditions.split(","):
+                scans = []
                 for t in range(a.trials):
                     rot = rng.uniform(-180, 180, 3)
                     tr = rng.normal(size=3) * diag
                     pose = " ".join(f"{x:.6f}" for x in (*rot, *tr))
-                    scan = os.path.join(tmp, "scan.pcd")
-                    truth_path = os.path.join(tmp, "truth.txt")
-                    run([a.nurbsreg, "synth", "--model", model, "--points", str(a.points),
+                    scan = os.path.join(tmp, f"scan{t}.pcd")
+                    truth_path = os.path.join(tmp, f"truth{t}.txt")
+                    run([a.nurbsreg, "-q", "synth", "--model", model, "--points", str(a.points),
                          "--noise", str(1e-4 * diag), "--pose", pose, "--seed", str(t + 1),
-                         "--out", scan, "--out-pose", truth_path, *extra])
-                    truth = np.loadtxt(truth_path)
-                    out_pose = os.path.join(tmp, "found.txt")
-                    report = os.path.join(tmp, "report.json")
-                    for f in (out_pose, report):
-                        if os.path.exists(f):
-                            os.remove(f)
-                    p = run([a.nurbsreg, "-q", "align", "--model", model, "--scan", scan,
-                             "--threads", str(a.threads), "--out-pose", out_pose,
-                             "--report", report])
-                    if p.returncode == 0:
-                        rep = json.load(open(report))
-                        # The coarse and fine stages: the report's time less reading the model.
-                        secs = rep["coarse"]["seconds"] + sum(h["seconds"] for h in rep["history"])
-                        ang, te = errors(truth, np.loadtxt(out_pose), diag)
-                        ok = ang < 0.5 and te < 1e-3
-                        wrong_exit0 += not ok
-                        res["nurbsreg"].append((ok, secs, ang, te))
-                    else:
-                        res["nurbsreg"].append((False, float("nan"), float("nan"), float("nan")))
-                    for name, method in (("o3d-ransac", "ransac"), ("o3d-fgr", "fgr")):
-                        T, secs = open3d_align(scan, mp, voxel, method, a.threads)
-                        ang, te = errors(truth, np.asarray(T), diag)
-                        res[name].append((ang < 0.5 and te < 1e-3, secs, ang, te))
-                for name, r in res.items():
-                    okc = sum(x[0] for x in r)
-                    arr = np.array([x[1:] for x in r], dtype=float)
-                    rows.append((part, cond, name, f"{okc}/{len(r)}", np.nanmedian(arr[:, 0]),
-                                 np.nanmedian(arr[:, 1]), np.nanmedian(arr[:, 2]),
-                                 wrong_exit0 if name == "nurbsreg" else "-"))
-                    print("%-10s %-11s %-11s %6s %8.2f s %10.2e deg %10.2e diag  wrong-exit0 %s"
-                          % rows[-1], flush=True)
-    print("\npart       condition   method      success   median s   median rot   median trans")
-    for r in rows:
-        print("%-10s %-11s %-11s %6s %8.2f s %10.2e deg %10.2e diag  wrong-exit0 %s" % r)
+                         "--out", scan, "--out-pose", truth_path, *CONDITIONS[cond]])
+                    scans.append((scan, np.loadtxt(truth_path), pose))
+                pcl = pcl_align(a, dense, voxel, [s for s, _, _ in scans]) if "pcl" in peers \
+                    else {}
+                for name in peers:
+                    runs, wrong_exit0 = [], 0
+                    for t, (scan, truth, pose) in enumerate(scans):
+                        r = {"part": part, "condition": cond, "peer": name, "trial": t,
+                             "pose_deg_xyz_trans": pose}
+                        T = None
+                        if name == "nurbsreg":
+                            n = nurbsreg_align(a, model, scan, tmp)
+                            T = n.pop("pose", None)
+                            r.update(n)
+                        elif name.startswith("o3d"):
+                            T, r["wall"], r["cpu"] = open3d_align(o3d, scan, o3d_model, voxel,
+                                                                  name[4:])
+                        elif scan in pcl:
+                            T, r["wall"], r["cpu"] = pcl[scan]
+                        if T is not None:
+                            r["ang"], r["te"] = errors(truth, T, diag)
+                        r["ok"] = T is not None and r["ang"] < 0.5 and r["te"] < 1e-3
+                        if name == "nurbsreg" and T is not None and not r["ok"]:
+                            wrong_exit0 += 1
+                        runs.append(r)
+                        if raw:
+                            raw.write(json.dumps(r) + "\n")
+                            raw.flush()
+                    rows.append(summarise(part, cond, name, runs, wrong_exit0))
+                    print(line(rows[-1]), flush=True)
+    total = {}
+    for s in rows:
+        t = total.setdefault(s["peer"], [0, 0, 0])
+        t[0] += s["success"]
+        t[1] += s["runs"]
+        t[2] += s["wrong_exit0"] or 0
+    summary = "\n".join(f"{p}: {t[0]}/{t[1]} successes" + (f", {t[2]} wrong exit 0"
+                                                          if p == "nurbsreg" else "")
+                        for p, t in total.items())
+    print("\n" + summary)
+    if a.markdown:
+        with open(a.markdown, "w") as f:
+            f.write(header + "\n" + "\n".join(line(s) for s in rows) + "\n\n" + summary + "\n")
 
 
 if __name__ == "__main__":

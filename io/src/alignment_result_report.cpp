@@ -45,6 +45,9 @@ AlignmentReport make_alignment_report(const registration::AlignmentResult& frame
     r.voxel = c->voxel;
     r.noise = c->noise;
     r.seconds = c->seconds;
+    r.model_features_seconds = c->model_features_seconds;
+    r.alignment_seconds = c->alignment_seconds;
+    r.alignment_cpu_seconds = c->alignment_cpu_seconds;
     r.winner = score(c->winner);
     r.has_runner_up = c->runner_up.has_value();
     if (c->runner_up) r.runner_up = score(*c->runner_up);

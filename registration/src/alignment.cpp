@@ -3,6 +3,7 @@
 #include <spdlog/fmt/fmt.h>
 #include <spdlog/spdlog.h>
 
+#include <chrono>
 #include <cmath>
 #include <stdexcept>
 
@@ -88,6 +89,8 @@ AlignmentResult Aligner::align(std::span<const engine::Vec3> scan, const Eigen::
 }
 
 AlignmentResult Aligner::align(std::span<const engine::Vec3> scan) {
+  const auto wall0 = std::chrono::steady_clock::now();
+  const double cpu0 = detail::process_cpu_seconds();
   AlignmentResult frame;
   frame.sizes = scan_size(scan, model_);
   const GlobalOptions& g = registration_.global;
@@ -129,7 +132,20 @@ AlignmentResult Aligner::align(std::span<const engine::Vec3> scan) {
   }
   icp::IcpSolver fine_solver(fine);
   frame.icp = fine_solver.align(finder_, scan, frame.coarse->winner.T_model_scan);
-  return finish(scan, std::move(frame), fine, noise);
+  // A continuous symmetry (a surface of revolution, a plane patch) leaves the pose free along
+  // it: the pose is one of infinitely many that fit, and the report says so.
+  if (frame.icp.degeneracy.degenerate()) {
+    const std::string continuous = detail::describe_continuous_symmetry(frame.icp.degeneracy);
+    std::string& symmetry = frame.coarse->symmetry;
+    symmetry = symmetry.empty() ? continuous : continuous + "; " + symmetry;
+  }
+  frame = finish(scan, std::move(frame), fine, noise);
+  CoarseReport& c = *frame.coarse;
+  c.alignment_seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count() -
+      c.model_features_seconds;
+  c.alignment_cpu_seconds = detail::process_cpu_seconds() - cpu0 - c.model_features_cpu_seconds;
+  return frame;
 }
 
 AlignmentResult Aligner::finish(std::span<const engine::Vec3> scan, AlignmentResult frame,

@@ -22,6 +22,9 @@ struct CoarseOutcome {
   bool timed_out = false;  // the failure is the deadline's
 };
 
+// CPU seconds of this process so far (all its threads).
+double process_cpu_seconds();
+
 // Keypoints and descriptors of the scan, matches against the model's, sample consensus, and
 // every kept hypothesis refined by a short exact ICP on a seeded subsample (through `finder`,
 // which is reset) and scored by exact distances within a tolerance from `noise`. The winner is

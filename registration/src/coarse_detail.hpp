@@ -49,6 +49,9 @@ struct RansacParams {
   // Hypotheses kept: the best `keep` by support that differ pairwise by more than
   // distinct_angle [rad] or distinct_translation.
   int keep = 12;
+  // Hypotheses rank by overlap: how many of a fixed sample of the scan's keypoints land within
+  // about two cells of this side of a model keypoint (then by support).
+  double overlap_cell = 1.0;
   double distinct_angle = 0.2;
   double distinct_translation = 1.0;
   std::uint64_t seed = 1;
@@ -56,10 +59,12 @@ struct RansacParams {
 
 struct Hypothesis {
   Eigen::Isometry3d T_model_scan = Eigen::Isometry3d::Identity();
-  std::size_t support = 0;
+  std::size_t support = 0;  // matches within inlier_distance
+  std::size_t overlap = 0;  // sampled scan keypoints near the model (RansacParams::overlap_cell)
 };
 
-// Guided sample consensus over the matches (RansacParams), the best pose of each seed kept,
+// Guided sample consensus over the matches (RansacParams), the best pose of each seed (by
+// support) kept when it ranks among the best by overlap,
 // then a least-squares refit of each kept hypothesis on its supporting matches. Each seed has
 // its own seeded stream; seeds are dealt to fixed chunks whose results merge in chunk order:
 // the same hypotheses for any thread count. Best first.

@@ -2,6 +2,7 @@
 
 #include <tbb/parallel_for.h>
 
+#include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <array>
@@ -53,6 +54,38 @@ double from_plane(double abs_cos) {
 }
 double between(double abs_cos) {
   return std::acos(std::min(1.0, abs_cos)) / (0.5 * std::numbers::pi);
+}
+
+// The residual variance of the least-squares quadric h = a x^2 + b xy + c y^2 + d x + e y + f
+// through the neighbours of q within `radius`, in the PCA frame `axes` (column 0: the normal):
+// a plane's residuals also hold the surface's curvature (r^4 k^2 / 8 at a radius r: on fillets
+// and holes it exceeds the noise and biased the estimate high, on flat parts it was right), a
+// quadric's only the noise. Divided by count - 6 (the fit takes six degrees of freedom). -1
+// when the fit is degenerate.
+double quadric_residual_variance(std::span<const Vec3> points, const PointGrid& grid, const Vec3& q,
+                                 double radius, const Eigen::Matrix3d& axes) {
+  using Vec6 = Eigen::Matrix<double, 6, 1>;
+  Eigen::Matrix<double, 6, 6> ata = Eigen::Matrix<double, 6, 6>::Zero();
+  Vec6 atb = Vec6::Zero();
+  double btb = 0.0;
+  int count = 0;
+  const double inv = 1.0 / radius;  // unit-sized coordinates keep the normal equations balanced
+  grid.for_each_within(q, radius, [&](std::uint32_t j, double) {
+    const Vec3 local = axes.transpose() * ((points[j] - q) * inv);
+    const double x = local.y(), y = local.z(), h = local.x();
+    const Vec6 a(x * x, x * y, y * y, x, y, 1.0);
+    ata.selfadjointView<Eigen::Lower>().rankUpdate(a);
+    atb += a * h;
+    btb += h * h;
+    ++count;
+  });
+  if (count < 10) return -1.0;
+  const Eigen::LDLT<Eigen::Matrix<double, 6, 6>> ldlt(ata.selfadjointView<Eigen::Lower>());
+  if (ldlt.info() != Eigen::Success) return -1.0;
+  const Vec6 coef = ldlt.solve(atb);
+  if (!coef.allFinite()) return -1.0;
+  const double ssr = std::max(0.0, btb - coef.dot(atb));
+  return ssr / static_cast<double>(count - 6) * radius * radius;
 }
 
 }  // namespace
@@ -157,13 +190,11 @@ double estimate_noise(std::span<const Vec3> scan, double voxel, std::uint64_t se
     const Vec3& q = subset[k * stride];
     Moments3 m;
     grid.for_each_within(q, radius, [&](std::uint32_t j, double) { m.add(subset[j] - q); });
-    if (m.count < 6) return;
-    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(m.covariance(),
-                                                             Eigen::EigenvaluesOnly);
+    if (m.count < 10) return;
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(m.covariance());
     const Vec3 l = eig.eigenvalues();
     if (l(0) > 0.25 * l(1)) return;  // not a surface: an outlier blob or an edge
-    // The plane through the mean takes 3 of the count's degrees of freedom.
-    variances[k] = std::max(0.0, l(0)) * m.count / (m.count - 3);
+    variances[k] = quadric_residual_variance(subset, grid, q, radius, eig.eigenvectors());
   });
   std::vector<double> valid;
   for (double v : variances) {

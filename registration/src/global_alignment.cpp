@@ -4,6 +4,7 @@
 // distances: the exact projection is what makes the score trustworthy (no sampling floor).
 #include <spdlog/fmt/fmt.h>
 #include <spdlog/spdlog.h>
+#include <time.h>
 
 #include <algorithm>
 #include <chrono>
@@ -25,6 +26,12 @@ using Clock = std::chrono::steady_clock;
 
 constexpr std::size_t kMaxScanKeypoints = 20000;
 constexpr std::size_t kMinScanKeypoints = 12;
+// The first look at every hypothesis (points), and which go on to a short ICP: those whose
+// near fraction is at least kGlanceRatio of the best one's, at most kMaxVerified (a part with a
+// discrete symmetry needs all its equally good poses verified to report them).
+constexpr std::size_t kGlancePoints = 300;
+constexpr double kGlanceRatio = 0.6;
+constexpr std::size_t kMaxVerified = 6;
 
 struct ScanKeypoints {
   std::vector<Vec3> points;
@@ -124,6 +131,12 @@ bool better(const PoseScore& a, const PoseScore& b) {
 
 }  // namespace
 
+double process_cpu_seconds() {
+  timespec t{};
+  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &t);
+  return static_cast<double>(t.tv_sec) + 1e-9 * static_cast<double>(t.tv_nsec);
+}
+
 CoarseOutcome coarse_align(std::span<const Vec3> scan, const ModelFeatures& features,
                            const GlobalOptions& o, double noise,
                            icp::ModelCorrespondenceFinder& finder, Clock::time_point deadline) {
@@ -150,7 +163,10 @@ CoarseOutcome coarse_align(std::span<const Vec3> scan, const ModelFeatures& feat
                   std::chrono::duration<double>(now - last).count());
     last = now;
   };
+  const double cpu0 = process_cpu_seconds();
   features.descriptors();
+  r.model_features_cpu_seconds = process_cpu_seconds() - cpu0;
+  r.model_features_seconds = std::chrono::duration<double>(Clock::now() - start).count();
   lap("model features (once per model)");
   const ScanKeypoints keys = scan_keypoints(scan, features);
   lap("scan keypoints");
@@ -183,11 +199,13 @@ CoarseOutcome coarse_align(std::span<const Vec3> scan, const ModelFeatures& feat
   rp.keep = o.hypotheses;
   rp.distinct_angle = 10.0 * std::numbers::pi / 180.0;
   rp.distinct_translation = 5.0 * v;
+  rp.overlap_cell = v;
   rp.seed = o.seed;
   const std::vector<Hypothesis> hypotheses =
       ransac_hypotheses(keys.points, model_keys.points, matches, rp);
   r.hypotheses = static_cast<int>(hypotheses.size());
   lap("hypotheses");
+  if (past_deadline("after the sample consensus")) return out;
   if (hypotheses.empty()) {
     out.failure = fmt::format(
         "the global alignment found no pose: {} feature matches between {} scan and {} model "
@@ -208,11 +226,30 @@ CoarseOutcome coarse_align(std::span<const Vec3> scan, const ModelFeatures& feat
   vo.deadline = deadline;
   icp::IcpSolver solver(vo);
   const double tolerance = std::max(3.0 * noise, 0.02 * v);
-  std::vector<PoseScore> scored;
+  // 3a. A cheap first look: exact distances of a few points at each raw pose, within a voxel and
+  // a half (the sample consensus' accuracy). Only the hypotheses near the best of these go on to
+  // the short ICP, which costs as much as the rest of the stage per hypothesis.
   std::vector<double> d;
-  for (const Hypothesis& h : hypotheses) {
+  const std::span<const Vec3> glance(sub.data(), std::min<std::size_t>(sub.size(), kGlancePoints));
+  std::vector<std::pair<double, std::size_t>> glanced;
+  for (std::size_t i = 0; i < hypotheses.size(); ++i) {
+    exact_distances(finder, hypotheses[i].T_model_scan, glance, 3.0 * v, d);
+    const double near = static_cast<double>(
+        std::count_if(d.begin(), d.end(), [&](double x) { return x <= 1.5 * v; }));
+    glanced.emplace_back(near / static_cast<double>(std::max<std::size_t>(1, d.size())), i);
+  }
+  std::stable_sort(glanced.begin(), glanced.end(),
+                   [](const auto& a, const auto& b) { return a.first > b.first; });
+  std::vector<Hypothesis> promising;
+  for (const auto& [near, i] : glanced) {
+    if (promising.size() >= kMaxVerified || near < kGlanceRatio * glanced.front().first) break;
+    promising.push_back(hypotheses[i]);
+  }
+  lap("glance");
+  std::vector<PoseScore> scored;
+  for (const Hypothesis& h : promising) {
     if (past_deadline(
-            fmt::format("after verifying {} of {} hypotheses", scored.size(), hypotheses.size()))) {
+            fmt::format("after verifying {} of {} hypotheses", scored.size(), promising.size()))) {
       return out;
     }
     const icp::IcpResult res = solver.align(finder, sub, h.T_model_scan);
@@ -222,8 +259,8 @@ CoarseOutcome coarse_align(std::span<const Vec3> scan, const ModelFeatures& feat
     const Eigen::Isometry3d T = usable ? res.T_model_scan : h.T_model_scan;
     exact_distances(finder, T, sub, 3.0 * v, d);
     scored.push_back(score_of(T, d, tolerance));
-    spdlog::debug("hypothesis support {}: inliers {:.4f}, trimmed rms {:.4g} ({})", h.support,
-                  scored.back().inlier_fraction, scored.back().trimmed_rms,
+    spdlog::debug("hypothesis support {} overlap {}: inliers {:.4f}, trimmed rms {:.4g} ({})",
+                  h.support, h.overlap, scored.back().inlier_fraction, scored.back().trimmed_rms,
                   icp::to_string(res.termination));
   }
   r.verified = static_cast<int>(scored.size());

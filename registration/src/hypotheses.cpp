@@ -3,8 +3,10 @@
 #include <Eigen/SVD>
 #include <algorithm>
 #include <array>
+#include <cmath>
 #include <numeric>
 #include <random>
+#include <unordered_set>
 
 #include "coarse_detail.hpp"
 
@@ -16,6 +18,58 @@ using engine::Vec3;
 constexpr int kChunks = 32;
 constexpr std::size_t kSupportSample = 256;
 constexpr int kThirdAttempts = 64;
+constexpr std::size_t kOverlapProbes = 256;
+
+// Which cells of side `cell` lie within one cell of a model keypoint: a scan keypoint moved into
+// such a cell has model surface within about two cells. One hash lookup per probe, where a
+// nearest-neighbour query would look at 27 cells.
+class Occupancy {
+ public:
+  Occupancy(std::span<const Vec3> model, double cell) : inv_(1.0 / cell) {
+    cells_.reserve(model.size() * 27);
+    for (const Vec3& p : model) {
+      const auto c = cell_of(p);
+      for (std::int64_t dx = -1; dx <= 1; ++dx)
+        for (std::int64_t dy = -1; dy <= 1; ++dy)
+          for (std::int64_t dz = -1; dz <= 1; ++dz)
+            cells_.insert(pack(c[0] + dx, c[1] + dy, c[2] + dz));
+    }
+  }
+  bool near(const Vec3& p) const {
+    const auto c = cell_of(p);
+    return cells_.count(pack(c[0], c[1], c[2])) != 0;
+  }
+
+ private:
+  std::array<std::int64_t, 3> cell_of(const Vec3& p) const {
+    return {static_cast<std::int64_t>(std::floor(p.x() * inv_)),
+            static_cast<std::int64_t>(std::floor(p.y() * inv_)),
+            static_cast<std::int64_t>(std::floor(p.z() * inv_))};
+  }
+  static std::uint64_t pack(std::int64_t x, std::int64_t y, std::int64_t z) {
+    const auto b = [](std::int64_t v) {
+      return static_cast<std::uint64_t>(v + (std::int64_t{1} << 20)) & ((1ull << 21) - 1);
+    };
+    return (b(x) << 42) | (b(y) << 21) | b(z);
+  }
+  double inv_;
+  std::unordered_set<std::uint64_t> cells_;
+};
+
+// How many probes land near the model under T (Open3D's RANSAC "fitness", on a sample): on a
+// part of repeated features (a plate with pockets), matches on its flat faces support many wrong
+// poses about as well as the right one, which alone puts the whole scan onto the model.
+std::size_t overlap_of(const Eigen::Isometry3d& T, std::span<const Vec3> probes,
+                       const Occupancy& occupancy) {
+  std::size_t n = 0;
+  for (const Vec3& p : probes)
+    n += occupancy.near(T * p);
+  return n;
+}
+
+bool ranks_before(const Hypothesis& a, const Hypothesis& b) {
+  return a.overlap != b.overlap ? a.overlap > b.overlap : a.support > b.support;
+}
 
 // Adds h to the best-first list `kept` unless a kept pose within the distinctness limits has at
 // least its support (then h is a duplicate of it); replaces the weaker duplicates otherwise.
@@ -28,11 +82,11 @@ void keep_best(std::vector<Hypothesis>& kept, const Hypothesis& h, const RansacP
       ++it;
       continue;
     }
-    if (it->support >= h.support) return;
+    if (!ranks_before(h, *it)) return;
     it = kept.erase(it);
   }
   const auto pos = std::find_if(kept.begin(), kept.end(),
-                                [&](const Hypothesis& k) { return k.support < h.support; });
+                                [&](const Hypothesis& k) { return ranks_before(h, k); });
   kept.insert(pos, h);
   if (kept.size() > static_cast<std::size_t>(p.keep)) kept.pop_back();
 }
@@ -102,6 +156,11 @@ std::vector<Hypothesis> ransac_hypotheses(std::span<const Vec3> scan, std::span<
     return ls >= p.min_edge && std::abs(ls - lm) <= p.inlier_distance &&
            std::min(ls, lm) >= p.edge_similarity * std::max(ls, lm);
   };
+  std::vector<Vec3> probes;
+  const std::size_t probe_step = std::max<std::size_t>(1, scan.size() / kOverlapProbes);
+  for (std::size_t i = 0; i < scan.size(); i += probe_step)
+    probes.push_back(scan[i]);
+  const Occupancy occupancy(model, p.overlap_cell);
   const std::size_t chunks = std::min<std::size_t>(kChunks, seeds.size());
   std::vector<std::vector<Hypothesis>> chunk_best(chunks);
   tbb::parallel_for(std::size_t{0}, chunks, [&](std::size_t chunk) {
@@ -145,10 +204,11 @@ std::vector<Hypothesis> ransac_hypotheses(std::span<const Vec3> scan, std::span<
           const Match& k = matches[with_a[i]];
           support += (T * scan[k.scan] - model[k.model]).squaredNorm() <= d2max;
         }
-        if (support > seed_best.support) seed_best = {T, support};
+        if (support > seed_best.support) seed_best = {T, support, 0};
       }
       if (seed_best.support < 3) continue;
       seed_best.support = support_of(seed_best.T_model_scan, scan, model, matches, d2max, nullptr);
+      seed_best.overlap = overlap_of(seed_best.T_model_scan, probes, occupancy);
       keep_best(best, seed_best, p);
     }
   });
@@ -174,8 +234,9 @@ std::vector<Hypothesis> ransac_hypotheses(std::span<const Vec3> scan, std::span<
       Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
       if (!fit_rigid(src, dst, T)) break;
       const std::size_t support = support_of(T, scan, model, matches, d2max, nullptr);
-      if (support < r.support) break;
-      r = {T, support};
+      const std::size_t overlap = overlap_of(T, probes, occupancy);
+      if (support < r.support || overlap < r.overlap) break;
+      r = {T, support, overlap};
     }
     refined.push_back(r);
   }

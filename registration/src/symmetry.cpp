@@ -30,4 +30,25 @@ std::string describe_symmetry(const Eigen::Isometry3d& winner,
   return text;
 }
 
+std::string describe_continuous_symmetry(const icp::DegeneracyReport& degeneracy) {
+  std::string text;
+  for (const icp::FreeDirection& f : degeneracy.free_directions) {
+    const engine::Vec3& d = f.direction;
+    const engine::Vec3& c = f.point;
+    if (!text.empty()) text += "; ";
+    if (f.kind == icp::FreeDirection::Kind::translation) {
+      text +=
+          fmt::format("continuous translation along ({:.3f}, {:.3f}, {:.3f})", d.x(), d.y(), d.z());
+      continue;
+    }
+    text += fmt::format(
+        "continuous rotation about ({:.3f}, {:.3f}, {:.3f}) through ({:.4g}, {:.4g}, {:.4g})",
+        d.x(), d.y(), d.z(), c.x(), c.y(), c.z());
+    if (f.kind == icp::FreeDirection::Kind::screw) {
+      text += fmt::format(", sliding {:.4g} per radian", f.pitch);
+    }
+  }
+  return text;
+}
+
 }  // namespace nurbsreg::registration::detail

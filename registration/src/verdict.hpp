@@ -7,6 +7,7 @@
 #include <string>
 
 #include "nurbsreg/engine/types.hpp"
+#include "nurbsreg/icp/degeneracy.hpp"
 #include "nurbsreg/registration/global.hpp"
 #include "nurbsreg/registration/model_features.hpp"
 
@@ -23,5 +24,10 @@ FitVerdict judge_fit(std::span<const engine::Vec3> aligned, std::span<const doub
 // through (1, 2, 0)" (or a translation when it does not rotate).
 std::string describe_symmetry(const Eigen::Isometry3d& winner,
                               const Eigen::Isometry3d& alternative);
+
+// The motions that map the model onto itself where the scan lies (the final ICP's free
+// directions: a surface of revolution turns about its axis, a plane slides and turns), in
+// words: "continuous rotation about (0.000, 0.000, 1.000) through (0, 0, 20)"; empty when none.
+std::string describe_continuous_symmetry(const icp::DegeneracyReport& degeneracy);
 
 }  // namespace nurbsreg::registration::detail

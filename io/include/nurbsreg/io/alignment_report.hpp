@@ -50,6 +50,10 @@ struct CoarseRecord {
   std::size_t scan_keypoints = 0, model_keypoints = 0, matches = 0;
   int hypotheses = 0, verified = 0;
   double voxel = 0.0, noise = 0.0, seconds = 0.0;
+  // Of `seconds`: building the model's features (once per prepared model; 0 when shared).
+  double model_features_seconds = 0.0;
+  // The whole alignment from any pose without the model's features: wall and process CPU.
+  double alignment_seconds = 0.0, alignment_cpu_seconds = 0.0;
   PoseScoreRecord winner;
   bool has_runner_up = false;
   PoseScoreRecord runner_up;

@@ -23,8 +23,10 @@ struct GlobalOptions {
   FeatureOptions features;
   // Seed matches of the guided sample consensus (coarse_detail.hpp in src: RansacParams).
   int ransac_seeds = 1500;
-  // Hypotheses kept from sample consensus; each is refined by a short exact ICP and scored.
-  int hypotheses = 10;
+  // Hypotheses kept from sample consensus (ranked by how much of the scan they put onto the
+  // model); each gets a first look at a few exact distances, and the best few of those are
+  // refined by a short exact ICP and scored.
+  int hypotheses = 16;
   // Scan points (a seeded subsample) for refining and scoring a hypothesis, and its iterations.
   std::size_t verify_points = 1500;
   int verify_iterations = 20;
@@ -82,10 +84,20 @@ struct CoarseReport {
   std::optional<PoseScore> runner_up;  // the best pose clearly different from the winner
   // Distinct poses that fit as well as the winner (symmetry_ratio), the winner excluded, and
   // the symmetry they show ("rotation by 180.0 deg about (0, 0, 1) through (0, 0, 0)", one per
-  // alternative, joined by "; "); empty when the pose is unique.
+  // alternative, joined by "; "), after the continuous symmetries the final pose leaves free
+  // ("continuous rotation about (0.000, 0.000, 1.000) through (0, 0, 20)": a surface of
+  // revolution; a plane patch also slides); empty when the pose is unique.
   std::vector<PoseScore> alternatives;
   std::string symmetry;
   double seconds = 0.0;
+  // Of `seconds`: building the model's keypoints and descriptors, which a prepared model does
+  // once (0 when they were built before: `batch`, the service, a reused Aligner).
+  double model_features_seconds = 0.0, model_features_cpu_seconds = 0.0;
+  // The whole alignment from any pose (this stage, the fine ICP, the verdict) without the
+  // model's features: wall seconds, and the process's CPU seconds over it (all its threads:
+  // meaningful when one alignment runs at a time, as in `align`).
+  double alignment_seconds = 0.0;
+  double alignment_cpu_seconds = 0.0;
 };
 
 }  // namespace nurbsreg::registration
