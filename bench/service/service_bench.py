@@ -94,7 +94,10 @@ def bench_serve(binary, model, files, clients, frames, threads, max_seconds, log
     server = subprocess.Popen(
         [binary, "serve", "--model", model, "--id", "m", "--port", "0", "--threads", str(threads),
          "--max-inflight", str(clients), "--connections", str(clients + 2),
-         "--time-limit", str(time_limit)],
+         "--time-limit", str(time_limit),
+         # A client that waits at the barrier for slower warm-ups must find its keep-alive
+         # connection still open (the default closes one idle for 5 s).
+         "--keep-alive", str(int(max_seconds) + 60)],
         stdout=subprocess.PIPE, stderr=log, text=True)
     try:
         line = server.stdout.readline()
