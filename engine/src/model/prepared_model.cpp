@@ -239,8 +239,6 @@ PreparedModel::PreparedModel(Model model)
       }
       patch_class_[i] = refine_patch_class(loops, *region, bp);
     }
-    // A polynomial patch proven inside its face can carry warm certificates (patch_certifiable).
-    if (patch_class_[i] == RegionClass::inside && !patches_[i].rational) any_certifiable_ = true;
   }
   // Hierarchy items: the patches that are not trimmed away, then the trim-edge pieces.
   for (std::size_t i = 0; i < patches_.size(); ++i) {

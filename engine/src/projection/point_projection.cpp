@@ -247,8 +247,7 @@ void warm_start(const PreparedModel& model, const ProjectionOptions& options,
   // zero-size Newton box evaluates it).
   const TrimRegion* region = model.surface_region(hint.entity);
   if (point.proven) {
-    // Certificates are made on patches of face points only (patch_certifiable): nothing more to
-    // check.
+    // Certificates are made on untrimmed surfaces only: nothing more to check.
   } else if (region == nullptr || region->contains(best.u, best.v)) {
     // The clipping of this patch restarts Newton from the converged point (one step).
     point.hint_s = s_loc;
@@ -376,17 +375,14 @@ void write_surface_answer(const PreparedModel& model, const ProjectionOptions& o
                           hint->certificate.distance_to_anchor(p) <= certificate_cap;
   // A point that gets a new certificate: its search also bounds the rest of the model, for the
   // certificate's clearance (a radius of at most the cap needs (d + 2 cap)^2). Only where one
-  // can be made: none on a model without a certifiable patch (patch_certifiable), and none for a
-  // hint on a patch that is not certifiable, where the answer most likely lies again (such a
-  // point is marked as tried instead).
+  // can be made: none on a model without an untrimmed polynomial surface, and none for a hint on
+  // a trimmed or rational surface, where the answer most likely lies again (such a point is
+  // marked as tried instead).
   OtherItems others;
   others.margin = 2.0 * certificate_cap;
-  const bool certifying =
-      options.certify && !point.proven && !tried_here && model_.any_certifiable() &&
-      (!valid_hint(hint, entities) ||
-       (point.hint_patch >= 0
-            ? patch_certifiable(model_, static_cast<std::size_t>(point.hint_patch))
-            : model_.surface_certifiable(hint->entity)));
+  const bool certifying = options.certify && !point.proven && !tried_here &&
+                          model_.any_certifiable() &&
+                          (!valid_hint(hint, entities) || model_.surface_certifiable(hint->entity));
   if (!point.proven) {
     const double seed_sq =
         point.surface < 0 ? seed_cold_start(model_, options, p, limit_sq, point) : -1.0;

@@ -109,12 +109,11 @@ WarmCertificate Projector::make_certificate(const Vec3& p, const SurfaceHit& bes
                                             std::int64_t patch, std::int64_t edge,
                                             const OtherItems& others, ThreadState& state) const {
   const WarmCertificate tried = tried_at(p);
-  // Only a foot on a polynomial patch all of whose points are face points (untrimmed, or proven
-  // inside its face's region: the face's trim edges are other items of the search, so they bound
-  // the clearance like any other part of the model). A foot on a trim edge gets none.
+  // Only a foot on an untrimmed polynomial patch (a foot on a trim edge, or on a patch edge
+  // shared with a neighbour, gets no clearance anyway).
   if (patch < 0 || edge >= 0) return tried;
   const std::size_t k = static_cast<std::size_t>(patch);
-  if (!patch_certifiable(model_, k)) return tried;
+  if (!model_.surface_certifiable(model_.patch_surface(k))) return tried;
   const double d = std::sqrt(best.distance_sq);
   // The search bounded everything but the answer up to (d + margin)^2 = (d + 2 cap)^2, and a
   // query within radius <= cap of p has its own distance at most d + radius: nothing beyond

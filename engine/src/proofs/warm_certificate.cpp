@@ -358,9 +358,7 @@ SpanCertificate certify_span(const PreparedModel& model, std::size_t patch, cons
       LocalBox box;
       if (!span_piece(c.s0, c.s1, c.t0, c.t1, i, j, box.s0, box.s1, box.t0, box.t1)) continue;
       const std::int64_t k = model.patch_at(surface, at.a + i, at.b + j);
-      if (k < 0 || !patch_certifiable(model, static_cast<std::size_t>(k))) {
-        return SpanCertificate{};
-      }
+      if (k < 0 || model.patch(static_cast<std::size_t>(k)).rational) return SpanCertificate{};
       pieces[c.count] = {&model.patch(static_cast<std::size_t>(k)), box};
       c.patches[c.count++] = k;
     }

@@ -12,13 +12,6 @@
 
 namespace nurbsreg::engine {
 
-// May a certificate's box N lie (partly) on patch i? Every point of N must be a point of the
-// model (a patch of an untrimmed surface, or one of a trimmed face proven inside its region:
-// patch_region is null for both), and the convexity proofs are made for polynomial patches.
-inline bool patch_certifiable(const PreparedModel& model, std::size_t i) {
-  return !model.patch(i).rational && model.patch_region(i) == nullptr;
-}
-
 struct PatchCertificate {
   // N in P's local parameters, as floats (compact in hints); every test was made on exactly
   // these values.

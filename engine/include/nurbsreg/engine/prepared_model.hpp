@@ -64,11 +64,10 @@ class PreparedModel {
     return r < 0 ? nullptr : &regions_[static_cast<std::size_t>(r)];
   }
 
-  // Is surface s untrimmed, with a polynomial patch (what the reach bounds need)? And can a
-  // WarmCertificate be made anywhere in the model: a polynomial patch of an untrimmed surface,
-  // or one proven inside its trimmed face (proofs/warm_certificate.hpp, patch_certifiable:
-  // certify_patch proves convexity on polynomial patches only, and a box of face points only
-  // needs no region test)? A projector certifies only where it can (ProjectionOptions::certify).
+  // Can a WarmCertificate be made for a foot on surface s: is it untrimmed, with a polynomial
+  // patch (certify_patch proves convexity on polynomial patches only; a trimmed face's region
+  // is not part of the proof)? And on any surface of the model? A projector certifies only
+  // where it can (ProjectionOptions::certify).
   bool surface_certifiable(int s) const {
     return surface_certifiable_[static_cast<std::size_t>(s)] != 0;
   }

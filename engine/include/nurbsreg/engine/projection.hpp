@@ -54,11 +54,9 @@ enum class ProjectionStatus : std::uint8_t {
 // The projector trusts a certificate only for the PreparedModel that made it (`model`).
 // For a query q with |q - a| <= radius whose Newton minimum on N has distance d, everything else
 // is at least clearance - |q - a| away by the triangle inequality: d + |q - a| <= clearance
-// proves d is the model's distance without looking at anything else. Only polynomial patches all
-// of whose points are face points get one (untrimmed, or proven inside their trimmed face's
-// region; the face's trim edges are part of the rest of the model). radius == 0: none (patch ==
-// kTried: a certificate was sought at `anchor` and could not be made; the projector does not retry
-// within the radius cap of it).
+// proves d is the model's distance without looking at anything else. Only untrimmed,
+// polynomial patches get one. radius == 0: none (patch == kTried: a certificate was sought at
+// `anchor` and could not be made; the projector does not retry within the radius cap of it).
 struct WarmCertificate {
   static constexpr std::int32_t kTried = -2;
   // Single precision keeps hints small (frames of millions of points): the anchor is the query
