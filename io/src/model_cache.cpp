@@ -149,7 +149,8 @@ class Reader {
   std::vector<double> doubles() {
     const std::size_t n = count(sizeof(double));
     std::vector<double> v(n);
-    std::memcpy(v.data(), bytes_.data() + at_, n * sizeof(double));
+    // An empty vector's data() may be null, and memcpy's pointers must not be, even for 0 bytes.
+    if (n != 0) std::memcpy(v.data(), bytes_.data() + at_, n * sizeof(double));
     at_ += n * sizeof(double);
     return v;
   }
@@ -271,7 +272,8 @@ ContentHash hash_bytes(std::string_view bytes) {
     b = std::rotl((b + w) * kP2, 31) ^ a;
   }
   std::uint64_t tail = 0;
-  std::memcpy(&tail, bytes.data() + k, bytes.size() - k);
+  if (k < bytes.size())
+    std::memcpy(&tail, bytes.data() + k, bytes.size() - k);  // data() may be null
   a = std::rotl((a ^ tail ^ (std::uint64_t{bytes.size() - k} << 56)) * kP1, 29);
   b = std::rotl((b + tail) * kP2, 31) ^ a;
   return {splitmix(a ^ std::rotl(b, 17)), splitmix(b + kP1 * a)};

@@ -13,6 +13,8 @@
 #include <limits>
 #include <ostream>
 #include <stdexcept>
+#include <string>
+#include <type_traits>
 #include <unordered_set>
 
 #include "nurbsreg/io/atomic_file.hpp"
@@ -249,12 +251,31 @@ void write_point_table(const std::string& path, const PointTable& table) {
 
 namespace {
 
+// An ASCII value (read as a double) as the field's type. For an integer type a value beyond
+// the type's range (or NaN) is an error: the cast would be undefined behaviour. The type's
+// maximum as a double may round up (2^64 for U8): that value is the written maximum, rounded.
 template <class T>
-std::vector<T> pcd_column(const detail::PcdData& pcd, const detail::PcdField& f, std::size_t k) {
+T column_value(double v, const std::string& path, const detail::PcdField& f) {
+  if constexpr (std::is_integral_v<T>) {
+    constexpr double lo = static_cast<double>(std::numeric_limits<T>::lowest());
+    constexpr double hi = static_cast<double>(std::numeric_limits<T>::max());
+    if (!(v >= lo && v <= hi)) {
+      throw InputError(path, "PCD field " + text_detail::quote(f.name) + ": value " +
+                                 text_detail::quote(std::to_string(v)) + " is outside TYPE " +
+                                 f.type + " SIZE " + std::to_string(f.size));
+    }
+    if (v == hi) return std::numeric_limits<T>::max();
+  }
+  return static_cast<T>(v);
+}
+
+template <class T>
+std::vector<T> pcd_column(const std::string& path, const detail::PcdData& pcd,
+                          const detail::PcdField& f, std::size_t k) {
   std::vector<T> out(pcd.points);
   if (pcd.ascii) {
     for (std::size_t i = 0; i < pcd.points; ++i)
-      out[i] = static_cast<T>(pcd.value(i, f, k));
+      out[i] = column_value<T>(pcd.value(i, f, k), path, f);
     return out;
   }
   // Binary: read the stored type exactly (64-bit integers would lose bits through double).
@@ -263,7 +284,7 @@ std::vector<T> pcd_column(const detail::PcdData& pcd, const detail::PcdField& f,
     if (f.size == sizeof(T)) {
       std::memcpy(&out[i], p, sizeof(T));
     } else {
-      out[i] = static_cast<T>(pcd.value(i, f, k));
+      out[i] = column_value<T>(pcd.value(i, f, k), path, f);
     }
   }
   return out;
@@ -277,20 +298,20 @@ PointTable read_pcd_table(const std::string& path) {
       std::string name = f.count == 1 ? f.name : f.name + "_" + std::to_string(k);
       if (f.type == 'F') {
         if (f.size == 8) {
-          table.add_column(std::move(name), pcd_column<double>(pcd, f, k));
+          table.add_column(std::move(name), pcd_column<double>(path, pcd, f, k));
         } else {
-          table.add_column(std::move(name), pcd_column<float>(pcd, f, k));
+          table.add_column(std::move(name), pcd_column<float>(path, pcd, f, k));
         }
       } else if (f.type == 'I') {
         if (f.size == 8) {
-          table.add_column(std::move(name), pcd_column<std::int64_t>(pcd, f, k));
+          table.add_column(std::move(name), pcd_column<std::int64_t>(path, pcd, f, k));
         } else {
-          table.add_column(std::move(name), pcd_column<std::int32_t>(pcd, f, k));
+          table.add_column(std::move(name), pcd_column<std::int32_t>(path, pcd, f, k));
         }
       } else if (f.size == 8) {
-        table.add_column(std::move(name), pcd_column<std::uint64_t>(pcd, f, k));
+        table.add_column(std::move(name), pcd_column<std::uint64_t>(path, pcd, f, k));
       } else {
-        table.add_column(std::move(name), pcd_column<std::uint32_t>(pcd, f, k));
+        table.add_column(std::move(name), pcd_column<std::uint32_t>(path, pcd, f, k));
       }
     }
   }

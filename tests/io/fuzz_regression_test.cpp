@@ -7,7 +7,9 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <string>
+#include <tuple>
 
 #include "nurbsreg/io/cad_import.hpp"
 #include "nurbsreg/io/errors.hpp"
@@ -110,6 +112,30 @@ TEST(FuzzRegression, PcdPaddingFieldInBinaryCompressedReadsLikeBinary) {
   ASSERT_EQ(cloud.size(), 4u);
   for (int i = 0; i < 4; ++i) {
     EXPECT_EQ(cloud.points[i], engine::Vec3(i + 1, 10 * (i + 1), 100 * (i + 1))) << i;
+  }
+}
+
+// Found by UBSan in io_tests (2026-12-02): an ASCII PCD table's integer value went through
+// double into the column's type, and 18446744073709551615 (U8's maximum) rounds to 2^64,
+// beyond uint64_t: the cast was undefined behaviour, as for any value beyond the type or NaN.
+TEST(FuzzRegression, PcdAsciiIntegersBeyondTheirTypeAreRejected) {
+  Scratch dir;
+  const std::string header =
+      "VERSION 0.7\nFIELDS x y z id\nSIZE 4 4 4 ID_SIZE\nTYPE F F F ID_TYPE\nCOUNT 1 1 1 1\n"
+      "WIDTH 1\nHEIGHT 1\nPOINTS 1\nDATA ascii\n";
+  const auto file = [&](const std::string& size, const std::string& type, const std::string& id) {
+    std::string text = header;
+    text.replace(text.find("ID_SIZE"), 7, size);
+    text.replace(text.find("ID_TYPE"), 7, type);
+    return dir.write("t" + size + type + ".pcd", text + "1 2 3 " + id + "\n");
+  };
+  const PointTable max = read_point_table(file("8", "U", "18446744073709551615"));
+  EXPECT_EQ((*max.values<std::uint64_t>("id"))[0], std::numeric_limits<std::uint64_t>::max());
+  for (const auto& [size, type, id] : {std::tuple{"8", "U", "1e30"}, std::tuple{"4", "U", "-1"},
+                                       std::tuple{"4", "I", "nan"}, std::tuple{"8", "I", "1e19"}}) {
+    const std::string message = error_of([&] { read_point_table(file(size, type, id)); });
+    EXPECT_HAS(message, "PCD field 'id': value ");
+    EXPECT_HAS(message, std::string("is outside TYPE ") + type + " SIZE " + size);
   }
 }
 
