@@ -9,7 +9,6 @@
 #include <fstream>
 #include <limits>
 #include <string>
-#include <tuple>
 
 #include "nurbsreg/io/cad_import.hpp"
 #include "nurbsreg/io/errors.hpp"
@@ -131,11 +130,15 @@ TEST(FuzzRegression, PcdAsciiIntegersBeyondTheirTypeAreRejected) {
   };
   const PointTable max = read_point_table(file("8", "U", "18446744073709551615"));
   EXPECT_EQ((*max.values<std::uint64_t>("id"))[0], std::numeric_limits<std::uint64_t>::max());
-  for (const auto& [size, type, id] : {std::tuple{"8", "U", "1e30"}, std::tuple{"4", "U", "-1"},
-                                       std::tuple{"4", "I", "nan"}, std::tuple{"8", "I", "1e19"}}) {
-    const std::string message = error_of([&] { read_point_table(file(size, type, id)); });
+  struct Case {
+    const char *size, *type, *id;
+  };
+  // (Not a structured binding: clang 14 cannot capture one in the lambda.)
+  for (const Case c : {Case{"8", "U", "1e30"}, Case{"4", "U", "-1"}, Case{"4", "I", "nan"},
+                       Case{"8", "I", "1e19"}}) {
+    const std::string message = error_of([&] { read_point_table(file(c.size, c.type, c.id)); });
     EXPECT_HAS(message, "PCD field 'id': value ");
-    EXPECT_HAS(message, std::string("is outside TYPE ") + type + " SIZE " + size);
+    EXPECT_HAS(message, std::string("is outside TYPE ") + c.type + " SIZE " + c.size);
   }
 }
 
