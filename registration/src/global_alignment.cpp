@@ -4,6 +4,7 @@
 // distances: the exact projection is what makes the score trustworthy (no sampling floor).
 #include <spdlog/fmt/fmt.h>
 #include <spdlog/spdlog.h>
+#include <tbb/task_group.h>
 #include <time.h>
 
 #include <algorithm>
@@ -143,7 +144,13 @@ CoarseOutcome coarse_align(std::span<const Vec3> scan, const ModelFeatures& feat
   const auto start = Clock::now();
   CoarseOutcome out;
   // Past the deadline: a failure that says how far the stage got.
+  // A cancelled caller (tbb: Ctrl-C in Python cancels its task group) cuts the parallel loops
+  // short, leaving partial results: stop at the next check instead of using them.
   const auto past_deadline = [&](const std::string& where) {
+    if (tbb::is_current_task_group_canceling()) {
+      out.failure = "cancelled in the global alignment " + where;
+      return true;
+    }
     if (Clock::now() < deadline) return false;
     out.failure = "time limit exceeded in the global alignment " + where;
     out.timed_out = true;

@@ -10,14 +10,16 @@ from conftest import EXAMPLES, PANEL, read_pose_file, run_cli
 
 
 def without_times(report):
-    """A report without its wall times (the only fields two runs may differ in)."""
-    report = json.loads(json.dumps(report))
-    report.pop("seconds")
-    for entry in report["history"]:
-        entry.pop("seconds")
-    if "coarse" in report:
-        report["coarse"].pop("seconds")
-    return report
+    """A report without its timings (the only fields two runs may differ in): every
+    "seconds" and "*_seconds" field, at any depth, but the time limit asked for."""
+    def strip(value):
+        if isinstance(value, dict):
+            return {k: strip(v) for k, v in value.items()
+                    if not (k == "seconds" or (k.endswith("_seconds") and k != "time_limit_seconds"))}
+        if isinstance(value, list):
+            return [strip(v) for v in value]
+        return value
+    return strip(json.loads(json.dumps(report)))
 
 
 def cli_align(scan, out, *options, model=PANEL):
