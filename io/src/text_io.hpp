@@ -13,6 +13,8 @@
 #include <system_error>
 #include <vector>
 
+#include "printable.hpp"
+
 namespace nurbsreg::io::text_detail {
 
 // The whole file as bytes. Throws InputError naming the file when it cannot be opened or read,
@@ -63,20 +65,7 @@ inline bool parse_number(std::string_view token, double& value) {
 // file may hold any bytes, and echoing ESC sequences would drive the user's terminal).
 inline std::string quote(std::string_view token) {
   constexpr std::size_t kMax = 40;
-  constexpr char kHex[] = "0123456789abcdef";
-  std::string out = "'";
-  for (const char c : token.substr(0, kMax)) {
-    const auto byte = static_cast<unsigned char>(c);
-    if (byte >= 0x20 && byte < 0x7f) {
-      out.push_back(c);
-    } else {
-      out += "\\x";
-      out.push_back(kHex[byte >> 4]);
-      out.push_back(kHex[byte & 15]);
-    }
-  }
-  if (token.size() > kMax) out += "...";
-  return out + "'";
+  return "'" + printable(token.substr(0, kMax)) + (token.size() > kMax ? "...'" : "'");
 }
 
 // An entity name from a file for a message: in double quotes, `"` and `\` escaped, bytes

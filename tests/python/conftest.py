@@ -2,6 +2,7 @@
 sets NURBSREG_BINARY, NURBSREG_EXAMPLES_DIR and PYTHONPATH; see tests/CMakeLists.txt)."""
 
 import csv
+import json
 import os
 import pathlib
 import subprocess
@@ -14,6 +15,20 @@ EXAMPLES = pathlib.Path(os.environ.get("NURBSREG_EXAMPLES_DIR", ROOT / "examples
 BINARY = pathlib.Path(os.environ.get("NURBSREG_BINARY", ROOT / "build" / "bin" / "nurbsreg"))
 PANEL = EXAMPLES / "panel.json"
 SHARED = pathlib.Path(os.environ.get("NURBSREG_SHARED_DIR", ROOT.parent / "shared"))
+
+
+def without_times(report):
+    """A report (alignment or inspect.json) without its timings, the only fields two runs may
+    differ in: every "seconds" and "*_seconds" field, at any depth, but the time limit asked
+    for."""
+    def strip(value):
+        if isinstance(value, dict):
+            return {k: strip(v) for k, v in value.items()
+                    if not (k == "seconds" or (k.endswith("_seconds") and k != "time_limit_seconds"))}
+        if isinstance(value, list):
+            return [strip(v) for v in value]
+        return value
+    return strip(json.loads(json.dumps(report)))
 
 
 def run_cli(*args, check=True):

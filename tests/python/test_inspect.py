@@ -6,20 +6,7 @@ import numpy as np
 import pytest
 
 import nurbsreg
-from conftest import PANEL, run_cli
-
-
-def without_times(report):
-    """inspect.json without its timings (the only fields two runs may differ in): every
-    "seconds" and "*_seconds" field, at any depth, but the time limit asked for."""
-    def strip(value):
-        if isinstance(value, dict):
-            return {k: strip(v) for k, v in value.items()
-                    if not (k == "seconds" or (k.endswith("_seconds") and k != "time_limit_seconds"))}
-        if isinstance(value, list):
-            return [strip(v) for v in value]
-        return value
-    return strip(json.loads(json.dumps(report)))
+from conftest import PANEL, run_cli, without_times
 
 
 @pytest.fixture(scope="module")
