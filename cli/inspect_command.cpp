@@ -119,17 +119,7 @@ void run_inspect(const InspectArgs& args) {
     deviations = inspect::collect_deviations(aligned, projections, cloud.source_index,
                                              cloud.skipped_nonfinite);
     report.pose_given = true;
-    report.alignment.pose = init.matrix();
-    report.alignment.points = cloud.size();
-    report.alignment.inliers = deviations.size();
-    report.alignment.skipped_points = cloud.skipped_nonfinite;
-    report.alignment.converged = true;
-    report.alignment.method = "none";
-    report.alignment.termination = "pose given (--pose): no alignment";
-    double sum_sq = 0.0;
-    for (const double d : deviations.signed_distance)
-      sum_sq += d * d;
-    report.alignment.rms = deviations.size() ? std::sqrt(sum_sq / double(deviations.size())) : NAN;
+    report.alignment = inspect::given_pose_alignment(init.matrix(), deviations, cloud.size());
   } else {
     // As `align` does: from any pose without --init (the global stage), from --init as given.
     registration::Aligner aligner(prepared, icp, registration_options(args.global));

@@ -5,6 +5,7 @@
 #include <tbb/parallel_invoke.h>
 
 #include <chrono>
+#include <cmath>
 #include <ctime>
 
 #include "nurbsreg/inspect/deviation_ply.hpp"
@@ -43,9 +44,21 @@ void write_text(const std::string& path, const std::string& text) {
 
 }  // namespace
 
+InspectionOutputs InspectionOutputs::in(const OutputFolder& folder) {
+  return {folder.path("deviations.ply"), folder.path("deviations.png"), folder.path("report.html"),
+          folder.path("inspect.json"), folder.path("inspect_faces.csv")};
+}
+
 InspectionReport run_inspection(const engine::PreparedModel& model,
                                 const PointDeviations& deviations, InspectionReport report,
                                 const InspectionOptions& options, const OutputFolder& folder) {
+  return run_inspection(model, deviations, std::move(report), options,
+                        InspectionOutputs::in(folder));
+}
+
+InspectionReport run_inspection(const engine::PreparedModel& model,
+                                const PointDeviations& deviations, InspectionReport report,
+                                const InspectionOptions& options, const InspectionOutputs& out) {
   const auto start = std::chrono::steady_clock::now();
   const std::clock_t cpu_start = std::clock();
   StageClock stage;
@@ -58,9 +71,10 @@ InspectionReport run_inspection(const engine::PreparedModel& model,
   stage.log("statistics");
   ViewerSubset subset;
   DisplayMesh mesh;
+  const bool needs_mesh = options.model_mesh && !(out.html.empty() && out.png.empty());
   tbb::parallel_invoke([&] { subset = viewer_subset(deviations.points, options.viewer_points); },
                        [&] {
-                         if (options.model_mesh) mesh = tessellate(model, options.mesh_vertices);
+                         if (needs_mesh) mesh = tessellate(model, options.mesh_vertices);
                        });
   report.viewer_points = subset.indices.size();
   report.viewer_subset =
@@ -73,23 +87,43 @@ InspectionReport run_inspection(const engine::PreparedModel& model,
   // inspection_seconds: statistics, subset, mesh, PLY and picture; the page and the JSON that
   // state it are written after (both show the same number).
   tbb::parallel_invoke(
-      [&] { write_deviation_ply(folder.path("deviations.ply"), deviations, scale); },
       [&] {
-        write_deviation_picture(folder.path("deviations.png"), deviations, mesh, report,
-                                options.picture);
+        if (!out.ply.empty()) write_deviation_ply(out.ply, deviations, scale);
+      },
+      [&] {
+        if (!out.png.empty())
+          write_deviation_picture(out.png, deviations, mesh, report, options.picture);
       });
   report.inspection_seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   stage.log("PLY and picture");
-  write_html_report(folder.path("report.html"), report, deviations, subset, mesh);
+  if (!out.html.empty()) write_html_report(out.html, report, deviations, subset, mesh);
   stage.log("report.html");
-  write_text(folder.path("inspect.json"), inspection_json(report));
-  write_text(folder.path("inspect_faces.csv"), faces_csv(report));
+  if (!out.json.empty()) write_text(out.json, inspection_json(report));
+  if (!out.csv.empty()) write_text(out.csv, faces_csv(report));
   stage.log("JSON and CSV");
   spdlog::debug("inspect: all outputs {:.3f} s (cpu {:.3f} s)",
                 std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(),
                 double(std::clock() - cpu_start) / CLOCKS_PER_SEC);
   return report;
+}
+
+io::AlignmentReport given_pose_alignment(const Eigen::Matrix4d& pose,
+                                         const PointDeviations& deviations,
+                                         std::size_t scan_points) {
+  io::AlignmentReport a;
+  a.pose = pose;
+  a.points = scan_points;
+  a.inliers = deviations.size();
+  a.skipped_points = deviations.skipped_nonfinite;
+  a.converged = true;
+  a.method = "none";
+  a.termination = "pose given (--pose): no alignment";
+  double sum_sq = 0.0;
+  for (const double d : deviations.signed_distance)
+    sum_sq += d * d;
+  a.rms = deviations.size() ? std::sqrt(sum_sq / double(deviations.size())) : NAN;
+  return a;
 }
 
 }  // namespace nurbsreg::inspect

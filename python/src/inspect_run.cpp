@@ -2,7 +2,6 @@
 
 #include <pybind11/numpy.h>
 #include <spdlog/fmt/fmt.h>
-#include <tbb/parallel_invoke.h>
 
 #include <chrono>
 #include <cmath>
@@ -12,12 +11,7 @@
 #include "alignment_frame.hpp"
 #include "bindings.hpp"
 #include "model_handle.hpp"
-#include "nurbsreg/inspect/deviation_ply.hpp"
-#include "nurbsreg/inspect/html_report.hpp"
 #include "nurbsreg/inspect/inspection.hpp"
-#include "nurbsreg/inspect/picture.hpp"
-#include "nurbsreg/inspect/tessellation.hpp"
-#include "nurbsreg/inspect/viewer_subset.hpp"
 #include "nurbsreg/io/alignment_result_report.hpp"
 #include "points_arg.hpp"
 #include "py_aligner.hpp"
@@ -79,44 +73,6 @@ std::vector<std::uint64_t> source_rows(std::size_t count, const std::vector<std:
     out[i] = file ? file[row] : row;
   }
   return out;
-}
-
-// The statistics and the files asked for, as run_inspection makes them, without a folder.
-void inspect_without_folder(const engine::PreparedModel& model, InspectionFrame& f,
-                            const inspect::InspectionOptions& options, const std::string& ply,
-                            const std::string& html, const std::string& png) {
-  const auto start = std::chrono::steady_clock::now();
-  inspect::InspectionReport& report = f.report;
-  report.scale = options.scale;
-  report.min_inside = options.min_inside;
-  report.picture_view = inspect::isometric_view().description;
-  report.stats = inspect::compute_statistics(f.deviations, model.model(), options.scale.band,
-                                             options.scale.lower_limit, options.scale.upper_limit,
-                                             options.histogram_bins);
-  inspect::ViewerSubset subset;
-  inspect::DisplayMesh mesh;
-  const bool needs_mesh = options.model_mesh && !(html.empty() && png.empty());
-  tbb::parallel_invoke(
-      [&] { subset = inspect::viewer_subset(f.deviations.points, options.viewer_points); },
-      [&] {
-        if (needs_mesh) mesh = inspect::tessellate(model, options.mesh_vertices);
-      });
-  report.viewer_points = subset.indices.size();
-  report.viewer_subset =
-      subset.cell == 0.0 ? "every point"
-                         : fmt::format("one point per {:.4g} {} grid cell, the first in scan order",
-                                       subset.cell, report.units);
-  tbb::parallel_invoke(
-      [&] {
-        if (!ply.empty()) inspect::write_deviation_ply(ply, f.deviations, options.scale);
-      },
-      [&] {
-        if (!png.empty())
-          inspect::write_deviation_picture(png, f.deviations, mesh, report, options.picture);
-      });
-  report.inspection_seconds =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  if (!html.empty()) inspect::write_html_report(html, report, f.deviations, subset, mesh);
 }
 
 }  // namespace
@@ -194,18 +150,7 @@ InspectionFramePtr run_inspect(PyAligner& aligner, const py::handle& scan_object
     });
     if (report.scan_points == 0) throw py::value_error("scan: no finite points to inspect");
     report.pose_given = true;
-    report.alignment.pose = T.matrix();
-    report.alignment.points = report.scan_points;
-    report.alignment.inliers = f->deviations.size();
-    report.alignment.skipped_points = f->deviations.skipped_nonfinite;
-    report.alignment.converged = true;
-    report.alignment.method = "none";
-    report.alignment.termination = "pose given (--pose): no alignment";
-    double sum_sq = 0.0;
-    for (const double d : f->deviations.signed_distance)
-      sum_sq += d * d;
-    report.alignment.rms =
-        f->deviations.size() ? std::sqrt(sum_sq / double(f->deviations.size())) : std::nan("");
+    report.alignment = inspect::given_pose_alignment(T.matrix(), f->deviations, report.scan_points);
     report.alignment.seconds = since_start();
   }
   report.alignment_seconds =
@@ -221,7 +166,12 @@ InspectionFramePtr run_inspect(PyAligner& aligner, const py::handle& scan_object
                                        *folder);
       folder->commit();
     } else {
-      inspect_without_folder(model->prepared(), *f, options, ply, html, png);
+      inspect::InspectionOutputs outputs;
+      outputs.ply = ply;
+      outputs.png = png;
+      outputs.html = html;
+      report = inspect::run_inspection(model->prepared(), f->deviations, std::move(report), options,
+                                       outputs);
     }
   });
   f->inspected = true;

@@ -6,6 +6,7 @@
 // not depend on the thread count.
 
 #include <cstddef>
+#include <string>
 
 #include "nurbsreg/engine/prepared_model.hpp"
 #include "nurbsreg/inspect/colour_map.hpp"
@@ -27,10 +28,28 @@ struct InspectionOptions {
   PictureOptions picture;
 };
 
+// Where run_inspection writes; an empty path is not written.
+struct InspectionOutputs {
+  std::string ply, png, html, json, csv;
+  // The five files of `nurbsreg inspect` in `folder` (CONTRACT.md §2 "Inspection").
+  static InspectionOutputs in(const OutputFolder& folder);
+};
+
 // `report` carries the alignment part (model and scan names, units, alignment, pose_given,
 // degeneracy, scan_points, alignment_seconds); the rest is filled in and returned.
 InspectionReport run_inspection(const engine::PreparedModel& model,
                                 const PointDeviations& deviations, InspectionReport report,
                                 const InspectionOptions& options, const OutputFolder& folder);
+// The same statistics, writing only the files `outputs` names (no mesh when neither the page nor
+// the picture is asked for).
+InspectionReport run_inspection(const engine::PreparedModel& model,
+                                const PointDeviations& deviations, InspectionReport report,
+                                const InspectionOptions& options, const InspectionOutputs& outputs);
+
+// The alignment part of a report for a pose given as final (`inspect --pose`): no alignment
+// ran; the rms is that of the deviations.
+io::AlignmentReport given_pose_alignment(const Eigen::Matrix4d& pose,
+                                         const PointDeviations& deviations,
+                                         std::size_t scan_points);
 
 }  // namespace nurbsreg::inspect
