@@ -15,7 +15,7 @@
 #include "support/server_process.hpp"
 
 // After Eigen (see serve_test.cpp): glibc's <resolv.h> defines a macro `_res`.
-#include <httplib.h>
+#include "support/loopback_client.hpp"
 
 namespace nurbsreg::test {
 namespace {
@@ -45,13 +45,7 @@ class ServeFrames : public ::testing::Test {
   }
   static std::string path(const std::string& name) { return *dir_ / name; }
   static std::string bytes(const std::string& name) { return read_text(path(name)); }
-  static std::unique_ptr<httplib::Client> client(int port) {
-    auto c = std::make_unique<httplib::Client>("127.0.0.1", port);
-    c->set_connection_timeout(10);
-    c->set_read_timeout(120);
-    c->set_write_timeout(60);
-    return c;
-  }
+  static std::unique_ptr<httplib::Client> client(int port) { return loopback_client(port); }
   // The answer without its timings (the only fields two runs of one frame may differ in): every
   // "seconds" and "*_seconds" field but the limit that was asked for.
   static Json without_seconds(Json j) {

@@ -17,7 +17,7 @@
 
 // After Eigen: glibc's <resolv.h>, which httplib includes, defines a macro `_res` that Eigen
 // uses as a parameter name.
-#include <httplib.h>
+#include "support/loopback_client.hpp"
 
 namespace nurbsreg::test {
 namespace {
@@ -53,13 +53,7 @@ class Serve : public ::testing::Test {
   static std::string path(const std::string& name) { return *dir_ / name; }
   static std::string bytes(const std::string& name) { return read_text(path(name)); }
 
-  static std::unique_ptr<httplib::Client> client(int port) {
-    auto c = std::make_unique<httplib::Client>("127.0.0.1", port);
-    c->set_connection_timeout(10);
-    c->set_read_timeout(120);
-    c->set_write_timeout(60);
-    return c;
-  }
+  static std::unique_ptr<httplib::Client> client(int port) { return loopback_client(port); }
   // The CLI's report for `scan` (`align --report`) with extra options.
   static Json cli_report(const std::string& scan, const std::string& options = "") {
     const std::string report = path("cli_report.json");
