@@ -15,6 +15,7 @@
 #include "coarse.hpp"
 #include "coarse_detail.hpp"
 #include "features.hpp"
+#include "model_symmetry.hpp"
 #include "nurbsreg/icp/icp.hpp"
 #include "point_grid.hpp"
 #include "verdict.hpp"
@@ -172,6 +173,7 @@ CoarseOutcome coarse_align(std::span<const Vec3> scan, const ModelFeatures& feat
   };
   const double cpu0 = process_cpu_seconds();
   features.descriptors();
+  features.symmetries();
   r.model_features_cpu_seconds = process_cpu_seconds() - cpu0;
   r.model_features_seconds = std::chrono::duration<double>(Clock::now() - start).count();
   lap("model features (once per model)");
@@ -292,6 +294,15 @@ CoarseOutcome coarse_align(std::span<const Vec3> scan, const ModelFeatures& feat
   }
   for (std::size_t i = 0; i < symmetries.size(); ++i)
     r.symmetry += (i ? "; " : "") + symmetries[i];
+  // The model's own turns: the sample consensus often finds only one of a symmetric part's
+  // equally good poses.
+  add_symmetric_alternatives(
+      r, features.symmetries(),
+      [&](const Eigen::Isometry3d& T) {
+        exact_distances(finder, T, sub, 3.0 * v, d);
+        return score_of(T, d, tolerance);
+      },
+      v, o);
   r.seconds = std::chrono::duration<double>(Clock::now() - start).count();
   return out;
 }

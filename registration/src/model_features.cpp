@@ -2,10 +2,17 @@
 
 #include <tbb/task_group.h>
 
+#include <spdlog/spdlog.h>
+
+#include <spdlog/spdlog.h>
+#include <chrono>
+
+#include <chrono>
 #include <cmath>
 #include <stdexcept>
 
 #include "features.hpp"
+#include "model_symmetry.hpp"
 #include "nurbsreg/engine/sampling.hpp"
 #include "point_grid.hpp"
 
@@ -69,6 +76,17 @@ ModelFeatures::descriptors() const {
     });
   });
   return descriptors_;
+}
+
+const std::vector<Eigen::Isometry3d>& ModelFeatures::symmetries() const {
+  std::call_once(symmetries_once_, [&] {
+    const auto start = std::chrono::steady_clock::now();
+    build_isolated(
+        [&] { symmetries_ = detail::find_model_symmetries(model_, keypoints(), voxel_); });
+    spdlog::debug("model symmetries: {} discrete turn(s) in {:.3f} s", symmetries_.size(),
+                  std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
+  });
+  return symmetries_;
 }
 
 }  // namespace nurbsreg::registration

@@ -5,6 +5,8 @@
 // part's symmetry.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+
 #include "global_support.hpp"
 
 namespace nurbsreg::registration {
@@ -75,6 +77,95 @@ TEST(Symmetry, ASurfaceOfRevolutionReportsItsAxis) {
   EXPECT_EQ(f.kind, icp::FreeDirection::Kind::rotation);
   EXPECT_GT(std::abs(f.direction.z()), 0.999);
   EXPECT_LT(Eigen::Vector2d(f.point.x(), f.point.y()).norm(), 0.05);
+}
+
+// The model's own turns (ModelFeatures::symmetries), checked against what each part is known
+// to be: the angles of the turns found, sorted.
+std::vector<double> turn_degrees(const ModelFeatures& features) {
+  std::vector<double> out;
+  for (const Isometry3d& S : features.symmetries())
+    out.push_back(Eigen::AngleAxisd(S.linear()).angle() * 180.0 / std::numbers::pi);
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+TEST(ModelSymmetry, TheSaddlesThreeHalfTurns) {
+  const engine::PreparedModel model(saddle());
+  const ModelFeatures features(model);
+  const std::vector<double> turns = turn_degrees(features);
+  ASSERT_EQ(turns.size(), 3u);
+  for (double t : turns)
+    EXPECT_NEAR(t, 180.0, 1e-6);
+  // About z through the origin, and about the lines y = x and y = -x in the plane z = 0: each
+  // maps every point of the saddle onto the saddle.
+  std::vector<Vec3> axes;
+  for (const Isometry3d& S : features.symmetries()) {
+    axes.push_back(Eigen::AngleAxisd(S.linear()).axis());
+    EXPECT_LT((S * Vec3::Zero()).norm(), 1e-6);
+  }
+  auto has_axis = [&](const Vec3& a) {
+    return std::any_of(axes.begin(), axes.end(),
+                       [&](const Vec3& x) { return std::abs(x.dot(a.normalized())) > 1 - 1e-9; });
+  };
+  EXPECT_TRUE(has_axis(Vec3(0, 0, 1)));
+  EXPECT_TRUE(has_axis(Vec3(1, 1, 0)));
+  EXPECT_TRUE(has_axis(Vec3(1, -1, 0)));
+}
+
+TEST(ModelSymmetry, NoneOnAPartWithoutOneAndNoDiscreteTurnOnASurfaceOfRevolution) {
+  EXPECT_TRUE(testing::part(testing::kPanel).features->symmetries().empty());
+  EXPECT_TRUE(testing::part(testing::kReal + "nist/nist_ctc_02_asme1_ap242-1.stp")
+                  .features->symmetries()
+                  .empty());
+  // Every turn about its axis fits: continuous, which the fine ICP reports, not a list of turns.
+  const engine::PreparedModel revolved(testing::revolved_part());
+  EXPECT_TRUE(ModelFeatures(revolved).symmetries().empty());
+}
+
+TEST(ModelSymmetry, ARealHexagonalPartsSixfoldAxis) {
+  // gmsh's t20 part: a hexagonal body about the y axis.
+  const std::vector<double> turns =
+      turn_degrees(*testing::part(testing::kReal + "gmsh/t20_data.step").features);
+  ASSERT_EQ(turns.size(), 5u);
+  const double expected[] = {60, 60, 120, 120, 180};  // angles of 60 .. 300 deg as [0, 180]
+  for (std::size_t i = 0; i < 5; ++i)
+    EXPECT_NEAR(turns[i], expected[i], 1e-6);
+  for (const Isometry3d& S :
+       testing::part(testing::kReal + "gmsh/t20_data.step").features->symmetries())
+    EXPECT_GT(std::abs(Eigen::AngleAxisd(S.linear()).axis().y()), 1 - 1e-9);
+}
+
+// A real assembly that a half turn about its vertical axis maps onto itself: from a random pose
+// with clutter, the sample consensus finds one of the two poses; the report must name the
+// other instead of returning one silently.
+TEST(ModelSymmetry, ASymmetricAssemblyReportsTheOtherPose) {
+  const testing::Part& p = testing::part(testing::kReal + "gmsh/as1-tu-203.stp");
+  const std::vector<double> turns = turn_degrees(*p.features);
+  ASSERT_EQ(turns.size(), 1u);
+  EXPECT_NEAR(turns[0], 180.0, 1e-6);
+  engine::SyntheticScanOptions o;
+  o.points = 20000;
+  o.noise_sigma = 1e-4 * p.size;
+  o.outlier_fraction = 0.15;
+  o.seed = 3;
+  o.T_scan_model = engine::pose_from_euler_degrees(130, -40, 75, Vec3(300, -120, 50));
+  const engine::SyntheticScan scan = engine::make_synthetic_scan(p.model->model(), o);
+  Aligner aligner(*p.model, icp::IcpOptions{}, {}, p.features);
+  const AlignmentResult r = aligner.align(scan.points);
+  ASSERT_TRUE(r.ok()) << *r.failure;
+  EXPECT_TRUE(r.fit.good);
+  ASSERT_TRUE(r.coarse);
+  ASSERT_EQ(r.coarse->alternatives.size(), 1u) << r.coarse->symmetry;
+  EXPECT_NE(
+      r.coarse->symmetry.find("rotation by 180.0 deg about (0.000, 0.000, 1.000) through (90, 75,"),
+      std::string::npos)
+      << r.coarse->symmetry;
+  // Both poses map the scan onto the model: the true one and its half turn.
+  const Isometry3d truth = scan.T_model_scan;
+  const testing::Errors direct = testing::pose_error(truth, r.icp.T_model_scan);
+  const testing::Errors turned =
+      testing::pose_error(p.features->symmetries().front() * truth, r.icp.T_model_scan);
+  EXPECT_LT(std::min(direct.degrees, turned.degrees), 0.05);
 }
 
 }  // namespace

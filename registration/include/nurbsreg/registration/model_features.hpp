@@ -13,6 +13,7 @@
 // data. Deterministic (fixed seed, results written by index).
 
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <cstdint>
 #include <memory>
 #include <mutex>
@@ -51,15 +52,20 @@ class ModelFeatures {
   const ModelKeypoints& keypoints() const;
   // Row i describes keypoints().points[i]; row-major float, 32 columns.
   const Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>& descriptors() const;
+  // The model's discrete rotational symmetries (model frame, identity excluded): turns that map
+  // the model onto itself, checked by exact distances (model_symmetry.hpp in src). A scan of a
+  // symmetric part fits as well in every pose S * T as in T; the coarse report lists them.
+  const std::vector<Eigen::Isometry3d>& symmetries() const;
 
  private:
   const engine::PreparedModel& model_;
   FeatureOptions options_;
   double area_ = 0.0;
   double voxel_ = 0.0;
-  mutable std::once_flag keypoints_once_, descriptors_once_;
+  mutable std::once_flag keypoints_once_, descriptors_once_, symmetries_once_;
   mutable ModelKeypoints keypoints_;
   mutable Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> descriptors_;
+  mutable std::vector<Eigen::Isometry3d> symmetries_;
 };
 
 }  // namespace nurbsreg::registration
