@@ -183,6 +183,13 @@ AlignmentResult Aligner::finish(std::span<const engine::Vec3> scan, AlignmentRes
                                 registration_.verdict);
   if (!frame.fit.good && !registration_.verdict.accept_poor) {
     frame.failure = frame.fit.reason;
+    // From a given pose the ICP runs as asked; without a robust kernel, outliers and clutter
+    // pull the pose off (the global path makes its fine ICP robust by itself).
+    if (!frame.coarse && used.kernel == icp::RobustKernel::none) {
+      *frame.failure +=
+          "; the ICP from the given pose used no robust kernel: if the scan has clutter, the "
+          "tukey kernel may fit it; if not, the starting pose may be too far off";
+    }
     if (const auto note = frame.sizes.failure_note()) *frame.failure += "; " + *note;
   }
   return frame;

@@ -38,6 +38,31 @@ TEST(FitVerdict, AWrongPoseFromAnInitIsPoorAndFails) {
   EXPECT_TRUE(a.ok());
 }
 
+// From a right starting pose with clutter, the ICP as given (no robust kernel) is pulled off
+// by the outliers: the failure says which option fits such a scan, and that option does.
+TEST(FitVerdict, APoorFitFromAnInitWithoutARobustKernelSaysWhichKernelFits) {
+  const testing::Part& p = part(testing::kReal + "gmsh/as1-tu-203.stp");
+  engine::SyntheticScanOptions o;
+  o.points = 50000;
+  o.noise_sigma = 1e-4 * p.size;
+  o.outlier_fraction = 0.15;
+  o.seed = 3;
+  o.T_scan_model = engine::pose_from_euler_degrees(130, -40, 75, Vec3(300, -120, 50));
+  const engine::SyntheticScan scan = engine::make_synthetic_scan(p.model->model(), o);
+  Aligner plain(*p.model, icp::IcpOptions{}, {}, p.features);
+  const AlignmentResult r = plain.align(scan.points, scan.T_model_scan);
+  EXPECT_FALSE(r.fit.good);
+  ASSERT_TRUE(r.failure.has_value());
+  EXPECT_NE(r.failure->find("no robust kernel"), std::string::npos) << *r.failure;
+  icp::IcpOptions tukey;
+  tukey.kernel = icp::RobustKernel::tukey;
+  Aligner robust(*p.model, tukey, {}, p.features);
+  const AlignmentResult t = robust.align(scan.points, scan.T_model_scan);
+  ASSERT_TRUE(t.ok()) << *t.failure;
+  EXPECT_TRUE(t.fit.good);
+  EXPECT_LT(testing::pose_error(scan.T_model_scan, t.icp.T_model_scan).degrees, 0.01);
+}
+
 TEST(FitVerdict, ARightPoseIsGoodWithItsNumbers) {
   const testing::Part& p = part(testing::kPanel);
   engine::SyntheticScanOptions o;
