@@ -41,14 +41,8 @@ TEST(FitVerdict, AWrongPoseFromAnInitIsPoorAndFails) {
 // From a right starting pose with clutter, the ICP as given (no robust kernel) is pulled off
 // by the outliers: the failure says which option fits such a scan, and that option does.
 TEST(FitVerdict, APoorFitFromAnInitWithoutARobustKernelSaysWhichKernelFits) {
-  const testing::Part& p = part(testing::kReal + "gmsh/as1-tu-203.stp");
-  engine::SyntheticScanOptions o;
-  o.points = 50000;
-  o.noise_sigma = 1e-4 * p.size;
-  o.outlier_fraction = 0.15;
-  o.seed = 3;
-  o.T_scan_model = engine::pose_from_euler_degrees(130, -40, 75, Vec3(300, -120, 50));
-  const engine::SyntheticScan scan = engine::make_synthetic_scan(p.model->model(), o);
+  const testing::Part& p = part(testing::kSymmetricAssembly);
+  const engine::SyntheticScan scan = testing::cluttered_assembly_scan(50000);
   Aligner plain(*p.model, icp::IcpOptions{}, {}, p.features);
   const AlignmentResult r = plain.align(scan.points, scan.T_model_scan);
   EXPECT_FALSE(r.fit.good);

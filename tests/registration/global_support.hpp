@@ -63,6 +63,20 @@ inline Errors pose_error(const Eigen::Isometry3d& truth, const Eigen::Isometry3d
   return {Eigen::AngleAxisd(e.linear()).angle() * 180.0 / std::numbers::pi, e.translation().norm()};
 }
 
+// gmsh's as1-tu-203 assembly (a half turn about its vertical axis maps it onto itself) scanned
+// from a far pose with 15% uniform outliers in the scan's box, noise 1e-4 of its size.
+inline const std::string kSymmetricAssembly = kReal + "gmsh/as1-tu-203.stp";
+inline engine::SyntheticScan cluttered_assembly_scan(std::size_t points) {
+  const Part& p = part(kSymmetricAssembly);
+  engine::SyntheticScanOptions o;
+  o.points = points;
+  o.noise_sigma = 1e-4 * p.size;
+  o.outlier_fraction = 0.15;
+  o.seed = 3;
+  o.T_scan_model = engine::pose_from_euler_degrees(130, -40, 75, engine::Vec3(300, -120, 50));
+  return engine::make_synthetic_scan(p.model->model(), o);
+}
+
 // A surface of revolution about the z axis: the quadratic Bezier profile (radius, height)
 // (20, 0), (34, 20), (14, 40) swept by the exact rational quadratic circle (nine control points,
 // weights 1 and sqrt(2)/2). Every rotation about z maps it onto itself, and no other motion

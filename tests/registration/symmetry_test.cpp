@@ -139,17 +139,11 @@ TEST(ModelSymmetry, ARealHexagonalPartsSixfoldAxis) {
 // with clutter, the sample consensus finds one of the two poses; the report must name the
 // other instead of returning one silently.
 TEST(ModelSymmetry, ASymmetricAssemblyReportsTheOtherPose) {
-  const testing::Part& p = testing::part(testing::kReal + "gmsh/as1-tu-203.stp");
+  const testing::Part& p = testing::part(testing::kSymmetricAssembly);
   const std::vector<double> turns = turn_degrees(*p.features);
   ASSERT_EQ(turns.size(), 1u);
   EXPECT_NEAR(turns[0], 180.0, 1e-6);
-  engine::SyntheticScanOptions o;
-  o.points = 20000;
-  o.noise_sigma = 1e-4 * p.size;
-  o.outlier_fraction = 0.15;
-  o.seed = 3;
-  o.T_scan_model = engine::pose_from_euler_degrees(130, -40, 75, Vec3(300, -120, 50));
-  const engine::SyntheticScan scan = engine::make_synthetic_scan(p.model->model(), o);
+  const engine::SyntheticScan scan = testing::cluttered_assembly_scan(20000);
   Aligner aligner(*p.model, icp::IcpOptions{}, {}, p.features);
   const AlignmentResult r = aligner.align(scan.points);
   ASSERT_TRUE(r.ok()) << *r.failure;
