@@ -104,11 +104,33 @@ AlignmentResult Aligner::align(std::span<const engine::Vec3> scan) {
   if (scan.size() < options().min_correspondences) {
     return align(scan, Eigen::Isometry3d::Identity());
   }
+  // Stage times for `-v` (wall and this process's CPU since the previous stage).
+  auto lap = [last = wall0, last_cpu = cpu0](const char* what) mutable {
+    const auto now = std::chrono::steady_clock::now();
+    const double cpu = detail::process_cpu_seconds();
+    spdlog::debug("align: {} in {:.3f} s ({:.3f} CPU s)", what,
+                  std::chrono::duration<double>(now - last).count(), cpu - last_cpu);
+    last = now;
+    last_cpu = cpu;
+  };
+  // The model's features are per model (built once, shared by batch and the service): their
+  // measuring of the surface area here, like their keypoints and descriptors in the coarse
+  // stage, is not the alignment's time.
+  const auto area_wall0 = std::chrono::steady_clock::now();
+  const double area_cpu0 = detail::process_cpu_seconds();
   const ModelFeatures& f = features();
+  const double area_seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - area_wall0).count();
+  const double area_cpu_seconds = detail::process_cpu_seconds() - area_cpu0;
+  lap("model area (once per model)");
   const double noise = detail::estimate_noise(scan, f.voxel(), g.seed);
+  lap("noise estimate");
   detail::CoarseOutcome coarse =
       detail::coarse_align(scan, f, g, noise, finder_, options().deadline);
+  lap("coarse stage");
   frame.coarse = std::move(coarse.report);
+  frame.coarse->model_features_seconds += area_seconds;
+  frame.coarse->model_features_cpu_seconds += area_cpu_seconds;
   if (coarse.failure) {
     frame.icp.T_model_scan = Eigen::Isometry3d::Identity();
     frame.icp.termination = coarse.timed_out ? icp::IcpTermination::time_limit
@@ -130,8 +152,21 @@ AlignmentResult Aligner::align(std::span<const engine::Vec3> scan) {
   if (g.robust_fine && !std::isfinite(fine.max_correspondence_distance)) {
     fine.max_correspondence_distance = g.fine_max_distance_voxels * f.voxel();
   }
+  // Only the last stage's passes touch every point: the coarse stage's pose is within a
+  // fraction of a voxel, so the fine ICP starts on a tenth of the scan, then two fifths, and
+  // stops on all points once its next step is predicted below g.fine_statistical_tolerance of
+  // the pose's own standard deviation (the deviations and the verdict then project every point
+  // once more, at the returned pose).
+  if (fine.coarse_sizes.empty() && fine.auto_coarse) {
+    for (const std::size_t m : {scan.size() / 10, scan.size() * 2 / 5}) {
+      if (m >= icp::kAutoCoarseMinPoints) fine.coarse_sizes.push_back(m);
+    }
+  }
+  fine.statistical_tolerance = std::max(fine.statistical_tolerance, g.fine_statistical_tolerance);
+  fine.predict_final_convergence = fine.predict_final_convergence || g.fine_predict_final;
   icp::IcpSolver fine_solver(fine);
   frame.icp = fine_solver.align(finder_, scan, frame.coarse->winner.T_model_scan);
+  lap("fine ICP");
   // A continuous symmetry (a surface of revolution, a plane patch) leaves the pose free along
   // it: the pose is one of infinitely many that fit, and the report says so.
   if (frame.icp.degeneracy.degenerate()) {
@@ -140,6 +175,7 @@ AlignmentResult Aligner::align(std::span<const engine::Vec3> scan) {
     symmetry = symmetry.empty() ? continuous : continuous + "; " + symmetry;
   }
   frame = finish(scan, std::move(frame), fine, noise);
+  lap("deviations and verdict");
   CoarseReport& c = *frame.coarse;
   c.alignment_seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count() -

@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <limits>
 #include <numbers>
 #include <random>
 
@@ -60,32 +61,49 @@ double between(double abs_cos) {
 // through the neighbours of q within `radius`, in the PCA frame `axes` (column 0: the normal):
 // a plane's residuals also hold the surface's curvature (r^4 k^2 / 8 at a radius r: on fillets
 // and holes it exceeds the noise and biased the estimate high, on flat parts it was right), a
-// quadric's only the noise. Divided by count - 6 (the fit takes six degrees of freedom). -1
-// when the fit is degenerate.
+// quadric's only the noise. Uniform outliers close to a thin part fall inside most
+// neighbourhoods (a plate's box is thin), so the fit is repeated four times on the points
+// within 2.5 standard deviations of the previous fit (Gaussian noise loses 1.2% of its points
+// and 8.9% of its variance to that cut, which is given back). Divided by count - 6 (the fit
+// takes six degrees of freedom). -1 when the fit is degenerate.
 double quadric_residual_variance(std::span<const Vec3> points, const PointGrid& grid, const Vec3& q,
                                  double radius, const Eigen::Matrix3d& axes) {
   using Vec6 = Eigen::Matrix<double, 6, 1>;
-  Eigen::Matrix<double, 6, 6> ata = Eigen::Matrix<double, 6, 6>::Zero();
-  Vec6 atb = Vec6::Zero();
-  double btb = 0.0;
-  int count = 0;
   const double inv = 1.0 / radius;  // unit-sized coordinates keep the normal equations balanced
-  grid.for_each_within(q, radius, [&](std::uint32_t j, double) {
-    const Vec3 local = axes.transpose() * ((points[j] - q) * inv);
-    const double x = local.y(), y = local.z(), h = local.x();
-    const Vec6 a(x * x, x * y, y * y, x, y, 1.0);
-    ata.selfadjointView<Eigen::Lower>().rankUpdate(a);
-    atb += a * h;
-    btb += h * h;
-    ++count;
-  });
-  if (count < 10) return -1.0;
-  const Eigen::LDLT<Eigen::Matrix<double, 6, 6>> ldlt(ata.selfadjointView<Eigen::Lower>());
-  if (ldlt.info() != Eigen::Success) return -1.0;
-  const Vec6 coef = ldlt.solve(atb);
-  if (!coef.allFinite()) return -1.0;
-  const double ssr = std::max(0.0, btb - coef.dot(atb));
-  return ssr / static_cast<double>(count - 6) * radius * radius;
+  Vec6 coef = Vec6::Zero();
+  double cut2 = std::numeric_limits<double>::infinity();  // squared residual bound (unit scale)
+  double variance = -1.0;
+  constexpr int kFits = 5;
+  for (int fit = 0; fit < kFits; ++fit) {
+    Eigen::Matrix<double, 6, 6> ata = Eigen::Matrix<double, 6, 6>::Zero();
+    Vec6 atb = Vec6::Zero();
+    double btb = 0.0;
+    int count = 0;
+    grid.for_each_within(q, radius, [&](std::uint32_t j, double) {
+      const Vec3 local = axes.transpose() * ((points[j] - q) * inv);
+      const double x = local.y(), y = local.z(), h = local.x();
+      const Vec6 a(x * x, x * y, y * y, x, y, 1.0);
+      if (fit > 0) {
+        const double r = h - a.dot(coef);
+        if (r * r > cut2) return;
+      }
+      ata.selfadjointView<Eigen::Lower>().rankUpdate(a);
+      atb += a * h;
+      btb += h * h;
+      ++count;
+    });
+    if (count < 10) return fit == 0 ? -1.0 : variance;
+    const Eigen::LDLT<Eigen::Matrix<double, 6, 6>> ldlt(ata.selfadjointView<Eigen::Lower>());
+    if (ldlt.info() != Eigen::Success) return fit == 0 ? -1.0 : variance;
+    const Vec6 next = ldlt.solve(atb);
+    if (!next.allFinite()) return fit == 0 ? -1.0 : variance;
+    coef = next;
+    const double unit_variance =
+        std::max(0.0, btb - coef.dot(atb)) / static_cast<double>(count - 6);
+    cut2 = 6.25 * unit_variance;
+    variance = unit_variance * radius * radius / (fit > 0 ? 0.91126 : 1.0);
+  }
+  return variance;
 }
 
 }  // namespace

@@ -11,6 +11,7 @@
 #include <chrono>
 #include <numeric>
 #include <random>
+#include <string_view>
 
 #include "coarse.hpp"
 #include "coarse_detail.hpp"
@@ -34,6 +35,12 @@ constexpr std::size_t kMinScanKeypoints = 12;
 constexpr std::size_t kGlancePoints = 300;
 constexpr double kGlanceRatio = 0.6;
 constexpr std::size_t kMaxVerified = 6;
+// The short ICPs' steps (iterations between the duplicate and rejection checks), and the
+// iterations before a clearly worse hypothesis may be rejected.
+constexpr int kVerifyStep = 4;
+constexpr int kRejectAfter = 8;
+// The second round's seed matches at most.
+constexpr std::size_t kMaxSeedsRetry = 20000;
 
 struct ScanKeypoints {
   std::vector<Vec3> points;
@@ -165,11 +172,13 @@ CoarseOutcome coarse_align(std::span<const Vec3> scan, const ModelFeatures& feat
   const FeatureOptions& fo = features.options();
 
   // 1. Features: the scan's keypoints and descriptors, the model's (built once, shared).
-  auto lap = [&, last = start](const char* what) mutable {
+  auto lap = [&, last = start, last_cpu = process_cpu_seconds()](const char* what) mutable {
     const auto now = Clock::now();
-    spdlog::debug("coarse: {} in {:.3f} s", what,
-                  std::chrono::duration<double>(now - last).count());
+    const double cpu = process_cpu_seconds();
+    spdlog::debug("coarse: {} in {:.3f} s ({:.3f} CPU s)", what,
+                  std::chrono::duration<double>(now - last).count(), cpu - last_cpu);
     last = now;
+    last_cpu = cpu;
   };
   const double cpu0 = process_cpu_seconds();
   features.descriptors();
@@ -210,12 +219,147 @@ CoarseOutcome coarse_align(std::span<const Vec3> scan, const ModelFeatures& feat
   rp.distinct_translation = 5.0 * v;
   rp.overlap_cell = v;
   rp.seed = o.seed;
-  const std::vector<Hypothesis> hypotheses =
-      ransac_hypotheses(keys.points, model_keys.points, matches, rp);
-  r.hypotheses = static_cast<int>(hypotheses.size());
-  lap("hypotheses");
-  if (past_deadline("after the sample consensus")) return out;
-  if (hypotheses.empty()) {
+
+  // 3. Verification: a short exact ICP from each hypothesis, exact distances, score.
+  const std::vector<Vec3> sub = verification_points(scan, o.verify_points, o.seed);
+  // The first look's points: every k-th of the verification subsample (itself a random
+  // subset in scan order, so a stride keeps it random and spread over the scan).
+  const std::size_t glance_stride = std::max<std::size_t>(1, sub.size() / kGlancePoints);
+  std::vector<Vec3> glance;
+  for (std::size_t i = 0; i < sub.size(); i += glance_stride)
+    glance.push_back(sub[i]);
+  icp::IcpOptions vo;
+  vo.max_correspondence_distance = 3.0 * v;
+  vo.kernel = icp::RobustKernel::tukey;
+  vo.auto_coarse = false;
+  vo.min_correspondences = 12;
+  vo.deadline = deadline;
+  const double tolerance = std::max(3.0 * noise, 0.02 * v);
+  const auto same_pose = [&](const Eigen::Isometry3d& a, const Eigen::Isometry3d& b) {
+    return rotation_between(a, b) < 2.0 * std::numbers::pi / 180.0 &&
+           (a.translation() - b.translation()).norm() < 1.0 * v;
+  };
+  const auto near_fraction = [](std::span<const double> d, double limit) {
+    const auto n = std::count_if(d.begin(), d.end(), [&](double x) { return x <= limit; });
+    return static_cast<double>(n) / static_cast<double>(std::max<std::size_t>(1, d.size()));
+  };
+  std::vector<double> d;
+  std::vector<PoseScore> scored;
+  // The glance points' fraction within the tolerance at each scored pose (the early rejection
+  // compares a running ICP with the best of these).
+  double best_quick = 0.0;
+  int total_hypotheses = 0;
+  // One round: sample consensus, a first look at every hypothesis, the short ICPs of the most
+  // promising, each scored. `iterations`: the short ICP's at most.
+  const auto search = [&](const RansacParams& params, int iterations) -> bool {
+    const std::vector<Hypothesis> hypotheses =
+        ransac_hypotheses(keys.points, model_keys.points, matches, params);
+    total_hypotheses += static_cast<int>(hypotheses.size());
+    lap("hypotheses");
+    if (past_deadline("after the sample consensus")) return false;
+    // 3a. A cheap first look: exact distances of a few points at each raw pose, within a voxel
+    // and a half (the sample consensus' accuracy). Only the hypotheses near the best of these go
+    // on to the short ICP, which costs as much as the rest of the stage per hypothesis.
+    std::vector<std::pair<double, std::size_t>> glanced;
+    for (std::size_t i = 0; i < hypotheses.size(); ++i) {
+      exact_distances(finder, hypotheses[i].T_model_scan, glance, 3.0 * v, d);
+      glanced.emplace_back(near_fraction(d, 1.5 * v), i);
+    }
+    std::stable_sort(glanced.begin(), glanced.end(),
+                     [](const auto& a, const auto& b) { return a.first > b.first; });
+    std::vector<std::pair<Hypothesis, double>> promising;
+    for (const auto& [near, i] : glanced) {
+      if (promising.size() >= kMaxVerified || near < kGlanceRatio * glanced.front().first) break;
+      promising.emplace_back(hypotheses[i], near);
+    }
+    lap("glance");
+    // 3b. The short ICPs, in steps of kVerifyStep iterations: one that comes onto a pose already
+    // scored converges there (it stops: a duplicate), and one that, after kRejectAfter
+    // iterations, puts less than half as many glance points within the tolerance as the best
+    // scored pose does is clearly worse (it stops: rejected). The rest run to convergence or to
+    // `iterations`, and are scored on the whole verification subsample.
+    for (const auto& [h, near] : promising) {
+      if (past_deadline(fmt::format("after verifying {} hypotheses", r.verified))) return false;
+      ++r.verified;
+      Eigen::Isometry3d T = h.T_model_scan;
+      const char* outcome = "max_iterations";
+      for (int done = 0; done < iterations;) {
+        // The first step is short: a duplicate is usually on its pose after two iterations.
+        vo.max_iterations = std::min(done == 0 ? 2 : kVerifyStep, iterations - done);
+        const icp::IcpResult res = icp::IcpSolver(vo).align(finder, sub, T);
+        if (res.termination == icp::IcpTermination::too_few_correspondences ||
+            res.termination == icp::IcpTermination::numerical_failure ||
+            res.termination == icp::IcpTermination::invalid_input) {
+          outcome = "failed";
+          break;
+        }
+        if (res.termination == icp::IcpTermination::time_limit) {
+          if (!past_deadline("while verifying hypotheses")) {
+            out.failure = "time limit exceeded in the global alignment while verifying hypotheses";
+            out.timed_out = true;
+          }
+          return false;
+        }
+        T = res.T_model_scan;
+        done += vo.max_iterations;
+        if (res.termination != icp::IcpTermination::max_iterations) {
+          outcome = "converged";
+          break;
+        }
+        if (std::any_of(scored.begin(), scored.end(),
+                        [&](const PoseScore& k) { return same_pose(k.T_model_scan, T); })) {
+          outcome = "duplicate";
+          break;
+        }
+        if (done >= kRejectAfter && best_quick > 0.0) {
+          exact_distances(finder, T, glance, 3.0 * v, d);
+          if (near_fraction(d, tolerance) < 0.5 * best_quick) {
+            outcome = "rejected";
+            break;
+          }
+        }
+      }
+      const bool dropped =
+          std::string_view(outcome) == "duplicate" || std::string_view(outcome) == "rejected";
+      if (!dropped) {
+        exact_distances(finder, T, sub, 3.0 * v, d);
+        scored.push_back(score_of(T, d, tolerance));
+        std::vector<double> quick;
+        for (std::size_t i = 0; i < sub.size(); i += glance_stride)
+          quick.push_back(d[i]);
+        best_quick = std::max(best_quick, near_fraction(quick, tolerance));
+      }
+      spdlog::debug("hypothesis support {} overlap {} glance {:.3f}: {}{}", h.support, h.overlap,
+                    near, outcome,
+                    dropped
+                        ? std::string()
+                        : fmt::format(", inliers {:.4f}, trimmed rms {:.4g}",
+                                      scored.back().inlier_fraction, scored.back().trimmed_rms));
+    }
+    return true;
+  };
+  if (!search(rp, o.verify_iterations)) return out;
+  const auto best_fraction = [&] {
+    double best = 0.0;
+    for (const PoseScore& s : scored)
+      best = std::max(best, s.inlier_fraction);
+    return best;
+  };
+  // A hard scan (a partial view of a part with large plane faces, many outliers): no verified
+  // pose fits. A second round draws from every match (more draws each, more hypotheses kept)
+  // and lets the short ICPs run longer; it costs time only where the first round failed.
+  if (best_fraction() < o.retry_inlier_fraction && !matches.empty()) {
+    spdlog::debug("coarse: best verified inlier fraction {:.3f}: a second, exhaustive round",
+                  best_fraction());
+    RansacParams wide = rp;
+    wide.seeds = static_cast<int>(std::min<std::size_t>(matches.size(), kMaxSeedsRetry));
+    wide.draws_per_seed = 2 * rp.draws_per_seed;
+    wide.keep = 4 * rp.keep;
+    wide.seed = rp.seed + 1;
+    if (!search(wide, 2 * o.verify_iterations)) return out;
+  }
+  r.hypotheses = total_hypotheses;
+  if (scored.empty()) {
     out.failure = fmt::format(
         "the global alignment found no pose: {} feature matches between {} scan and {} model "
         "keypoints gave no consistent triple; does the scan show this model? Give a starting "
@@ -223,64 +367,13 @@ CoarseOutcome coarse_align(std::span<const Vec3> scan, const ModelFeatures& feat
         matches.size(), keys.points.size(), model_keys.points.size());
     return out;
   }
-
-  // 3. Verification: a short exact ICP from each hypothesis, exact distances, score.
-  const std::vector<Vec3> sub = verification_points(scan, o.verify_points, o.seed);
-  icp::IcpOptions vo;
-  vo.max_iterations = o.verify_iterations;
-  vo.max_correspondence_distance = 3.0 * v;
-  vo.kernel = icp::RobustKernel::tukey;
-  vo.auto_coarse = false;
-  vo.min_correspondences = 12;
-  vo.deadline = deadline;
-  icp::IcpSolver solver(vo);
-  const double tolerance = std::max(3.0 * noise, 0.02 * v);
-  // 3a. A cheap first look: exact distances of a few points at each raw pose, within a voxel and
-  // a half (the sample consensus' accuracy). Only the hypotheses near the best of these go on to
-  // the short ICP, which costs as much as the rest of the stage per hypothesis.
-  std::vector<double> d;
-  const std::span<const Vec3> glance(sub.data(), std::min<std::size_t>(sub.size(), kGlancePoints));
-  std::vector<std::pair<double, std::size_t>> glanced;
-  for (std::size_t i = 0; i < hypotheses.size(); ++i) {
-    exact_distances(finder, hypotheses[i].T_model_scan, glance, 3.0 * v, d);
-    const double near = static_cast<double>(
-        std::count_if(d.begin(), d.end(), [&](double x) { return x <= 1.5 * v; }));
-    glanced.emplace_back(near / static_cast<double>(std::max<std::size_t>(1, d.size())), i);
-  }
-  std::stable_sort(glanced.begin(), glanced.end(),
-                   [](const auto& a, const auto& b) { return a.first > b.first; });
-  std::vector<Hypothesis> promising;
-  for (const auto& [near, i] : glanced) {
-    if (promising.size() >= kMaxVerified || near < kGlanceRatio * glanced.front().first) break;
-    promising.push_back(hypotheses[i]);
-  }
-  lap("glance");
-  std::vector<PoseScore> scored;
-  for (const Hypothesis& h : promising) {
-    if (past_deadline(
-            fmt::format("after verifying {} of {} hypotheses", scored.size(), promising.size()))) {
-      return out;
-    }
-    const icp::IcpResult res = solver.align(finder, sub, h.T_model_scan);
-    const bool usable = res.termination != icp::IcpTermination::too_few_correspondences &&
-                        res.termination != icp::IcpTermination::numerical_failure &&
-                        res.termination != icp::IcpTermination::invalid_input;
-    const Eigen::Isometry3d T = usable ? res.T_model_scan : h.T_model_scan;
-    exact_distances(finder, T, sub, 3.0 * v, d);
-    scored.push_back(score_of(T, d, tolerance));
-    spdlog::debug("hypothesis support {} overlap {}: inliers {:.4f}, trimmed rms {:.4g} ({})",
-                  h.support, h.overlap, scored.back().inlier_fraction, scored.back().trimmed_rms,
-                  icp::to_string(res.termination));
-  }
-  r.verified = static_cast<int>(scored.size());
   lap("verification");
   std::stable_sort(scored.begin(), scored.end(), better);
   // Poses that converged onto the same one are one pose.
   std::vector<PoseScore> distinct;
   for (const PoseScore& s : scored) {
     const bool seen = std::any_of(distinct.begin(), distinct.end(), [&](const PoseScore& k) {
-      return rotation_between(k.T_model_scan, s.T_model_scan) < 2.0 * std::numbers::pi / 180.0 &&
-             (k.T_model_scan.translation() - s.T_model_scan.translation()).norm() < 1.0 * v;
+      return same_pose(k.T_model_scan, s.T_model_scan);
     });
     if (!seen) distinct.push_back(s);
   }

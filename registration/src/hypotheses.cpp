@@ -67,6 +67,69 @@ std::size_t overlap_of(const Eigen::Isometry3d& T, std::span<const Vec3> probes,
   return n;
 }
 
+// The matches' points as float columns about their centroids (the scan's and the model's),
+// for the consistency test of one match against all others: the coarse stage's inner loop (a
+// seed against every match), written so that the compiler vectorises it. Float is ample: edge
+// lengths are compared within inlier_distance, a voxel or two.
+class MatchPoints {
+ public:
+  MatchPoints(std::span<const Vec3> scan, std::span<const Vec3> model,
+              std::span<const Match> matches) {
+    const std::size_t m = matches.size();
+    for (auto* v : {&sx_, &sy_, &sz_, &mx_, &my_, &mz_})
+      v->resize(m);
+    Vec3 cs = Vec3::Zero(), cm = Vec3::Zero();
+    for (const Match& k : matches) {
+      cs += scan[k.scan];
+      cm += model[k.model];
+    }
+    cs /= static_cast<double>(std::max<std::size_t>(m, 1));
+    cm /= static_cast<double>(std::max<std::size_t>(m, 1));
+    for (std::size_t k = 0; k < m; ++k) {
+      const Vec3 s = scan[matches[k].scan] - cs;
+      const Vec3 d = model[matches[k].model] - cm;
+      sx_[k] = static_cast<float>(s.x());
+      sy_[k] = static_cast<float>(s.y());
+      sz_[k] = static_cast<float>(s.z());
+      mx_[k] = static_cast<float>(d.x());
+      my_[k] = static_cast<float>(d.y());
+      mz_[k] = static_cast<float>(d.z());
+    }
+  }
+  // mask[b] = 1 when matches a and b keep their distance (RansacParams): edge length ls on the
+  // scan >= min_edge, |ls - lm| <= inlier_distance and min/max >= edge_similarity.
+  void consistent_with(std::uint32_t a, const RansacParams& p,
+                       std::vector<std::uint8_t>& mask) const {
+    const std::size_t m = sx_.size();
+    mask.resize(m);
+    const float ax = sx_[a], ay = sy_[a], az = sz_[a];
+    const float bx = mx_[a], by = my_[a], bz = mz_[a];
+    const float min_edge2 = static_cast<float>(p.min_edge * p.min_edge);
+    const float tol = static_cast<float>(p.inlier_distance);
+    const float sim = static_cast<float>(p.edge_similarity);
+    const float* sx = sx_.data();
+    const float* sy = sy_.data();
+    const float* sz = sz_.data();
+    const float* mx = mx_.data();
+    const float* my = my_.data();
+    const float* mz = mz_.data();
+    std::uint8_t* out = mask.data();
+    for (std::size_t b = 0; b < m; ++b) {
+      const float dx = sx[b] - ax, dy = sy[b] - ay, dz = sz[b] - az;
+      const float ex = mx[b] - bx, ey = my[b] - by, ez = mz[b] - bz;
+      const float ls2 = dx * dx + dy * dy + dz * dz;
+      const float lm2 = ex * ex + ey * ey + ez * ez;
+      const float ls = std::sqrt(ls2), lm = std::sqrt(lm2);
+      const bool ok = (ls2 >= min_edge2) & (std::abs(ls - lm) <= tol) &
+                      (std::min(ls, lm) >= sim * std::max(ls, lm));
+      out[b] = static_cast<std::uint8_t>(ok);
+    }
+  }
+
+ private:
+  std::vector<float> sx_, sy_, sz_, mx_, my_, mz_;
+};
+
 bool ranks_before(const Hypothesis& a, const Hypothesis& b) {
   return a.overlap != b.overlap ? a.overlap > b.overlap : a.support > b.support;
 }
@@ -156,6 +219,7 @@ std::vector<Hypothesis> ransac_hypotheses(std::span<const Vec3> scan, std::span<
     return ls >= p.min_edge && std::abs(ls - lm) <= p.inlier_distance &&
            std::min(ls, lm) >= p.edge_similarity * std::max(ls, lm);
   };
+  const MatchPoints points(scan, model, matches);
   std::vector<Vec3> probes;
   const std::size_t probe_step = std::max<std::size_t>(1, scan.size() / kOverlapProbes);
   for (std::size_t i = 0; i < scan.size(); i += probe_step)
@@ -166,12 +230,14 @@ std::vector<Hypothesis> ransac_hypotheses(std::span<const Vec3> scan, std::span<
   tbb::parallel_for(std::size_t{0}, chunks, [&](std::size_t chunk) {
     std::vector<Hypothesis>& best = chunk_best[chunk];
     std::vector<std::uint32_t> with_a;
+    std::vector<std::uint8_t> mask;
     for (std::size_t si = chunk; si < seeds.size(); si += chunks) {
       const std::uint32_t a = seeds[si];
       // The matches consistent with a: if a is right, every right match is among them.
+      points.consistent_with(a, p, mask);
       with_a.clear();
       for (std::uint32_t b = 0; b < m; ++b) {
-        if (b != a && compatible(a, b)) with_a.push_back(b);
+        if (mask[b] && b != a) with_a.push_back(b);
       }
       if (with_a.size() < 2) continue;
       std::mt19937_64 rng(p.seed * 0x9E3779B97F4A7C15ull + a);

@@ -30,6 +30,10 @@ struct GlobalOptions {
   // Scan points (a seeded subsample) for refining and scoring a hypothesis, and its iterations.
   std::size_t verify_points = 1500;
   int verify_iterations = 20;
+  // A best verified pose with fewer of the subsample's points within the tolerance than this
+  // (the verdict's min_inlier_fraction: it would be judged poor) starts a second round from
+  // every feature match, with more hypotheses and longer short ICPs.
+  double retry_inlier_fraction = 0.5;
   // A distinct refined pose whose inlier fraction is at least this fraction of the winner's
   // fits as well: reported as an alternative (a symmetry of the part) instead of dropped.
   double symmetry_ratio = 0.97;
@@ -37,6 +41,14 @@ struct GlobalOptions {
   // with the inliers' scale; and, when the maximum distance is unbounded, this many voxels.
   bool robust_fine = true;
   double fine_max_distance_voxels = 3.0;
+  // The fine ICP after the coarse stage stops on all points when its step (or, with
+  // fine_predict_final, its next step predicted from the contraction rate) is at most this many
+  // standard deviations of its own pose estimate (icp::IcpOptions::statistical_tolerance, whose
+  // default 0.1 costs one or two more passes over every point for a pose change far below its
+  // own uncertainty). Without a user's --coarse its stages are a tenth and two fifths of the
+  // scan, then all points.
+  double fine_statistical_tolerance = 0.5;
+  bool fine_predict_final = true;
   std::uint64_t seed = 1;
 };
 
@@ -90,8 +102,9 @@ struct CoarseReport {
   std::vector<PoseScore> alternatives;
   std::string symmetry;
   double seconds = 0.0;
-  // Of `seconds`: building the model's keypoints and descriptors, which a prepared model does
-  // once (0 when they were built before: `batch`, the service, a reused Aligner).
+  // Building the model's features (its surface area, keypoints and descriptors), which a
+  // prepared model does once (0 when they were built before: `batch`, the service, a reused
+  // Aligner); its keypoints and descriptors are part of `seconds`.
   double model_features_seconds = 0.0, model_features_cpu_seconds = 0.0;
   // The whole alignment from any pose (this stage, the fine ICP, the verdict) without the
   // model's features: wall seconds, and the process's CPU seconds over it (all its threads:
