@@ -19,6 +19,7 @@
 #include <thread>
 
 #include "admission.hpp"
+#include "connections.hpp"
 #include "http_error.hpp"
 #include "metrics.hpp"
 #include "models.hpp"
@@ -187,6 +188,9 @@ struct Service::Impl {
   detail::BoundedTaskQueue::Counters queue_counters;
   std::filesystem::path model_root;
   std::atomic<bool> stopping{false};
+  std::atomic<int> port{0};  // bound (bind())
+  // The requests being handled, by peer, so that stop() closes only idle connections.
+  detail::ConnectionTracker connections;
   std::atomic<bool> running{false};
 
   void set_up_routes();
@@ -665,6 +669,15 @@ void Service::Impl::set_up_routes() {
   s.set_keep_alive_max_count(static_cast<std::size_t>(options.keep_alive_requests));
   s.set_keep_alive_timeout(options.keep_alive_seconds);
   s.set_payload_max_length(options.max_body);
+  // A request is active from routing until its answer is written (the logger runs after the
+  // write): stop() closes the other connections at once (ConnectionTracker).
+  s.set_pre_routing_handler([this](const httplib::Request& req, httplib::Response&) {
+    connections.begin(req.remote_addr, req.remote_port);
+    return httplib::Server::HandlerResponse::Unhandled;
+  });
+  s.set_logger([this](const httplib::Request& req, const httplib::Response&) {
+    connections.end(req.remote_addr, req.remote_port);
+  });
   const int threads = options.connections;
   const std::size_t waiting =
       options.max_queue > 0 ? options.max_queue : static_cast<std::size_t>(threads);
@@ -783,6 +796,7 @@ int Service::bind() {
     throw std::runtime_error(o.bind + ":" + std::to_string(o.port) +
                              ": cannot listen (address in use or not available)");
   }
+  impl_->port = port;
   return port;
 }
 
@@ -795,6 +809,11 @@ void Service::run() {
 void Service::stop() {
   impl_->stopping = true;
   impl_->server.stop();
+  // No new connections from here; the idle keep-alive ones would hold run() up to --keep-alive.
+  if (impl_->port > 0) {
+    const std::size_t closed = impl_->connections.close_idle(impl_->port);
+    if (closed > 0) spdlog::info("closed {} idle connection(s)", closed);
+  }
 }
 
 }  // namespace nurbsreg::service

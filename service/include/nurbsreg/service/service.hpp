@@ -83,7 +83,9 @@ class Service {
   int bind();
   // Serves until stop(); returns after in-flight requests are answered.
   void run();
-  // Stops accepting; idempotent, thread-safe. Before run() it makes run() return at once.
+  // Stops accepting and closes the idle keep-alive connections at once (the requests being
+  // handled are answered, then their connections closed); idempotent, thread-safe. Before run()
+  // it makes run() return at once.
   void stop();
 
  private:
