@@ -1,6 +1,7 @@
 #include "nurbsreg/icp/certificate_atlas.hpp"
 
 #include <cmath>
+#include <cstdlib>
 
 namespace nurbsreg::icp {
 
@@ -24,15 +25,20 @@ void CertificateAtlas::reset(double cell) {
   hints_.clear();
 }
 
-std::uint64_t CertificateAtlas::key(const engine::Vec3& p) const {
+CertificateAtlas::Cell CertificateAtlas::cell_of(const engine::Vec3& p) const {
+  return {static_cast<std::int64_t>(std::floor(p.x() * inverse_cell_)),
+          static_cast<std::int64_t>(std::floor(p.y() * inverse_cell_)),
+          static_cast<std::int64_t>(std::floor(p.z() * inverse_cell_))};
+}
+
+std::uint64_t CertificateAtlas::key(const Cell& c) {
   // 21 bits per axis, offset so that every coordinate is positive; the top bit makes 0 unused.
   // Cells beyond +-2^20 of the origin wrap around: such a cell may share a key with another,
   // which costs a miss or a certificate that does not cover p (find checks), never a wrong answer.
-  const auto axis = [&](double x) {
-    const auto c = static_cast<std::int64_t>(std::floor(x * inverse_cell_)) + (1 << 20);
-    return static_cast<std::uint64_t>(c) & ((1u << 21) - 1);
+  const auto axis = [](std::int64_t x) {
+    return static_cast<std::uint64_t>(x + (1 << 20)) & ((1u << 21) - 1);
   };
-  return (1ULL << 63) | (axis(p.x()) << 42) | (axis(p.y()) << 21) | axis(p.z());
+  return (1ULL << 63) | (axis(c.x) << 42) | (axis(c.y) << 21) | axis(c.z);
 }
 
 void CertificateAtlas::grow() {
@@ -50,7 +56,7 @@ void CertificateAtlas::grow() {
 
 void CertificateAtlas::insert(const engine::ProjectionHint& hint) {
   if (!(hint.certificate.radius > 0.0) || slots_.empty()) return;
-  const std::uint64_t k = key(hint.certificate.anchor.cast<double>());
+  const std::uint64_t k = key(cell_of(hint.certificate.anchor.cast<double>()));
   std::size_t mask = slots_.size() - 1;
   std::size_t i = mix(k) & mask;
   while (slots_[i].key != 0 && slots_[i].key != k)
@@ -75,8 +81,8 @@ void CertificateAtlas::insert(const engine::ProjectionHint& hint) {
 }
 
 const engine::ProjectionHint* CertificateAtlas::find_in_cell(const engine::Vec3& p,
-                                                             const engine::Vec3& cell_point) const {
-  const std::uint64_t k = key(cell_point);
+                                                             const Cell& cell) const {
+  const std::uint64_t k = key(cell);
   const std::size_t mask = slots_.size() - 1;
   for (std::size_t i = mix(k) & mask; slots_[i].key != 0; i = (i + 1) & mask) {
     if (slots_[i].key != k) continue;
@@ -96,19 +102,26 @@ double slack(const engine::ProjectionHint& h, const engine::Vec3& p) {
 
 const engine::ProjectionHint* CertificateAtlas::find(const engine::Vec3& p) const {
   if (hints_.empty()) return nullptr;
-  const double side = 1.0 / inverse_cell_;
-  const engine::ProjectionHint* best = find_in_cell(p, p);
-  // Enough slack for any point within a cell of the surface: take it. Otherwise (p's cell is
-  // empty, or its anchor's foot is near a patch edge) the six face neighbours may do better; a
-  // surface sampled more sparsely than the cells also leaves some of its cells empty.
-  if (best != nullptr && slack(*best, p) >= side) return best;
-  for (int axis = 0; axis < 3; ++axis) {
-    for (const double sign : {-1.0, 1.0}) {
-      engine::Vec3 q = p;
-      q[axis] += sign * side;
-      const engine::ProjectionHint* h = find_in_cell(p, q);
-      if (h != nullptr && (best == nullptr || slack(*h, p) > slack(*best, p))) best = h;
+  // Enough slack for the query's own distance (about the scan's noise, far below half a cell):
+  // take it. Otherwise (p's cell is empty, or its anchor's foot is near a patch edge) the 26
+  // neighbours, nearest first (faces, edges, corners), until one leaves that much. Cells of half
+  // the radius cap hold about one anchor of a 10% subsample each, so many are empty: the own
+  // cell and its faces alone left half of a full scan's points without a certificate.
+  const double enough = 0.5 / inverse_cell_;
+  const Cell c = cell_of(p);
+  const engine::ProjectionHint* best = find_in_cell(p, c);
+  if (best != nullptr && slack(*best, p) >= enough) return best;
+  for (int ring = 1; ring <= 3; ++ring) {
+    for (int dx = -1; dx <= 1; ++dx) {
+      for (int dy = -1; dy <= 1; ++dy) {
+        for (int dz = -1; dz <= 1; ++dz) {
+          if (std::abs(dx) + std::abs(dy) + std::abs(dz) != ring) continue;
+          const engine::ProjectionHint* h = find_in_cell(p, {c.x + dx, c.y + dy, c.z + dz});
+          if (h != nullptr && (best == nullptr || slack(*h, p) > slack(*best, p))) best = h;
+        }
+      }
     }
+    if (best != nullptr && slack(*best, p) >= enough) return best;
   }
   return best;
 }

@@ -633,6 +633,7 @@ IcpResult IcpSolver::align(CorrespondenceFinder& finder, std::span<const Vec3> s
   // The system of the last completed iteration on all points (its correspondences are the
   // finder's last answer): the result's statistics, with no extra projection pass.
   std::optional<LinearSystem> final_system;
+  bool final_at_pose = false;  // final_system was found at T (its step not applied)
   Rejection final_kept;
   double final_sigma2 = 0.0;
   // Latest observed contraction rate of successive steps (|xi_s| ratio), for prediction.
@@ -658,6 +659,7 @@ IcpResult IcpSolver::align(CorrespondenceFinder& finder, std::span<const Vec3> s
         break;
       }
       final_system.reset();
+      final_at_pose = false;
       transform_points(T, scan, b, o.parallel);
       find_correspondences(finder, o.max_correspondence_distance, o.parallel, expected_motion, b);
       reject_outliers(o, b);
@@ -682,11 +684,9 @@ IcpResult IcpSolver::align(CorrespondenceFinder& finder, std::span<const Vec3> s
         message = "non-finite or empty normal equations";
         break;
       }
-      T = update_pose(T, step, sys.center);
       if (last_stage) {
         final_system = sys;
         final_kept = kept;
-        final_sigma2 = step.sigma2;
       }
       it.rotation_step = step.xi.head<3>().norm();
       it.translation_step = step.xi.tail<3>().norm();
@@ -699,6 +699,19 @@ IcpResult IcpSolver::align(CorrespondenceFinder& finder, std::span<const Vec3> s
       const bool converged = has_converged(o, tol, it, previous_rms);
       const bool predict = last_stage ? o.predict_final_convergence : o.predict_convergence;
       it.predicted = !converged && predict && predicted_converged(tol, rate, it);
+      // Converged on all points: the pose whose correspondences were just found is the result
+      // (the step computed there is below tolerance), so the statistics above describe it
+      // exactly and the finder's answers are its projections. Applying the step would move the
+      // pose by less than the tolerance and leave it without them (one more pass to evaluate).
+      // A coarse stage's step is applied (the next stage evaluates it anyway).
+      it.applied = !(last_stage && converged);
+      if (it.applied) {
+        T = update_pose(T, step, sys.center);
+        final_sigma2 = step.sigma2;
+      } else {
+        final_at_pose = true;
+        final_sigma2 = residual_variance(sys, sys.m.sum_wr2);
+      }
       it.seconds = seconds_since(t0);
       result.log.push_back(it);
       ++result.iterations;
@@ -723,7 +736,15 @@ IcpResult IcpSolver::align(CorrespondenceFinder& finder, std::span<const Vec3> s
   }
   result.T_model_scan = T;
 
+  // After max_iterations the last step was applied: evaluate the returned pose (below), as
+  // the caller would have to anyway. A predicted convergence (predict_final_convergence) or a
+  // time limit keeps the statistics of the pose before the last step, and says so
+  // (IcpResult::statistics_at_pose).
+  if (final_system && !final_at_pose && termination == IcpTermination::max_iterations) {
+    final_system.reset();
+  }
   if (final_system) {
+    result.statistics_at_pose = final_at_pose;
     result.inliers = final_kept.inliers;
     result.rms = final_kept.rms;
     if (final_system->m.sum_w > 0.0 && final_system->m.H.allFinite()) {
@@ -732,8 +753,9 @@ IcpResult IcpSolver::align(CorrespondenceFinder& finder, std::span<const Vec3> s
           analyse_degeneracy(final_system->m.H, final_system->center, L, o.degeneracy_threshold);
     }
   } else {
-    // No completed full-resolution step (a failure): evaluate at the returned pose on all
-    // points, so that the statistics describe it.
+    // No completed full-resolution step at the returned pose (a failure, or the last stage ran
+    // out of iterations): evaluate there on all points, so that the statistics describe it.
+    result.statistics_at_pose = true;
     select_points(scan.size(), scan.size(), 0, b.ids);
     b.resize(b.ids.size());
     transform_points(T, scan, b, o.parallel);

@@ -2,7 +2,10 @@
 
 #include "blocks.hpp"
 
+#include <spdlog/spdlog.h>
+
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 
 namespace nurbsreg::icp {
@@ -14,10 +17,11 @@ ModelCorrespondenceFinder::ModelCorrespondenceFinder(const engine::PreparedModel
   atlas_.reset(cell_side());
 }
 
-// Atlas cells of a quarter of the radius cap: any point of a cell is within 0.43 cap of an
-// anchor in the same cell, inside most certificates' radius.
+// Atlas cells of half the radius cap: any point of a cell is within 0.87 cap of an anchor in the
+// same cell, inside most certificates' radius, and a 10% subsample of a scan leaves about one
+// anchor per cell (quarter-cap cells left most of them empty: CertificateAtlas::find).
 double ModelCorrespondenceFinder::cell_side() const {
-  return certificate_radius_ > 0.0 ? 0.25 * certificate_radius_ : 1.0;
+  return certificate_radius_ > 0.0 ? 0.5 * certificate_radius_ : 1.0;
 }
 
 void ModelCorrespondenceFinder::reset(std::size_t scan_size) {
@@ -173,6 +177,7 @@ bool ModelCorrespondenceFinder::beyond_edge(std::size_t k, const engine::Vec3& p
 void ModelCorrespondenceFinder::find(const CorrespondenceQuery& query,
                                      std::span<Correspondence> out) {
   const std::size_t n = query.points.size();
+  const auto t0 = std::chrono::steady_clock::now();
   // Certificates are made on the coarse stages' subsamples once the solver expects small moves:
   // the full-resolution stage then borrows them for the points between (they prove about 95% of
   // its first pass). Making one costs about two cold projections, so at full resolution, where
@@ -181,6 +186,7 @@ void ModelCorrespondenceFinder::find(const CorrespondenceQuery& query,
   const bool certify = subsample && query.expected_motion < 0.5 * certificate_radius_;
   const bool repeats = repeats_previous_query(query);
   const HintSource source = prepare_hints(query, repeats);
+  const auto t1 = std::chrono::steady_clock::now();
   const engine::HintView hints(&source, n, &HintSource::at);
   engine::ProjectionOptions options;
   options.max_distance = query.max_distance;
@@ -199,6 +205,7 @@ void ModelCorrespondenceFinder::find(const CorrespondenceQuery& query,
   } else {
     projector_.project_serial(points, options, results_, hints, &counters_);
   }
+  const auto t2 = std::chrono::steady_clock::now();
   remember_query(query, repeats);
   detail::for_each_block(n, query.parallel, [&](std::size_t begin, std::size_t end, std::size_t) {
     for (std::size_t k = begin; k < end; ++k) {
@@ -221,6 +228,17 @@ void ModelCorrespondenceFinder::find(const CorrespondenceQuery& query,
       }
     }
   }
+  // Where a pass's time goes (`-v`): the hints (atlas lookups), the projection and its proofs.
+  const auto ms = [](auto a, auto b) {
+    return std::chrono::duration<double, std::milli>(b - a).count();
+  };
+  spdlog::debug(
+      "find {} points ({}{}): hints {:.1f} ms, projection {:.1f} ms, rest {:.1f} ms; certified {}, "
+      "reach {}, made {}, patches {}, newton {}, atlas {}",
+      n, repeats ? "repeat" : "new query", certify ? ", certify" : "", ms(t0, t1), ms(t1, t2),
+      ms(t2, std::chrono::steady_clock::now()), counters_.certified, counters_.reach_proven,
+      counters_.certificates_made, counters_.patches_visited, counters_.newton_iterations,
+      atlas_.size());
 }
 
 }  // namespace nurbsreg::icp

@@ -9,7 +9,9 @@
 namespace nurbsreg::io {
 
 ProjectedCloud project_cloud(engine::Projector& projector, const PointCloud& cloud,
-                             engine::ProjectionTarget target, const ProjectProgress& progress) {
+                             engine::ProjectionTarget target, const ProjectProgress& progress,
+                             std::size_t block_size) {
+  block_size = std::max<std::size_t>(1, block_size);
   ProjectedCloud out;
   out.target = target;
   engine::ProjectionOptions options;
@@ -21,8 +23,8 @@ ProjectedCloud project_cloud(engine::Projector& projector, const PointCloud& clo
   const auto seconds = [&] {
     return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   };
-  for (std::size_t begin = 0; begin < cloud.size(); begin += kProjectBlock) {
-    const std::size_t end = std::min(cloud.size(), begin + kProjectBlock);
+  for (std::size_t begin = 0; begin < cloud.size(); begin += block_size) {
+    const std::size_t end = std::min(cloud.size(), begin + block_size);
     const std::span<const engine::Vec3> part(cloud.points.data() + begin, end - begin);
     projector.project(engine::PointView::of(part), options, block);
     out.results.copy_from(block, begin);

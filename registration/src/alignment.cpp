@@ -195,15 +195,21 @@ AlignmentResult Aligner::finish(std::span<const engine::Vec3> scan, AlignmentRes
     throw std::invalid_argument("align: " + result.message);
   }
 
-  // Final per-point deviations at the solved pose (exact projections, warm-started).
+  // Final per-point deviations at the solved pose (exact projections, warm-started). ICP's last
+  // pass was there already when it says so and answered every point (no distance bound): its
+  // projections are these (the same points, T * p in scan order), so no second pass.
   std::vector<engine::Vec3>& aligned = frame.aligned;
   aligned.resize(scan.size());
   for (std::size_t i = 0; i < scan.size(); ++i)
     aligned[i] = result.T_model_scan * scan[i];
-  std::vector<icp::Correspondence> correspondences(scan.size());
-  icp::CorrespondenceQuery query;
-  query.points = aligned;
-  finder_.find(query, correspondences);
+  const bool reuse = result.statistics_at_pose && std::isinf(used.max_correspondence_distance) &&
+                     finder_.last_results().size() == scan.size();
+  if (!reuse) {
+    correspondences_.resize(scan.size());
+    icp::CorrespondenceQuery query;
+    query.points = aligned;
+    finder_.find(query, correspondences_);
+  }
   const engine::ProjectionResults& proj = finder_.last_results();
   const double max_distance = used.max_correspondence_distance;
   std::vector<double> inlier_distances;

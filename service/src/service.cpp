@@ -19,6 +19,7 @@
 #include <thread>
 
 #include "admission.hpp"
+#include "connections.hpp"
 #include "http_error.hpp"
 #include "metrics.hpp"
 #include "models.hpp"
@@ -43,6 +44,15 @@ using Clock = std::chrono::steady_clock;
 double seconds_since(Clock::time_point start) {
   return std::chrono::duration<double>(Clock::now() - start).count();
 }
+
+// Points projected between two checks of a /v1/project request's time limit: few enough that a
+// request stops soon after its limit, enough that a check (a clock read) costs nothing per block.
+constexpr std::size_t kProjectCheckBlock = 16384;
+
+// A /v1/project request stopped by its time limit: the 504 answer's JSON body.
+struct TimeLimitAnswer {
+  std::string body;
+};
 
 std::string fmt_seconds(double seconds) {
   std::ostringstream out;
@@ -178,6 +188,9 @@ struct Service::Impl {
   detail::BoundedTaskQueue::Counters queue_counters;
   std::filesystem::path model_root;
   std::atomic<bool> stopping{false};
+  std::atomic<int> port{0};  // bound (bind())
+  // The requests being handled, by peer, so that stop() closes only idle connections.
+  detail::ConnectionTracker connections;
   std::atomic<bool> running{false};
 
   void set_up_routes();
@@ -189,6 +202,15 @@ struct Service::Impl {
   void drain(const httplib::ContentReader& reader) const;
   detail::Metrics::Gauges gauges() const;
   Clock::time_point deadline_from(Clock::time_point start) const;
+  // The bound on a frame's computation: the server's `deadline` (from the request's start), or
+  // the request's own `time_limit` from now (its body is in) when that comes first.
+  static Clock::time_point work_deadline(Clock::time_point deadline,
+                                         const std::optional<double>& frame_limit);
+  // The request's `time_limit` (at most --time-limit), if it gives one.
+  std::optional<double> frame_limit_of(const httplib::Request& req) const;
+  // The 504 error's text: what `what` says, and the limit that stopped it.
+  std::string time_limit_error(const std::string& what,
+                               const std::optional<double>& frame_limit) const;
 
   // A frame admitted to computation: its in-flight slot (held until the answer is built) and
   // the point cloud of its body.
@@ -311,6 +333,25 @@ Clock::time_point Service::Impl::deadline_from(Clock::time_point start) const {
                      std::chrono::duration<double>(options.time_limit_seconds));
 }
 
+Clock::time_point Service::Impl::work_deadline(Clock::time_point deadline,
+                                               const std::optional<double>& frame_limit) {
+  if (!frame_limit) return deadline;
+  return std::min(deadline, Clock::now() + std::chrono::duration_cast<Clock::duration>(
+                                               std::chrono::duration<double>(*frame_limit)));
+}
+
+std::optional<double> Service::Impl::frame_limit_of(const httplib::Request& req) const {
+  const auto text = param(req, "time_limit");
+  if (!text) return std::nullopt;
+  return parse_time_limit(*text, options.time_limit_seconds);
+}
+
+std::string Service::Impl::time_limit_error(const std::string& what,
+                                            const std::optional<double>& frame_limit) const {
+  const double limit = frame_limit ? *frame_limit : options.time_limit_seconds;
+  return what + " (" + (frame_limit ? "time_limit " : "--time-limit ") + fmt_seconds(limit) + " s)";
+}
+
 Service::Impl::AdmittedFrame Service::Impl::admit_frame(const httplib::Request& req,
                                                         const httplib::ContentReader& reader,
                                                         Clock::time_point deadline,
@@ -409,19 +450,12 @@ void Service::Impl::align(const httplib::Request& req, httplib::Response& res,
   std::optional<std::string> session_id;
   if (const auto text = param(req, "session")) session_id = parse_session_id(*text);
   const bool with_distances = param(req, "distances").value_or("") == "true";
-  std::optional<double> frame_limit;
-  if (const auto text = param(req, "time_limit")) {
-    frame_limit = parse_time_limit(*text, options.time_limit_seconds);
-  }
+  const std::optional<double> frame_limit = frame_limit_of(req);
 
   const AdmittedFrame admitted = admit_frame(req, reader, deadline, consumed);
   const io::PointCloud& cloud = admitted.cloud;
   // The frame's own limit counts from here (its body is in); the server's from the start.
-  const Clock::time_point work_deadline =
-      frame_limit
-          ? std::min(deadline, Clock::now() + std::chrono::duration_cast<Clock::duration>(
-                                                  std::chrono::duration<double>(*frame_limit)))
-          : deadline;
+  const Clock::time_point work_deadline = Impl::work_deadline(deadline, frame_limit);
   if (cloud.size() == 0) {
     throw HttpError(400, cloud.total == 0
                              ? std::string("request body: the scan has no points")
@@ -503,10 +537,8 @@ void Service::Impl::align(const httplib::Request& req, httplib::Response& res,
   if (frame.icp.termination == icp::IcpTermination::time_limit) {
     // The request's time ran out mid-computation: 504, naming the limit (the report says how
     // far the work got); the pose is not a result.
-    const double limit = frame_limit ? *frame_limit : options.time_limit_seconds;
-    answer["error"] = *frame.failure + " (" + (frame_limit ? "time_limit " : "--time-limit ") +
-                      fmt_seconds(limit) + " s)";
-    answer["time_limit_seconds"] = limit;
+    answer["error"] = time_limit_error(*frame.failure, frame_limit);
+    answer["time_limit_seconds"] = frame_limit ? *frame_limit : options.time_limit_seconds;
     res.status = 504;
   } else if (frame.failure) {
     // No pose to use: the report says what happened; the status says it is not a result.
@@ -533,12 +565,42 @@ void Service::Impl::project(const httplib::Request& req, httplib::Response& res,
   if (target == engine::ProjectionTarget::curves && model->curves == 0) {
     throw HttpError(400, "model \"" + model->id + "\" has no curves; use target=surfaces");
   }
+  const std::optional<double> frame_limit = frame_limit_of(req);
   const AdmittedFrame admitted = admit_frame(req, reader, deadline, consumed);
   const io::PointCloud& cloud = admitted.cloud;
+  const Clock::time_point work_deadline = Impl::work_deadline(deadline, frame_limit);
 
-  std::unique_ptr<engine::Projector> projector = model->take_projector();
-  const io::ProjectedCloud projected = io::project_cloud(*projector, cloud, target);
-  model->give_back(std::move(projector));
+  // The time limit is checked between blocks of kProjectCheckBlock points (the rows do not
+  // depend on the block size): past it, the work stops with 504 at the next check.
+  struct Pooled {
+    detail::ServedModel& model;
+    std::unique_ptr<engine::Projector> projector;
+    ~Pooled() { model.give_back(std::move(projector)); }
+  } pooled{*model, model->take_projector()};
+  const auto check_time = [&](std::size_t done, std::size_t total, double) {
+    if (done < total && Clock::now() >= work_deadline) {
+      Json answer;
+      answer["error"] = time_limit_error("time limit exceeded after " + std::to_string(done) +
+                                             " of " + std::to_string(total) + " points",
+                                         frame_limit);
+      answer["time_limit_seconds"] = frame_limit ? *frame_limit : options.time_limit_seconds;
+      answer["points"] = total;
+      answer["projected_points"] = done;
+      throw TimeLimitAnswer{answer.dump(2) + "\n"};
+    }
+  };
+  io::ProjectedCloud projected;
+  try {
+    // A limit already past (a slow upload) stops before the first block.
+    check_time(0, std::max<std::size_t>(1, cloud.size()), 0.0);
+    projected = io::project_cloud(*pooled.projector, cloud, target, check_time, kProjectCheckBlock);
+  } catch (const TimeLimitAnswer& stopped) {
+    res.status = 504;
+    res.body = stopped.body;
+    res.set_header("Content-Type", "application/json");
+    points = cloud.size();
+    return;
+  }
   std::ostringstream csv;
   io::write_projection_csv(csv, projected.columns(cloud));
   res.status = 200;
@@ -607,6 +669,15 @@ void Service::Impl::set_up_routes() {
   s.set_keep_alive_max_count(static_cast<std::size_t>(options.keep_alive_requests));
   s.set_keep_alive_timeout(options.keep_alive_seconds);
   s.set_payload_max_length(options.max_body);
+  // A request is active from routing until its answer is written (the logger runs after the
+  // write): stop() closes the other connections at once (ConnectionTracker).
+  s.set_pre_routing_handler([this](const httplib::Request& req, httplib::Response&) {
+    connections.begin(req.remote_addr, req.remote_port);
+    return httplib::Server::HandlerResponse::Unhandled;
+  });
+  s.set_logger([this](const httplib::Request& req, const httplib::Response&) {
+    connections.end(req.remote_addr, req.remote_port);
+  });
   const int threads = options.connections;
   const std::size_t waiting =
       options.max_queue > 0 ? options.max_queue : static_cast<std::size_t>(threads);
@@ -725,6 +796,7 @@ int Service::bind() {
     throw std::runtime_error(o.bind + ":" + std::to_string(o.port) +
                              ": cannot listen (address in use or not available)");
   }
+  impl_->port = port;
   return port;
 }
 
@@ -737,6 +809,11 @@ void Service::run() {
 void Service::stop() {
   impl_->stopping = true;
   impl_->server.stop();
+  // No new connections from here; the idle keep-alive ones would hold run() up to --keep-alive.
+  if (impl_->port > 0) {
+    const std::size_t closed = impl_->connections.close_idle(impl_->port);
+    if (closed > 0) spdlog::info("closed {} idle connection(s)", closed);
+  }
 }
 
 }  // namespace nurbsreg::service

@@ -210,5 +210,52 @@ TEST_F(ServeFrames, TimeLimitStopsTheWorkWith504AndTheServiceStaysUp) {
   EXPECT_EQ(server.terminate(30), 0);
 }
 
+TEST_F(ServeFrames, TimeLimitStopsAProjectionWith504AndTheServiceStaysUp) {
+  ServerProcess server("--model " + kPanel + " --time-limit 30", path("log_project_limit.txt"));
+  ASSERT_GT(server.port(), 0);
+  auto c = client(server.port());
+  const std::string big = bytes("big.pcd");
+  // A limit that has passed before the first block (1 ns after the body is in), and one that
+  // passes during the projection (1 ms: a block of 60,000 cold projections takes longer; on a
+  // loaded machine it may also pass before the first block). Both stop at a block boundary.
+  for (const char* limit : {"1e-09", "0.001"}) {
+    const auto r =
+        c->Post((std::string("/v1/project?model=panel&time_limit=") + limit).c_str(), big, kPcd);
+    ASSERT_TRUE(r);
+    EXPECT_EQ(r->status, 504) << r->body;
+    EXPECT_EQ(r->get_header_value("Content-Type"), "application/json");
+    const Json j = Json::parse(r->body);
+    const std::string error = j.at("error");
+    EXPECT_NE(error.find("time limit exceeded after "), std::string::npos) << error;
+    EXPECT_NE(error.find(std::string("time_limit ") + limit + " s"), std::string::npos) << error;
+    EXPECT_EQ(j.at("points"), 60000);
+    const std::size_t done = j.at("projected_points");
+    EXPECT_LT(done, 60000u);
+    EXPECT_EQ(done % 16384, 0u);
+    if (std::string(limit) == "1e-09") {
+      EXPECT_EQ(done, 0u);
+    }
+  }
+  // The same body without a limit on the same connection: answered in full, as the CLI does.
+  const auto full = c->Post("/v1/project?model=panel", big, kPcd);
+  ASSERT_TRUE(full);
+  ASSERT_EQ(full->status, 200) << full->body.substr(0, 200);
+  const CommandResult r = run_nurbsreg("project --model " + kPanel + " --points " +
+                                           path("big.pcd") + " --out " + path("big_cli.csv"),
+                                       dir_->path());
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_TRUE(full->body == read_text(path("big_cli.csv")));
+  // A request may tighten the server's limit, not loosen it.
+  const auto looser = c->Post("/v1/project?model=panel&time_limit=31", big, kPcd);
+  ASSERT_TRUE(looser);
+  EXPECT_EQ(looser->status, 400);
+  const auto metrics = c->Get("/metrics");
+  ASSERT_TRUE(metrics);
+  EXPECT_NE(metrics->body.find("nurbsreg_requests_total{endpoint=\"project\",status=\"504\"} 2"),
+            std::string::npos)
+      << metrics->body;
+  EXPECT_EQ(server.terminate(30), 0);
+}
+
 }  // namespace
 }  // namespace nurbsreg::test

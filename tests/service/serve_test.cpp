@@ -411,5 +411,44 @@ TEST_F(Serve, SigtermAnswersTheRequestsInFlightAndExitsZero) {
     EXPECT_EQ(statuses[t], 200) << t;
 }
 
+TEST_F(Serve, SigtermClosesIdleKeepAliveConnectionsAtOnce) {
+  // Idle keep-alive connections would be kept 60 s: SIGTERM must not wait for them.
+  ServerProcess server("--model " + kPanel + " --keep-alive 60", path("log_idle.txt"));
+  ASSERT_GT(server.port(), 0);
+  std::vector<std::unique_ptr<httplib::Client>> idle;
+  for (int k = 0; k < 3; ++k) {
+    idle.push_back(client(server.port()));
+    idle.back()->set_keep_alive(true);
+    const auto r = idle.back()->Get("/healthz");
+    ASSERT_TRUE(r);
+    ASSERT_EQ(r->status, 200);
+  }
+  // One frame in flight beside them (its body read: nurbsreg_in_flight 1).
+  int status = -1;
+  std::thread busy([&] {
+    const auto r = client(server.port())->Post("/v1/align?model=panel", bytes("big.pcd"), kPcd);
+    if (r) status = r->status;
+  });
+  auto c = client(server.port());
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
+  while (std::chrono::steady_clock::now() < deadline) {
+    const auto m = c->Get("/metrics");
+    if (m && m->body.find("nurbsreg_in_flight 1\n") != std::string::npos) break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  const auto start = std::chrono::steady_clock::now();
+  const int exit_status = server.terminate(30);
+  const double seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  busy.join();
+  EXPECT_EQ(exit_status, 0);
+  EXPECT_EQ(status, 200);  // the frame in flight is answered
+  EXPECT_LT(seconds, 30.0);
+  // The idle connections were closed: a request on one finds no server.
+  const auto after = idle.front()->Get("/healthz");
+  EXPECT_FALSE(after);
+  EXPECT_NE(read_text(path("log_idle.txt")).find("idle connection(s)"), std::string::npos);
+}
+
 }  // namespace
 }  // namespace nurbsreg::test

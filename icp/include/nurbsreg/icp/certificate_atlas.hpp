@@ -25,16 +25,20 @@ class CertificateAtlas {
   void reset(double cell);
   // Adds a hint whose certificate has radius > 0 (others are ignored).
   void insert(const engine::ProjectionHint& hint);
-  // A hint kept for p's cell or one of its six face neighbours whose certificate covers p
-  // (|p - anchor| <= radius), else null: p's own cell's when it leaves at least one cell side of
-  // slack (clearance - |p - anchor|), otherwise the covering one with the most slack.
+  // A hint kept for p's cell or one of its 26 neighbours whose certificate covers p
+  // (|p - anchor| <= radius), else null: p's own cell's when it leaves at least half a cell side
+  // of slack (clearance - |p - anchor|), else the first ring of neighbours (faces, then edges,
+  // then corners) whose best covering one does, else the covering one with the most slack.
   const engine::ProjectionHint* find(const engine::Vec3& p) const;
   std::size_t size() const { return hints_.size(); }
 
  private:
-  std::uint64_t key(const engine::Vec3& p) const;
-  const engine::ProjectionHint* find_in_cell(const engine::Vec3& p,
-                                             const engine::Vec3& cell_point) const;
+  struct Cell {
+    std::int64_t x, y, z;
+  };
+  Cell cell_of(const engine::Vec3& p) const;
+  static std::uint64_t key(const Cell& c);
+  const engine::ProjectionHint* find_in_cell(const engine::Vec3& p, const Cell& cell) const;
   void grow();
   struct Slot {
     std::uint64_t key = 0;  // 0: empty (keys are never 0, see key())

@@ -8,7 +8,9 @@
 //   std::puts(r.brief_report().c_str());
 //
 // Per iteration (IcpSolver::align): transform -> correspond -> reject -> weight -> linearize
-// -> solve -> update -> check convergence. See icp.cpp for the equations.
+// -> solve -> check convergence -> update (on all points, a converged run's last step is not
+// applied: the result is the pose whose correspondences prove it converged, and whose statistics
+// the result gives). See icp.cpp for the equations.
 //
 // Degenerate scans (a plane, a sphere, a cylinder, ...): the solver works in the subspace of
 // rigid motions the scan constrains (eigen-decomposition of the scaled point-to-plane
@@ -118,11 +120,11 @@ struct IcpOptions {
   // one iteration per stage from the previous stage's converged pose instead of two. The rate
   // is only trusted when rho <= 0.5 (clearly contracting).
   bool predict_convergence = true;  // subsample stages: the next stage checks the result
-  // The same on the last stage (all points). Saves one full correspondence pass (about half
-  // the time of a coarse-to-fine run on a large scan), but the last increment is then not
-  // below tolerance itself: it is typically a few standard deviations of the pose (the
-  // correction from the last subsample to all points), and the result's statistics (rms,
-  // inliers, per-point results of the finder) describe the pose before it. Off by default.
+  // The same on the last stage (all points). Saves one full correspondence pass, but the last
+  // increment is then not below tolerance itself: it is typically a few standard deviations of
+  // the pose (the correction from the last subsample to all points), and the result's
+  // statistics (rms, inliers, per-point results of the finder) describe the pose before it
+  // (IcpResult::statistics_at_pose false). Off by default.
   bool predict_final_convergence = false;
   // Fewer inliers than this stops with too_few_correspondences (>= 3; 6 for a full 6-DoF
   // point-to-plane system).
@@ -166,6 +168,10 @@ struct IcpIteration {
   // infinity when the residuals are all 0.
   double step_sigmas = 0.0;
   bool predicted = false;  // converged by predict_convergence rather than by the step itself
+  // The step moved the pose. false only for the last iteration of a run that converged on all
+  // points: its step, computed at the returned pose, is the evidence of convergence (below
+  // tolerance) and is not applied, so that the result is the pose its statistics describe.
+  bool applied = true;
   double seconds = 0.0;
 };
 
@@ -175,11 +181,15 @@ struct IcpResult {
   std::string message;
   int iterations = 0;  // over all stages
   // Inliers: within max_correspondence_distance, kept by trimming and with robust weight > 0.
-  // inliers, rms, covariance, degeneracy (and a ModelCorrespondenceFinder's last_results())
-  // are those of the last correspondence step on all points, i.e. at the pose just before the
-  // last increment, which converged() says is below tolerance: evaluating them again at the
-  // returned pose would cost one more full projection pass and change nothing that matters.
-  // (When no full-resolution step was completed, they are evaluated at the returned pose.)
+  // inliers, rms, covariance, degeneracy are those of the last correspondence step, on all
+  // points in scan order, which was the finder's last find() (so a ModelCorrespondenceFinder's
+  // last_results() are its projections). With statistics_at_pose that step was at the returned
+  // pose: a converged run returns the pose of its last correspondences (the step computed there
+  // is below tolerance and not applied, IcpIteration::applied), a run that ran out of
+  // iterations or failed is evaluated at its returned pose once more. Otherwise (a convergence
+  // predicted by predict_final_convergence, a time limit) they describe the pose before the
+  // last increment.
+  bool statistics_at_pose = false;
   std::size_t inliers = 0;  // all points
   std::size_t points = 0;   // scan size
   double rms = 0.0;         // inlier point-to-surface RMS

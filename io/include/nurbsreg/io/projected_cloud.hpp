@@ -35,10 +35,14 @@ struct ProjectedCloud {
   ProjectionColumns columns(const PointCloud& cloud) const;
 };
 
-// Called after each block with the points done so far and the seconds spent.
+// Called after each block with the points done so far and the seconds spent. It may throw to
+// stop the work (a service's time limit): the exception propagates, nothing is returned.
 using ProjectProgress = std::function<void(std::size_t done, std::size_t total, double seconds)>;
 
+// `block`: points per block (> 0; the rows do not depend on it), i.e. how often `progress` is
+// called.
 ProjectedCloud project_cloud(engine::Projector& projector, const PointCloud& cloud,
-                             engine::ProjectionTarget target, const ProjectProgress& progress = {});
+                             engine::ProjectionTarget target, const ProjectProgress& progress = {},
+                             std::size_t block = kProjectBlock);
 
 }  // namespace nurbsreg::io

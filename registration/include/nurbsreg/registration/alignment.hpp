@@ -108,6 +108,8 @@ class Aligner {
   std::shared_ptr<const ModelFeatures> features_;
   icp::ModelCorrespondenceFinder finder_;
   icp::IcpSolver solver_;
+  // finish()'s correspondences when it projects itself (kept: no frame-sized allocation each).
+  std::vector<icp::Correspondence> correspondences_;
 };
 
 }  // namespace nurbsreg::registration

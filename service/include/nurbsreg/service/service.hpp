@@ -53,8 +53,9 @@ struct ServiceOptions {
   // POST /v1/models is refused.
   std::string model_root;
   // Per request, from its start: the body must arrive (408), a busy session free up (409) and
-  // the alignment finish (504: registration::AlignRequest::deadline stops the coarse stage and
-  // ICP) within this. A request's `time_limit` may tighten it for its computation.
+  // the alignment or projection finish (504: registration::AlignRequest::deadline stops the
+  // coarse stage and ICP, a projection stops between blocks) within this. A request's
+  // `time_limit` may tighten it for its computation.
   double time_limit_seconds = 30.0;
   double session_idle_seconds = 300.0;  // sessions unused this long expire
   std::size_t max_sessions = 64;
@@ -82,7 +83,9 @@ class Service {
   int bind();
   // Serves until stop(); returns after in-flight requests are answered.
   void run();
-  // Stops accepting; idempotent, thread-safe. Before run() it makes run() return at once.
+  // Stops accepting and closes the idle keep-alive connections at once (the requests being
+  // handled are answered, then their connections closed); idempotent, thread-safe. Before run()
+  // it makes run() return at once.
   void stop();
 
  private:
