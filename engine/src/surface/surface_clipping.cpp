@@ -14,10 +14,10 @@
 #include "nurbsreg/engine/surface_projection.hpp"
 #include "nurbsreg/engine/trim_region.hpp"
 #include "platform/cpu_dispatch.hpp"
+#include "surface/box_tests.hpp"
 #include "surface/coefficient_bounds.hpp"
 #include "surface/derivative_bounds.hpp"
 #include "surface/patch_newton.hpp"
-#include "surface/rational_box_test.hpp"
 #include "surface/start_minimisers.hpp"
 
 namespace nurbsreg::engine {

@@ -1,8 +1,8 @@
 #pragma once
-// Internal: the clipping's convexity and monotone-edge tests on a box of a rational patch, and
-// the monotone-edge test alone for a polynomial one, computed in vector lanes (see
-// rational_box_test). Included by the clipping only: the AVX2 and baseline versions of
-// rational_box_test are dispatched where both are visible (function multiversioning).
+// Internal: the clipping's tests on a box, computed in vector lanes: convexity and the monotone
+// edge for a rational patch (rational_box_test), convexity (convex_polynomial) and the monotone
+// edge alone for a polynomial one. Included by the clipping only: the AVX2 and baseline
+// versions are dispatched where both are visible (function multiversioning).
 
 #include <algorithm>
 #include <cstring>
@@ -42,15 +42,20 @@ struct RunningRange {
     rest_lo = std::min(rest_lo, x);
     rest_hi = std::max(rest_hi, x);
   }
-  // derivative_ranges' scaling: k times the range, {0, 0} when no value came in.
-  Iv scaled(double k) const {
+  // The range of the values so far ({inf, -inf} when none).
+  Iv range() const {
     double l = rest_lo, h = rest_hi;
     for (int i = 0; i < W; ++i) {
       l = std::min(l, lo[i]);
       h = std::max(h, hi[i]);
     }
-    if (l > h) return {0.0, 0.0};
-    return {k * l, k * h};
+    return {l, h};
+  }
+  // derivative_ranges' scaling: k times the range, {0, 0} when no value came in.
+  Iv scaled(double k) const {
+    const Iv r = range();
+    if (r.lo > r.hi) return {0.0, 0.0};
+    return {k * r.lo, k * r.hi};
   }
 };
 
@@ -196,6 +201,48 @@ template <int W>
   f.t = both_ends<W>(g[0], g[1], double(q),
                      [&](const double* a, R& r) { fold_t<W>(a, rows, cols, r); });
   return monotone_edge(f);
+}
+
+// convex(second_derivative_ranges(a, rows, cols)) for a polynomial F (D == 1): the bicubic and
+// biquadratic grids take second_derivative_ranges' unrolled code, any other grid the same
+// differences in W-wide lanes, with its exits (a row that brings min F_ss or min F_tt to zero
+// or below fails the test) and the same ranges when it gets to the end.
+template <int W>
+[[gnu::always_inline]] inline bool convex_polynomial_lanes(const double* a, int rows, int cols) {
+  FDerivatives f{};
+  if (rows < 3 || cols < 3) return false;  // F_ss or F_tt identically zero
+  if ((rows == 7 || rows == 5) && (cols == 7 || cols == 5)) {
+    return second_derivative_ranges(a, rows, cols, f) && convex(f);
+  }
+  RunningRange<W> ss, tt, st;
+  for (int i = 0; i + 2 < rows; ++i) {
+    fold_ss<W>(a + i * cols, 3, cols, ss);
+    if (!(ss.range().lo > 0.0)) return false;
+  }
+  for (int i = 0; i < rows; ++i) {
+    fold_tt<W>(a + i * cols, 1, cols, tt);
+    if (!(tt.range().lo > 0.0)) return false;
+  }
+  fold_st<W>(a, rows, cols, st);
+  const Iv ss_range = ss.range(), tt_range = tt.range(), st_range = st.range();
+  // The same scaling as derivative_ranges.
+  const int m = rows - 1, n = cols - 1;
+  const double ks = double(m) * (m - 1), kt = double(n) * (n - 1), kst = double(m) * n;
+  f.ss = {ks * ss_range.lo, ks * ss_range.hi};
+  f.tt = {kt * tt_range.lo, kt * tt_range.hi};
+  f.st = {kst * st_range.lo, kst * st_range.hi};
+  return convex(f);
+}
+
+#if NURBSREG_HOT_VERSIONS
+NURBSREG_TARGET_V3
+[[maybe_unused]] bool convex_polynomial(const double* a, int rows, int cols) {
+  return convex_polynomial_lanes<4>(a, rows, cols);
+}
+NURBSREG_TARGET_DEFAULT
+#endif
+[[maybe_unused]] bool convex_polynomial(const double* a, int rows, int cols) {
+  return convex_polynomial_lanes<kLanes>(a, rows, cols);
 }
 
 #if NURBSREG_HOT_VERSIONS
