@@ -21,6 +21,7 @@
 #include <cstdio>
 #include <cstring>
 #include <ctime>
+#include <optional>
 #include <random>
 #include <string>
 #include <utility>
@@ -103,7 +104,10 @@ int main(int argc, char** argv) {
   const double load_s = cpu_seconds() - c;
   c = cpu_seconds();
   const auto wall = std::chrono::steady_clock::now();
-  const engine::PreparedModel prepared(model);
+  // Inside the arena: the preparation's parallel parts run on --threads threads too.
+  std::optional<engine::PreparedModel> prepared_storage;
+  arena.execute([&] { prepared_storage.emplace(model); });
+  const engine::PreparedModel& prepared = *prepared_storage;
   const double prepare_s = cpu_seconds() - c;
   const double prepare_wall =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - wall).count();

@@ -27,6 +27,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <optional>
 #include <random>
 #include <string>
 #include <vector>
@@ -184,8 +185,12 @@ Row run_model(const ModelFile& file, const Options& opt, const std::string& cach
     row.error = "no surfaces";
     return row;
   }
+  // On --threads threads (the regions and trim edges are built a task per face).
+  tbb::task_arena arena(opt.threads);
   double t = now();
-  const engine::PreparedModel prepared(model);
+  std::optional<engine::PreparedModel> prepared_storage;
+  arena.execute([&] { prepared_storage.emplace(model); });
+  const engine::PreparedModel& prepared = *prepared_storage;
   row.prepare_s = now() - t;
   t = now();
   const engine::ModelBounds& bounds = prepared.geometry_bounds();
@@ -221,7 +226,6 @@ Row run_model(const ModelFile& file, const Options& opt, const std::string& cach
       mixed.push_back(lo + Vec3(u(rng) * extent.x(), u(rng) * extent.y(), u(rng) * extent.z()));
   }
 
-  tbb::task_arena arena(opt.threads);
   engine::ProjectionResults out;
   engine::ProjectionCounters near_counters, mixed_counters;
   double near_s = INFINITY, mixed_s = INFINITY, near_cpu = INFINITY, mixed_cpu = INFINITY;

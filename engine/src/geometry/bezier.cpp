@@ -2,6 +2,7 @@
 
 #include "bernstein/de_casteljau.hpp"
 
+#include <algorithm>
 #include <cassert>
 
 namespace nurbsreg::engine {
@@ -9,10 +10,10 @@ namespace {
 
 constexpr int kMaxBernstein = 2 * kMaxDegree;
 
-// d[k][i] = d^k/dt^k B_i^n(t), k = 0..2, i = 0..n.
-void bernstein_derivatives(int n, double t, double (*d)[kMaxDegree + 1]) {
+// d[k][i] = d^k/dt^k B_i^n(t), k = 0..order (order <= 2), i = 0..n.
+void bernstein_derivatives(int n, double t, double (*d)[kMaxDegree + 1], int order = 2) {
   double lower[kMaxDegree + 1];
-  for (int k = 0; k <= 2; ++k) {
+  for (int k = 0; k <= order; ++k) {
     for (int i = 0; i <= n; ++i)
       d[k][i] = 0.0;
   }
@@ -23,7 +24,7 @@ void bernstein_derivatives(int n, double t, double (*d)[kMaxDegree + 1]) {
       d[1][i] = n * ((i >= 1 ? lower[i - 1] : 0.0) - (i <= n - 1 ? lower[i] : 0.0));
     }
   }
-  if (n >= 2) {
+  if (n >= 2 && order >= 2) {
     bernstein(n - 2, t, lower);
     for (int i = 0; i <= n; ++i) {
       const double a = i >= 2 ? lower[i - 2] : 0.0;
@@ -75,7 +76,7 @@ Vec3 BezierCurve::evaluate(double t) const {
 
 void BezierCurve::derivatives(double t, int order, Vec3* derivs) const {
   double b[3][kMaxDegree + 1];
-  bernstein_derivatives(degree, t, b);
+  bernstein_derivatives(degree, t, b, std::min(order, 2));
   Vec4 a[3] = {Vec4::Zero(), Vec4::Zero(), Vec4::Zero()};
   for (int k = 0; k <= order; ++k) {
     a[k].setZero();

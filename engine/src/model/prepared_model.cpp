@@ -7,6 +7,7 @@
 #include <atomic>
 #include <cmath>
 #include <exception>
+#include <iterator>
 #include <limits>
 #include <stdexcept>
 
@@ -272,17 +273,46 @@ PreparedModel::PreparedModel(Model model)
     }
     item_oriented_.push_back(ob);
   }
-  for (std::size_t s = 0; s < model_.surfaces.size(); ++s) {
-    const NurbsSurface& surface = model_.surfaces[s];
-    if (!surface.is_trimmed()) continue;
-    for (const TrimEdge& edge : trim_edges(surface)) {
-      for (const BezierCurve& piece : decompose(edge.edge)) {
-        edge_pieces_.push_back(prepare_curve_piece(piece));
-        edge_piece_info_.push_back({static_cast<int>(s), edge.loop, edge.curve});
-        item_boxes_.push_back(bounding_box(piece));
-        item_spheres_.push_back(bounding_sphere(piece));
-        bounds_.extend(item_boxes_.back());
-      }
+  // The trim-edge pieces, a task per trimmed surface (each from its own surface alone), then
+  // appended in surface order: the same items for any number of threads.
+  struct SurfaceEdges {
+    std::vector<PreparedCurvePiece> pieces;
+    std::vector<EdgePiece> info;
+    std::vector<Aabb> boxes;
+    std::vector<BoundingSphere> spheres;
+  };
+  std::vector<SurfaceEdges> edges(trimmed.size());
+  std::vector<std::exception_ptr> edge_errors(trimmed.size());
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, trimmed.size()),
+                    [&](const tbb::blocked_range<std::size_t>& r) {
+                      for (std::size_t k = r.begin(); k != r.end(); ++k) {
+                        try {
+                          const std::size_t s = trimmed[k];
+                          SurfaceEdges& e = edges[k];
+                          for (const TrimEdge& edge : trim_edges(model_.surfaces[s])) {
+                            for (const BezierCurve& piece : decompose(edge.edge)) {
+                              e.pieces.push_back(prepare_curve_piece(piece));
+                              e.info.push_back({static_cast<int>(s), edge.loop, edge.curve});
+                              e.boxes.push_back(bounding_box(piece));
+                              e.spheres.push_back(bounding_sphere(piece));
+                            }
+                          }
+                        } catch (...) {
+                          edge_errors[k] = std::current_exception();
+                        }
+                      }
+                    });
+  for (const std::exception_ptr& e : edge_errors) {
+    if (e) std::rethrow_exception(e);
+  }
+  for (SurfaceEdges& e : edges) {
+    edge_pieces_.insert(edge_pieces_.end(), std::make_move_iterator(e.pieces.begin()),
+                        std::make_move_iterator(e.pieces.end()));
+    edge_piece_info_.insert(edge_piece_info_.end(), e.info.begin(), e.info.end());
+    item_spheres_.insert(item_spheres_.end(), e.spheres.begin(), e.spheres.end());
+    for (const Aabb& box : e.boxes) {
+      item_boxes_.push_back(box);
+      bounds_.extend(box);
     }
   }
   for (std::size_t c = 0; c < model_.curves.size(); ++c) {

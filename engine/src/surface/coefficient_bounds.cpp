@@ -44,20 +44,24 @@ CoefficientRange coefficient_range(const double* n, const double* d, int count, 
 
 NURBSREG_HOT_CLONES
 int boundary_edge(const double* f, int rows, int cols) {
+  // The edge's own row (column) is skipped (x < x is false, also for NaN), and the others are
+  // compared nearest first: where the test fails, F usually falls just inside the edge. The
+  // order of the comparisons does not change the answer.
   auto row_below = [&](int r) {
     const double* edge = f + r * cols;
-    for (int i = 0; i < rows; ++i) {
+    for (int k = 1; k < rows; ++k) {
+      const double* row = f + (r == 0 ? k : rows - 1 - k) * cols;
       for (int j = 0; j < cols; ++j) {
-        if (f[i * cols + j] < edge[j]) return false;
+        if (row[j] < edge[j]) return false;
       }
     }
     return true;
   };
   auto col_below = [&](int c) {
-    for (int i = 0; i < rows; ++i) {
-      const double edge = f[i * cols + c];
-      for (int j = 0; j < cols; ++j) {
-        if (f[i * cols + j] < edge) return false;
+    for (int k = 1; k < cols; ++k) {
+      const int j = c == 0 ? k : cols - 1 - k;
+      for (int i = 0; i < rows; ++i) {
+        if (f[i * cols + j] < f[i * cols + c]) return false;
       }
     }
     return true;

@@ -5,12 +5,6 @@
 namespace nurbsreg::engine {
 
 NURBSREG_HOT_CLONES
-bool convex_polynomial(const double* a, int rows, int cols) {
-  FDerivatives f{};
-  return second_derivative_ranges(a, rows, cols, f) && convex(f);
-}
-
-NURBSREG_HOT_CLONES
 double grid_convexity_radius(const double* n, int rows, int cols, double e_ss, double e_tt,
                              double e_st, double r_max) {
   // F's second-derivative ranges on the box (the clipping's own bounds), then `convex` on them

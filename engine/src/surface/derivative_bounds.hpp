@@ -267,11 +267,7 @@ template <int R, int C>
 
 }  // namespace
 
-// Polynomial F (D == 1) only: the termination test of `convex` on F's own second derivatives,
-// with an exit as soon as a bound shows it fails. Same result as convex(f_derivatives(...)) for a
-// polynomial patch; the first-derivative ranges are not needed there (monotone_edge is used for
-// rational patches only).
-bool convex_polynomial(const double* a, int rows, int cols);
+// (convex_polynomial, the clipping's test on F's own second derivatives: surface/box_tests.hpp.)
 
 // The largest r <= r_max (bisection, rounded down) such that the convexity test holds on the
 // coefficient grid `n` (F_a on some box) for every q with |q - a| <= r, given bounds on the norms

@@ -172,6 +172,9 @@ template <int W>
   if (p == 2 && q == 2) return patch_derivatives_fixed<2, 2, W>(patch, s, t, out);
   if (p == 2 && q == 3) return patch_derivatives_fixed<2, 3, W>(patch, s, t, out);
   if (p == 3 && q == 2) return patch_derivatives_fixed<3, 2, W>(patch, s, t, out);
+  // Lofted sheets (blades, hulls): cubic across, degree 8 along the span.
+  if (p == 3 && q == 8) return patch_derivatives_fixed<3, 8, W>(patch, s, t, out);
+  if (p == 8 && q == 3) return patch_derivatives_fixed<8, 3, W>(patch, s, t, out);
   double bu[3][kMaxDegree + 1], bv[3][kMaxDegree + 1];
   bernstein_012(p, s, bu[0], bu[1], bu[2]);
   bernstein_012(q, t, bv[0], bv[1], bv[2]);
@@ -237,6 +240,8 @@ bool patch_first_derivatives(const BezierPatch& patch, double s, double t, Vec3*
   if (p == 2 && q == 2) return patch_first_derivatives_fixed<2, 2>(patch, s, t, out), true;
   if (p == 2 && q == 3) return patch_first_derivatives_fixed<2, 3>(patch, s, t, out), true;
   if (p == 3 && q == 2) return patch_first_derivatives_fixed<3, 2>(patch, s, t, out), true;
+  if (p == 3 && q == 8) return patch_first_derivatives_fixed<3, 8>(patch, s, t, out), true;
+  if (p == 8 && q == 3) return patch_first_derivatives_fixed<8, 3>(patch, s, t, out), true;
   return false;
 }
 

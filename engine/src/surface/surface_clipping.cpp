@@ -14,6 +14,7 @@
 #include "nurbsreg/engine/surface_projection.hpp"
 #include "nurbsreg/engine/trim_region.hpp"
 #include "platform/cpu_dispatch.hpp"
+#include "surface/box_tests.hpp"
 #include "surface/coefficient_bounds.hpp"
 #include "surface/derivative_bounds.hpp"
 #include "surface/patch_newton.hpp"
@@ -378,7 +379,7 @@ template <bool kTrim>
         // In place of Theorem 2 in a straddling box: the monotone edge reduction (valid there,
         // see Clipper) on F's own derivative bounds.
         if (b.straddling) {
-          const int edge = monotone_edge(f_derivatives(n, d, rows, cols, false, {b.lower, f_max}));
+          const int edge = polynomial_monotone_edge(n, rows, cols);
           if (edge >= 0) {
             reduce_to_edge(edge, n, d, b);
             continue;
@@ -386,13 +387,12 @@ template <bool kTrim>
         }
       }
     } else {
-      const FDerivatives fd = f_derivatives(n, d, rows, cols, true, {b.lower, f_max});
-      if (convex(fd)) {
+      const int edge = rational_box_test(n, d, rows, cols, b.lower, f_max);
+      if (edge == kConvexBox) {
         ++st.convex_terminations;
         newton_box();
         continue;
       }
-      const int edge = monotone_edge(fd);
       if (edge >= 0) {
         reduce_to_edge(edge, n, d, b);
         continue;
@@ -583,7 +583,7 @@ bool squared_distance_convex(const PreparedPatch& pp, const Vec3& p, SurfaceScra
   pp.numerator(p, n);
   if (!pp.rational) return convex_polynomial(n, pp.rows, pp.cols);
   const CoefficientRange range = coefficient_range(n, pp.d.data(), pp.rows * pp.cols, true);
-  return convex(f_derivatives(n, pp.d.data(), pp.rows, pp.cols, true, {range.lo, range.hi}));
+  return rational_box_test(n, pp.d.data(), pp.rows, pp.cols, range.lo, range.hi) == kConvexBox;
 }
 
 }  // namespace nurbsreg::engine

@@ -160,8 +160,12 @@ bool crossing_right_of(const Piece& p, double u, double v) {
   return 0.5 * (ua + ub) > u;  // (u, v) is on the loop to rounding: either answer
 }
 
-// u of the piece's crossing with the line v = const (construction only).
-double crossing_u(const Piece& p, double v) {
+// u of the piece's crossing with the line v = const, to within `tolerance` (construction only:
+// the row sweep compares it with the centres of cells no loop meets, which lie half a cell or
+// more from any loop point, so a fraction of a cell decides every comparison as the exact
+// crossing would). The piece is monotone in u, so the control points' u range of the half that
+// holds the crossing brackets it.
+double crossing_u(const Piece& p, double v, double tolerance) {
   if (p.degree == 1) {
     const double s = (v - p.v_start) / (p.v_end - p.v_start);
     return p.u_start + s * (p.u_end - p.u_start);
@@ -172,6 +176,12 @@ double crossing_u(const Piece& p, double v) {
   for (int i = 0; i <= n; ++i)
     a[i] = p.cw[i];
   for (int depth = 0; depth < kMaxSearchDepth; ++depth) {
+    double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+    for (int i = 0; i <= n; ++i) {
+      lo = std::min(lo, euclid_u(a[i]));
+      hi = std::max(hi, euclid_u(a[i]));
+    }
+    if (hi - lo <= tolerance) return 0.5 * (lo + hi);
     halve(a, 1, n, left, right);
     const Vec3& mid = left[n];
     const bool in_left = increasing ? v * mid.z() < mid.y() : v * mid.z() > mid.y();
@@ -413,35 +423,49 @@ TrimRegion::TrimRegion(const NurbsSurface& surface) {
     crossings.clear();
     for (int q = row_first_[j]; q < row_first_[j + 1]; ++q) {
       const Piece& p = pieces_[row_pieces_[q]];
-      if (vc >= piece_v_lo(p) && vc < piece_v_hi(p)) crossings.push_back(crossing_u(p, vc));
+      if (vc >= piece_v_lo(p) && vc < piece_v_hi(p))
+        crossings.push_back(crossing_u(p, vc, cell_w / 16));
     }
     std::sort(crossings.begin(), crossings.end());
+    // The centres increase along the row: one walk over the sorted crossings counts those at or
+    // left of each centre.
+    std::size_t left = 0;
     for (int i = 0; i < cells_u_; ++i) {
+      const double uc = du_.lo + (i + 0.5) * cell_w;
+      while (left < crossings.size() && crossings[left] <= uc)
+        ++left;
       std::uint8_t& c = cell_class_[static_cast<std::size_t>(i) * cells_v_ + j];
       if (c == static_cast<std::uint8_t>(RegionClass::boundary)) continue;
-      const double uc = du_.lo + (i + 0.5) * cell_w;
-      const auto right = crossings.end() - std::upper_bound(crossings.begin(), crossings.end(), uc);
+      const std::size_t right = crossings.size() - left;
       c = static_cast<std::uint8_t>(right % 2 == 1 ? RegionClass::inside : RegionClass::outside);
     }
   }
 
-  // 4. Prefix sums: sum_[i * (cells_v_ + 1) + j] counts cells [0, i) x [0, j).
+  // 4. Prefix sums: sums_[i * (cells_v_ + 1) + j] counts cells [0, i) x [0, j), modulo 2^16
+  // (unsigned arithmetic wraps): half the memory of 32-bit sums, and exact for every box
+  // of fewer than 2^16 cells, which is every box but the whole grid at the largest size.
+  static_assert(kMaxCellsPerSide * kMaxCellsPerSide <= 65536);
   const int stride = cells_v_ + 1;
-  boundary_sum_.assign(static_cast<std::size_t>(cells_u_ + 1) * stride, 0);
-  inside_sum_.assign(boundary_sum_.size(), 0);
+  sums_.assign(static_cast<std::size_t>(cells_u_ + 1) * stride, CellSums{});
   for (int i = 0; i < cells_u_; ++i) {
+    std::uint16_t row_boundary = 0, row_inside = 0;  // cells [0, j] of row i
     for (int j = 0; j < cells_v_; ++j) {
       const std::uint8_t c = cell_class_[static_cast<std::size_t>(i) * cells_v_ + j];
-      const std::size_t at = static_cast<std::size_t>(i + 1) * stride + (j + 1);
-      const std::size_t up = static_cast<std::size_t>(i) * stride + (j + 1);
-      const std::size_t lf = static_cast<std::size_t>(i + 1) * stride + j;
-      const std::size_t dg = static_cast<std::size_t>(i) * stride + j;
-      boundary_sum_[at] = boundary_sum_[up] + boundary_sum_[lf] - boundary_sum_[dg] +
-                          (c == static_cast<std::uint8_t>(RegionClass::boundary));
-      inside_sum_[at] = inside_sum_[up] + inside_sum_[lf] - inside_sum_[dg] +
-                        (c == static_cast<std::uint8_t>(RegionClass::inside));
+      row_boundary += c == static_cast<std::uint8_t>(RegionClass::boundary);
+      row_inside += c == static_cast<std::uint8_t>(RegionClass::inside);
+      const CellSums& up = sums_[static_cast<std::size_t>(i) * stride + (j + 1)];
+      CellSums& at = sums_[static_cast<std::size_t>(i + 1) * stride + (j + 1)];
+      at.boundary = static_cast<std::uint16_t>(up.boundary + row_boundary);
+      at.inside = static_cast<std::uint16_t>(up.inside + row_inside);
     }
   }
+  std::int32_t boundary_total = 0, inside_total = 0;
+  for (const std::uint8_t c : cell_class_) {
+    boundary_total += c == static_cast<std::uint8_t>(RegionClass::boundary);
+    inside_total += c == static_cast<std::uint8_t>(RegionClass::inside);
+  }
+  boundary_total_ = boundary_total;
+  inside_total_ = inside_total;
 }
 
 // Marks the cells met by the homogeneous piece a[0..n] (or by its control box once that is
@@ -529,16 +553,21 @@ RegionClass TrimRegion::classify(double u0, double u1, double v0, double v1) con
   const int i0 = cell_u(std::max(u0, du_.lo)), i1 = cell_u(std::min(u1, du_.hi));
   const int j0 = cell_v(std::max(v0, dv_.lo)), j1 = cell_v(std::min(v1, dv_.hi));
   const int stride = cells_v_ + 1;
-  auto box_sum = [&](const std::vector<std::int32_t>& s) {
-    return s[static_cast<std::size_t>(i1 + 1) * stride + (j1 + 1)] -
-           s[static_cast<std::size_t>(i0) * stride + (j1 + 1)] -
-           s[static_cast<std::size_t>(i1 + 1) * stride + j0] +
-           s[static_cast<std::size_t>(i0) * stride + j0];
-  };
-  if (box_sum(boundary_sum_) > 0) return RegionClass::boundary;
-  const std::int32_t in = box_sum(inside_sum_);
+  const std::size_t a = static_cast<std::size_t>(i1 + 1) * stride + (j1 + 1);
+  const std::size_t b = static_cast<std::size_t>(i0) * stride + (j1 + 1);
+  const std::size_t c = static_cast<std::size_t>(i1 + 1) * stride + j0;
+  const std::size_t d = static_cast<std::size_t>(i0) * stride + j0;
+  const std::int32_t cells = (i1 - i0 + 1) * (j1 - j0 + 1);
+  std::int32_t boundary = boundary_total_, in = inside_total_;
+  if (cells < cells_u_ * cells_v_) {  // fewer than 2^16 cells: the wrapped sums are exact
+    boundary = static_cast<std::uint16_t>(sums_[a].boundary - sums_[b].boundary -
+                                          sums_[c].boundary + sums_[d].boundary);
+    in = static_cast<std::uint16_t>(sums_[a].inside - sums_[b].inside - sums_[c].inside +
+                                    sums_[d].inside);
+  }
+  if (boundary > 0) return RegionClass::boundary;
   if (in == 0) return RegionClass::outside;
-  if (!beyond && in == (i1 - i0 + 1) * (j1 - j0 + 1)) return RegionClass::inside;
+  if (!beyond && in == cells) return RegionClass::inside;
   return RegionClass::boundary;
 }
 

@@ -509,6 +509,39 @@ TEST(TrimRegion, LoopsWithinToleranceOfTheDomainEdge) {
   EXPECT_FALSE(inset.contains(-5e-7, 0.5));
 }
 
+// The grid's prefix sums wrap modulo 2^16: a 256 x 256 grid whose every cell is inside (an outer
+// loop of 64 pieces along the domain's edge marks no cell) must still classify the whole grid as
+// inside, and boxes of almost all of it from the wrapped sums.
+TEST(TrimRegion, LargestGridAllInside) {
+  NurbsSurface s = plane(0, 1, 0, 1);
+  std::vector<Vec2> corners;
+  for (int k = 0; k < 16; ++k)
+    corners.emplace_back(k / 16.0, 0.0);
+  for (int k = 0; k < 16; ++k)
+    corners.emplace_back(1.0, k / 16.0);
+  for (int k = 0; k < 16; ++k)
+    corners.emplace_back(1.0 - k / 16.0, 1.0);
+  for (int k = 0; k < 16; ++k)
+    corners.emplace_back(0.0, 1.0 - k / 16.0);
+  s.trim_loops.push_back(polygon_loop(corners));
+  const TrimRegion region(s);
+  ASSERT_GE(region.piece_count(), 64u);  // 256 cells per side
+  EXPECT_EQ(region.classify(0, 1, 0, 1), RegionClass::inside);
+  EXPECT_EQ(region.classify(0, 0.99, 0, 1), RegionClass::inside);
+  EXPECT_EQ(region.classify(0.01, 1, 0.01, 1), RegionClass::inside);
+  EXPECT_EQ(region.classify(-0.5, 1, 0, 1), RegionClass::boundary);  // partly beyond the loops
+  std::mt19937_64 rng(31);
+  check_classify(region, rng, Vec2(0, 0), Vec2(1, 1), 2000, 1.0);
+  // A hole in the middle: only boxes clear of it stay inside.
+  s.trim_loops.push_back(circle_loop(Vec2(0.5, 0.5), 0.1));
+  const TrimRegion holed(s);
+  EXPECT_EQ(holed.classify(0, 1, 0, 1), RegionClass::boundary);
+  EXPECT_EQ(holed.classify(0, 0.99, 0, 1), RegionClass::boundary);
+  EXPECT_EQ(holed.classify(0, 0.3, 0, 1), RegionClass::inside);
+  EXPECT_FALSE(holed.contains(0.5, 0.5));
+  check_classify(holed, rng, Vec2(0, 0), Vec2(1, 1), 2000, 1.0);
+}
+
 // Consecutive curves that miss each other by 1e-9 (gaps and overlaps): closed by straight
 // pieces, as the reference polyline does.
 TEST(TrimRegion, TinyGapsBetweenCurves) {

@@ -59,9 +59,14 @@ class TrimRegion {
   int cells_u_ = 0, cells_v_ = 0;
   double inv_cell_u_ = 0.0, inv_cell_v_ = 0.0;  // cells per unit of u, v
   double band_ = 0.0;  // the loops' tolerance (1e-13 x the parameter space's scale)
-  std::vector<std::uint8_t> cell_class_;    // RegionClass per cell, [iu * cells_v_ + iv]
-  std::vector<std::int32_t> boundary_sum_;  // 2-D prefix sums of boundary cells
-  std::vector<std::int32_t> inside_sum_;    // 2-D prefix sums of inside cells
+  std::vector<std::uint8_t> cell_class_;  // RegionClass per cell, [iu * cells_v_ + iv]
+  // 2-D prefix sums of boundary and inside cells, modulo 2^16 (see classify), and the whole
+  // grid's exact counts.
+  struct CellSums {
+    std::uint16_t boundary = 0, inside = 0;
+  };
+  std::vector<CellSums> sums_;
+  std::int32_t boundary_total_ = 0, inside_total_ = 0;
   std::vector<Piece> pieces_;
   // Per grid row (v band): the pieces whose v range meets it, for the exact crossing count.
   std::vector<std::int32_t> row_first_;
