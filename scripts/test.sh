@@ -94,7 +94,7 @@ stage_asan() {
     UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1:suppressions=$supp/ubsan.supp" \
     ctest --test-dir build-asan --output-on-failure --parallel "$(nproc)" --timeout 1200 \
     --output-junit "$PWD/build-asan/asan-tests.xml" || status=1
-  ./scripts/slowest_tests.py build-asan/asan-tests.xml 15 >&2
+  ./scripts/slowest_tests.py build-asan/asan-tests.xml 15 build-asan >&2
   return $status
 }
 
