@@ -21,6 +21,21 @@ if(NURBSREG_FUZZ AND NOT CMAKE_CXX_COMPILER_ID STREQUAL "Clang")
   message(FATAL_ERROR "NURBSREG_FUZZ needs Clang (libFuzzer): configure with CXX=clang++")
 endif()
 
+# libFuzzer's coverage instrumentation (-fsanitize=fuzzer-no-link), with NURBSREG_FUZZ, only on
+# the harnesses and the modules whose code they explore: the readers (io) and the service's
+# request parsing. Not on the engine and the other modules: the test suite runs in the same
+# build directory (scripts/test.sh's asan stage), and a callback at every comparison of the
+# numeric kernels would slow it for coverage no harness is after (the JSON model harness
+# reaches the engine only to check the parsed model's distances).
+set(NURBSREG_FUZZ_MODULES "io;service" CACHE STRING
+    "Modules instrumented for libFuzzer's coverage when NURBSREG_FUZZ is on")
+function(nurbsreg_apply_fuzz_coverage target)
+  if(NURBSREG_FUZZ)
+    target_compile_options(${target} PRIVATE -fsanitize=fuzzer-no-link)
+    target_link_options(${target} PUBLIC -fsanitize=fuzzer-no-link)
+  endif()
+endfunction()
+
 function(nurbsreg_apply_standard target)
   target_compile_features(${target} PUBLIC cxx_std_20)
   set_target_properties(${target} PROPERTIES CXX_EXTENSIONS OFF)
@@ -38,10 +53,6 @@ function(nurbsreg_apply_standard target)
       target_compile_options(${target} PRIVATE -fsanitize=${NURBSREG_SANITIZE}
                                                -fno-omit-frame-pointer -fno-sanitize-recover=all)
       target_link_options(${target} PUBLIC -fsanitize=${NURBSREG_SANITIZE})
-    endif()
-    if(NURBSREG_FUZZ)
-      target_compile_options(${target} PRIVATE -fsanitize=fuzzer-no-link)
-      target_link_options(${target} PUBLIC -fsanitize=fuzzer-no-link)
     endif()
     if(NURBSREG_NATIVE)
       target_compile_options(${target} PRIVATE -march=native)
@@ -77,4 +88,7 @@ function(nurbsreg_add_module name)
   target_include_directories(nurbsreg_${name} PUBLIC "${CMAKE_CURRENT_SOURCE_DIR}/include")
   target_link_libraries(nurbsreg_${name} PUBLIC ${ARG_PUBLIC_DEPS} PRIVATE ${ARG_PRIVATE_DEPS})
   nurbsreg_apply_standard(nurbsreg_${name})
+  if(name IN_LIST NURBSREG_FUZZ_MODULES)
+    nurbsreg_apply_fuzz_coverage(nurbsreg_${name})
+  endif()
 endfunction()

@@ -35,6 +35,7 @@
 #include "nurbsreg/io/errors.hpp"
 #include "nurbsreg/io/model_file.hpp"
 #include "nurbsreg/io/model_json.hpp"
+#include "support/test_scale.hpp"
 
 namespace nurbsreg::io {
 namespace {
@@ -238,10 +239,15 @@ TEST_P(CadFiles, TrimCurvesRunOnTheSurfaceAndCloseTheirLoops) {
 // (NIST CTC 02 faces 49, 56, 279, 280 kept 0-9% of their area before their wires were made
 // continuous and the surface repeated over the periods they span). surface_area's quadrature is
 // within ~6% on the smallest faces (0.04 mm2 in linkrods.step), and a file's total within 0.2%.
+// Under sanitizers (test_scale.hpp) every face of the small files but only about 24 faces spread
+// over each large one, and no total (the file's total needs every face).
 TEST_P(CadFiles, FaceAreasMatchOpenCascade) {
   const Loaded& l = load(GetParam());
+  const std::size_t faces = l.model.surfaces.size();
+  const std::size_t stride = test::test_size<std::size_t>(1, std::max<std::size_t>(1, faces / 24));
   double ours_total = 0, theirs_total = 0;
-  for (const engine::NurbsSurface& s : l.model.surfaces) {
+  for (std::size_t k = 0; k < faces; k += stride) {
+    const engine::NurbsSurface& s = l.model.surfaces[k];
     engine::Model one;
     one.surfaces.push_back(s);
     const double ours = engine::surface_area(one);
@@ -252,9 +258,11 @@ TEST_P(CadFiles, FaceAreasMatchOpenCascade) {
     theirs_total += theirs;
     EXPECT_NEAR(ours, theirs, 0.1 * theirs) << s.name;
   }
-  EXPECT_NEAR(ours_total, theirs_total, 5e-3 * theirs_total);
-  std::printf("[ report   ] %s: area %.9g, OpenCASCADE's %.9g\n", GetParam(), ours_total,
-              theirs_total);
+  if (stride == 1) {
+    EXPECT_NEAR(ours_total, theirs_total, 5e-3 * theirs_total);
+  }
+  std::printf("[ report   ] %s: area %.9g, OpenCASCADE's %.9g (%zu of %zu faces)\n", GetParam(),
+              ours_total, theirs_total, (faces + stride - 1) / stride, faces);
 }
 
 INSTANTIATE_TEST_SUITE_P(

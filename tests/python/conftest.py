@@ -31,9 +31,16 @@ def without_times(report):
     return strip(json.loads(json.dumps(report)))
 
 
+# Under AddressSanitizer ctest preloads the ASan runtime into the interpreter (not instrumented;
+# tests/CMakeLists.txt). The binary links its own copy, and a process with both aborts at start
+# ("incompatible ASan runtimes"): the binary runs without the preload.
+CLI_ENV = {k: v for k, v in os.environ.items() if k != "LD_PRELOAD"}
+
+
 def run_cli(*args, check=True):
     """Runs the CLI; returns the CompletedProcess (text)."""
-    done = subprocess.run([str(BINARY), *map(str, args)], capture_output=True, text=True)
+    done = subprocess.run([str(BINARY), *map(str, args)], capture_output=True, text=True,
+                          env=CLI_ENV)
     if check and done.returncode != 0:
         raise AssertionError(f"nurbsreg {' '.join(map(str, args))} exited {done.returncode}:\n"
                              f"{done.stderr}")

@@ -24,6 +24,7 @@
 #include "support/hard_surfaces.hpp"
 #include "support/random_entities.hpp"
 #include "support/surface_reference.hpp"
+#include "support/test_scale.hpp"
 
 namespace nurbsreg::engine {
 namespace {
@@ -165,7 +166,8 @@ TEST(ReachBounds, NoModelSampleInsideAnyTangentBall) {
   for (std::size_t mi = 0; mi < models.size(); ++mi) {
     const PreparedModel pm(models[mi]);
     pm.prepare_reach_bounds();
-    const std::vector<Vec3> samples = model_samples(pm.model(), 120);
+    // Under sanitizers (test_scale.hpp) a coarser grid: the check costs cases x samples.
+    const std::vector<Vec3> samples = model_samples(pm.model(), test::test_size(120, 40));
     const std::vector<BallCase> cases = ball_cases(pm);
     const double size = model_size(pm);
     std::size_t checked = 0, large = 0;
@@ -197,6 +199,8 @@ TEST(ReachBounds, ProvenAnswersMatchBruteForce) {
   std::mt19937_64 rng(7);
   std::uint64_t proven_total = 0;
   std::uint64_t edge_points_total = 0, edge_proven_total = 0;
+  // Under sanitizers (test_scale.hpp) a quarter of the points that get a brute-force reference.
+  const std::size_t stride = test::test_size<std::size_t>(1, 4);
   for (std::size_t mi = 0; mi < models.size(); ++mi) {
     const PreparedModel pm(models[mi]);
     pm.prepare_reach_bounds();
@@ -207,13 +211,13 @@ TEST(ReachBounds, ProvenAnswersMatchBruteForce) {
     // Points just inside the balls (every 17th case), near points and far points.
     std::vector<Vec3> points;
     const std::vector<BallCase> cases = ball_cases(pm);
-    for (std::size_t k = 0; k < cases.size(); k += 17) {
+    for (std::size_t k = 0; k < cases.size(); k += 17 * stride) {
       if (cases[k].rho > 0.0)
         points.push_back(cases[k].foot +
                          std::min(0.98 * cases[k].rho, 2.0 * size) * cases[k].direction);
     }
     const Vec3 lo = pm.bounds().lo, hi = pm.bounds().hi, extent = hi - lo;
-    for (int k = 0; k < 300; ++k)
+    for (std::size_t k = 0; k < 300 / stride; ++k)
       points.push_back(test::uniform_point(rng, lo - 0.25 * extent, hi + 0.25 * extent));
     Projector projector(pm);
     ProjectionOptions options;
@@ -270,7 +274,7 @@ TEST(ReachBounds, ProvenAnswersMatchBruteForce) {
     edge_points_total += edge_points.size();
     edge_proven_total += edge_counters.reach_proven;
   }
-  EXPECT_GT(proven_total, 1000u) << "the reach path was hardly taken";
+  EXPECT_GT(proven_total * stride, 1000u) << "the reach path was hardly taken";
   std::printf("[ report ] edge and corner feet: %llu of %llu points proven with bare hints\n",
               static_cast<unsigned long long>(edge_proven_total),
               static_cast<unsigned long long>(edge_points_total));

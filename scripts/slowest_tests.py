@@ -1,0 +1,62 @@
+#!/usr/bin/env python3
+"""Prints the slowest tests of a ctest JUnit file (ctest --output-junit) and, given the build
+directory, each test program's total (python tests: the pytest file). scripts/test.sh shows them
+after the asan stage, whose test times decide whether CI stays within its limit.
+Usage: slowest_tests.py JUNIT_FILE [COUNT [BUILD_DIR]]"""
+import collections
+import json
+import os
+import subprocess
+import sys
+import xml.etree.ElementTree as ET
+
+
+def programs(build_dir):
+    """Test name -> the program it runs (ctest's own listing of the tests' commands)."""
+    try:
+        listing = subprocess.run(["ctest", "--test-dir", build_dir, "--show-only=json-v1"],
+                                 check=True, capture_output=True, text=True).stdout
+    except (OSError, subprocess.CalledProcessError) as e:
+        print(f"slowest_tests.py: cannot list the tests of {build_dir}: {e}", file=sys.stderr)
+        return {}
+    out = {}
+    for test in json.loads(listing).get("tests", []):
+        command = test.get("command") or ["?"]
+        program = os.path.basename(command[0])
+        if program.startswith("python"):
+            program = os.path.basename(command[-1])
+        out[test["name"]] = program
+    return out
+
+
+def main():
+    if not 2 <= len(sys.argv) <= 4:
+        sys.exit("usage: slowest_tests.py JUNIT_FILE [COUNT [BUILD_DIR]]")
+    count = int(sys.argv[2]) if len(sys.argv) >= 3 else 15
+    try:
+        root = ET.parse(sys.argv[1]).getroot()
+    except (OSError, ET.ParseError) as e:
+        sys.exit(f"slowest_tests.py: {sys.argv[1]}: {e}")
+    cases = []
+    for case in root.iter("testcase"):
+        cases.append((float(case.get("time", "0")), case.get("name", "?"), case.get("status", "")))
+    cases.sort(reverse=True)
+    total = sum(c[0] for c in cases)
+    print(f"== slowest {min(count, len(cases))} of {len(cases)} tests ({total:.0f} s in all):")
+    for seconds, name, status in cases[:count]:
+        note = "" if status in ("run", "") else f"  ({status})"
+        print(f"   {seconds:8.1f} s  {name}{note}")
+    if len(sys.argv) == 4:
+        by_program = programs(sys.argv[3])
+        totals = collections.Counter()
+        counts = collections.Counter()
+        for seconds, name, _ in cases:
+            totals[by_program.get(name, "?")] += seconds
+            counts[by_program.get(name, "?")] += 1
+        print("== per test program:")
+        for program, seconds in totals.most_common():
+            print(f"   {seconds:8.1f} s  {program} ({counts[program]} tests)")
+
+
+if __name__ == "__main__":
+    main()
