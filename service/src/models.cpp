@@ -68,6 +68,7 @@ std::shared_ptr<ServedModel> serve_model(engine::Model model, const std::string&
       auto features = std::make_shared<const registration::ModelFeatures>(
           *served->prepared, registration::RegistrationOptions{}.global.features);
       features->descriptors();
+      features->symmetries();
       served->features = std::move(features);
     } catch (const std::runtime_error& e) {
       spdlog::warn("{}: no features for the global alignment: {}", file, e.what());
