@@ -6,8 +6,9 @@ For each model (the freeform panel and a real part, NIST CTC-02), in the same ru
   2. `nurbsreg batch` over clients x frames of them (symlinks to the distinct files);
   3. `nurbsreg serve` on a loopback ephemeral port, --clients concurrent keep-alive clients
      (http.client) posting --frames frames each to /v1/align, after two warm-up frames each;
-and prints frames/s, points/s, the ratio to batch, p50/p95/p99 latency and the server's
-resident memory (VmRSS, and the peak VmHWM) after the warm-up and at the end.
+and prints frames/s, points/s, the ratio to batch, p50/p95/p99 latency, the server's CPU
+seconds per frame (utime + stime of all its threads: less disturbed by a shared machine than the
+wall time) and its resident memory (VmRSS, and the peak VmHWM) after the warm-up and at the end.
 
 Bounded: it stops by itself (--max-seconds per stage; a stage cut short says so), and the
 server is always killed at the end. The machine is shared: use fewer frames (--frames) there.
@@ -55,6 +56,13 @@ def proc_status(pid):
             if key in ("VmRSS", "VmHWM"):
                 fields[key] = int(value.split()[0]) * 1024
     return fields
+
+
+def cpu_seconds(pid):
+    """utime + stime of a process (every thread), from /proc/PID/stat."""
+    with open(f"/proc/{pid}/stat") as f:
+        fields = f.read().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
 def percentile(values, q):
@@ -140,13 +148,16 @@ def bench_serve(binary, model, files, clients, frames, threads, max_seconds, log
         deadline[0] = time.monotonic() + 1e9
         barrier.wait()
         memory_start = proc_status(server.pid)
+        cpu_start = cpu_seconds(server.pid)
         start = time.monotonic()
         deadline[0] = start + max_seconds
         for t in threads_:
             t.join()
         seconds = time.monotonic() - start
+        cpu = cpu_seconds(server.pid) - cpu_start
         memory_end = proc_status(server.pid)
-        return [x for per in latencies for x in per], seconds, memory_start, memory_end, failures
+        return ([x for per in latencies for x in per], seconds, memory_start, memory_end, failures,
+                cpu)
     finally:
         server.terminate()
         try:
@@ -244,7 +255,7 @@ def main():
             batch_done, batch_seconds = bench_batch(a.binary, model, files, total, a.threads,
                                                     model_work, a.max_seconds)
             print(f"[{name}] serve: {a.clients} clients x {a.frames} frames ...", flush=True)
-            latencies, seconds, m0, m1, failures = bench_serve(
+            latencies, seconds, m0, m1, failures, cpu = bench_serve(
                 a.binary, model, files, a.clients, a.frames, a.threads, a.max_seconds, log,
                 a.session, a.time_limit)
             if failures:
@@ -261,18 +272,20 @@ def main():
                 "p99": percentile(latencies, 0.99),
                 "rss_start": m0["VmRSS"], "rss_end": m1["VmRSS"],
                 "hwm_start": m0["VmHWM"], "hwm_end": m1["VmHWM"],
+                "cpu_ms": 1e3 * cpu / max(served, 1),
                 "cut_short": served < total or batch_done < total, "failed": len(failures)})
     print()
     print(f"{a.clients} clients{' (one session each)' if a.session else ''}, {a.points} points a "
           f"frame, threads {a.threads or 'all'}, {os.cpu_count()} hardware threads, load average "
           f"(1 min) {load_start:.1f} at the start, {os.getloadavg()[0]:.1f} at the end")
     print("| model | frames (serve/batch) | serve frames/s | batch frames/s | serve/batch | "
-          "serve Mpoints/s | p50 ms | p95 ms | p99 ms | RSS start -> end MB | peak RSS start -> end MB |")
-    print("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |")
+          "serve Mpoints/s | p50 ms | p95 ms | p99 ms | server CPU ms/frame | RSS start -> end MB | "
+          "peak RSS start -> end MB |")
+    print("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |")
     for r in rows:
         print(f"| {r['model']} | {r['frames']}/{r['batch_frames']}{' (cut short)' if r['cut_short'] else ''} "
               f"| {r['serve_fps']:.2f} | {r['batch_fps']:.2f} | {r['ratio']:.2f} | {r['serve_pps'] / 1e6:.2f} "
-              f"| {1e3 * r['p50']:.0f} | {1e3 * r['p95']:.0f} | {1e3 * r['p99']:.0f} "
+              f"| {1e3 * r['p50']:.0f} | {1e3 * r['p95']:.0f} | {1e3 * r['p99']:.0f} | {r['cpu_ms']:.0f} "
               f"| {r['rss_start'] / 2**20:.0f} -> {r['rss_end'] / 2**20:.0f} "
               f"| {r['hwm_start'] / 2**20:.0f} -> {r['hwm_end'] / 2**20:.0f} |")
     print(json.dumps(rows))

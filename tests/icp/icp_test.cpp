@@ -578,5 +578,65 @@ TEST(IcpTerminationCases, TooFewCorrespondencesAndIterationLimit) {
   EXPECT_EQ(r.termination, IcpTermination::too_few_correspondences);
 }
 
+// inlier count and RMS of the distances at pose T, computed afresh (no rejection but the
+// finder's boundary flag, as the solver with default options).
+std::pair<std::size_t, double> statistics_at(CorrespondenceFinder& finder,
+                                             const std::vector<Vec3>& scan, const Isometry3d& T) {
+  std::vector<Vec3> moved;
+  for (const Vec3& p : scan)
+    moved.push_back(T * p);
+  std::vector<Correspondence> out(scan.size());
+  CorrespondenceQuery query;
+  query.points = moved;
+  finder.find(query, out);
+  std::size_t inliers = 0;
+  double sum = 0.0;
+  for (const Correspondence& c : out) {
+    if (!c.valid || c.on_boundary) continue;
+    ++inliers;
+    sum += c.distance * c.distance;
+  }
+  return {inliers, std::sqrt(sum / static_cast<double>(inliers))};
+}
+
+TEST(IcpStatistics, DescribeTheReturnedPose) {
+  const std::vector<Primitive> primitives = scene();
+  UnionFinder finder(primitives);
+  std::vector<Vec3> scan = to_scan(sample_uniform(primitives, 4000, 31), true_pose());
+  add_noise(scan, 1e-3 * kSize, 32);
+  // Converged: the last iteration's step (computed at the returned pose) proves it and is not
+  // applied, so rms and inliers are those of the returned pose, to the last bit.
+  const IcpResult converged = align(finder, scan, Isometry3d::Identity(), exact_options());
+  ASSERT_EQ(converged.termination, IcpTermination::converged) << converged.brief_report();
+  EXPECT_TRUE(converged.statistics_at_pose);
+  ASSERT_GE(converged.log.size(), 2u);
+  EXPECT_FALSE(converged.log.back().applied);
+  for (std::size_t k = 0; k + 1 < converged.log.size(); ++k)
+    EXPECT_TRUE(converged.log[k].applied) << k;
+  const auto [inliers, rms] = statistics_at(finder, scan, converged.T_model_scan);
+  EXPECT_EQ(converged.inliers, inliers);
+  EXPECT_EQ(converged.rms, rms);
+  // Out of iterations: every step applied, and the returned pose evaluated once more.
+  IcpOptions two = exact_options();
+  two.max_iterations = 2;
+  const IcpResult limited = align(finder, scan, Isometry3d::Identity(), two);
+  ASSERT_EQ(limited.termination, IcpTermination::max_iterations) << limited.brief_report();
+  EXPECT_TRUE(limited.statistics_at_pose);
+  EXPECT_TRUE(limited.log.back().applied);
+  const auto [limited_inliers, limited_rms] = statistics_at(finder, scan, limited.T_model_scan);
+  EXPECT_EQ(limited.inliers, limited_inliers);
+  EXPECT_EQ(limited.rms, limited_rms);
+  EXPECT_GT(limited.rms, converged.rms);
+  // A predicted final convergence keeps the statistics of the pose before its last step, and
+  // says so.
+  IcpOptions predicted = exact_options();
+  predicted.predict_final_convergence = true;
+  const IcpResult p = align(finder, scan, Isometry3d::Identity(), predicted);
+  ASSERT_FALSE(p.log.empty());
+  ASSERT_TRUE(p.log.back().predicted) << p.brief_report();
+  EXPECT_TRUE(p.log.back().applied);
+  EXPECT_FALSE(p.statistics_at_pose);
+}
+
 }  // namespace
 }  // namespace nurbsreg::icp
