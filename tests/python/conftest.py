@@ -15,6 +15,14 @@ EXAMPLES = pathlib.Path(os.environ.get("NURBSREG_EXAMPLES_DIR", ROOT / "examples
 BINARY = pathlib.Path(os.environ.get("NURBSREG_BINARY", ROOT / "build" / "bin" / "nurbsreg"))
 PANEL = EXAMPLES / "panel.json"
 SHARED = pathlib.Path(os.environ.get("NURBSREG_SHARED_DIR", ROOT.parent / "shared"))
+# Sanitizer builds (tests/CMakeLists.txt sets it; C++: tests/support/test_scale.hpp): the few
+# heavy tests run on smaller inputs, and time bounds allow for the instrumented code's slowness.
+REDUCED = os.environ.get("NURBSREG_REDUCED_TESTS") == "1"
+
+
+def sized(full, reduced):
+    """`full` in the Release suite, `reduced` under sanitizers."""
+    return reduced if REDUCED else full
 
 
 def without_times(report):

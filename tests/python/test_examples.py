@@ -8,14 +8,16 @@ import sys
 import numpy as np
 
 import nurbsreg
-from conftest import EXAMPLES, PANEL
+from conftest import EXAMPLES, PANEL, sized
 
 SCRIPTS = EXAMPLES / "python"
+# A hang detector: under sanitizers (conftest.REDUCED) a 20,000-point alignment takes minutes.
+TIMEOUT = sized(120, 900)
 
 
 def run_script(name, *args):
     done = subprocess.run([sys.executable, str(SCRIPTS / name), *map(str, args)],
-                          capture_output=True, text=True, env=os.environ, timeout=120)
+                          capture_output=True, text=True, env=os.environ, timeout=TIMEOUT)
     assert done.returncode == 0, done.stderr
     return done.stdout
 
