@@ -81,4 +81,7 @@ bool fit_rigid(std::span<const engine::Vec3> src, std::span<const engine::Vec3> 
 // Rotation angle [rad] and translation between two poses (as maps of the same scan).
 double rotation_between(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b);
 
+// Two poses the coarse stage counts as one: within 2 degrees and a voxel of each other.
+bool same_pose(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b, double voxel);
+
 }  // namespace nurbsreg::registration::detail

@@ -235,10 +235,6 @@ CoarseOutcome coarse_align(std::span<const Vec3> scan, const ModelFeatures& feat
   vo.min_correspondences = 12;
   vo.deadline = deadline;
   const double tolerance = std::max(3.0 * noise, 0.02 * v);
-  const auto same_pose = [&](const Eigen::Isometry3d& a, const Eigen::Isometry3d& b) {
-    return rotation_between(a, b) < 2.0 * std::numbers::pi / 180.0 &&
-           (a.translation() - b.translation()).norm() < 1.0 * v;
-  };
   const auto near_fraction = [](std::span<const double> d, double limit) {
     const auto n = std::count_if(d.begin(), d.end(), [&](double x) { return x <= limit; });
     return static_cast<double>(n) / static_cast<double>(std::max<std::size_t>(1, d.size()));
@@ -307,7 +303,7 @@ CoarseOutcome coarse_align(std::span<const Vec3> scan, const ModelFeatures& feat
           break;
         }
         if (std::any_of(scored.begin(), scored.end(),
-                        [&](const PoseScore& k) { return same_pose(k.T_model_scan, T); })) {
+                        [&](const PoseScore& k) { return same_pose(k.T_model_scan, T, v); })) {
           outcome = "duplicate";
           break;
         }
@@ -373,7 +369,7 @@ CoarseOutcome coarse_align(std::span<const Vec3> scan, const ModelFeatures& feat
   std::vector<PoseScore> distinct;
   for (const PoseScore& s : scored) {
     const bool seen = std::any_of(distinct.begin(), distinct.end(), [&](const PoseScore& k) {
-      return same_pose(k.T_model_scan, s.T_model_scan);
+      return same_pose(k.T_model_scan, s.T_model_scan, v);
     });
     if (!seen) distinct.push_back(s);
   }

@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <numbers>
 #include <numeric>
 #include <random>
 #include <unordered_set>
@@ -171,6 +172,11 @@ std::size_t support_of(const Eigen::Isometry3d& T, std::span<const Vec3> scan,
 
 double rotation_between(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b) {
   return Eigen::AngleAxisd(a.linear() * b.linear().transpose()).angle();
+}
+
+bool same_pose(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b, double voxel) {
+  return rotation_between(a, b) < 2.0 * std::numbers::pi / 180.0 &&
+         (a.translation() - b.translation()).norm() < 1.0 * voxel;
 }
 
 bool fit_rigid(std::span<const Vec3> src, std::span<const Vec3> dst, Eigen::Isometry3d& T) {

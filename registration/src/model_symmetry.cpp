@@ -253,12 +253,9 @@ void add_symmetric_alternatives(CoarseReport& report, std::span<const Isometry3d
                                 double voxel, const GlobalOptions& options) {
   const Isometry3d winner = report.winner.T_model_scan;
   auto known = [&](const Isometry3d& T) {
-    auto same = [&](const Isometry3d& k) {
-      return rotation_between(k, T) < 2.0 * kPi / 180.0 &&
-             (k.translation() - T.translation()).norm() < 1.0 * voxel;
-    };
-    return same(winner) || std::any_of(report.alternatives.begin(), report.alternatives.end(),
-                                       [&](const PoseScore& a) { return same(a.T_model_scan); });
+    return same_pose(winner, T, voxel) ||
+           std::any_of(report.alternatives.begin(), report.alternatives.end(),
+                       [&](const PoseScore& a) { return same_pose(a.T_model_scan, T, voxel); });
   };
   for (const Isometry3d& S : symmetries) {
     const Isometry3d T = S * winner;

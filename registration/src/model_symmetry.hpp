@@ -22,9 +22,9 @@ namespace nurbsreg::registration::detail {
 // principal axes through their centroid (a rigid symmetry fixes the centroid and permutes the
 // principal axes), and half turns about axes in a plane of two equal spreads; the most
 // promising are refined by an exact ICP of the turned keypoints, since the centroid and axes of
-// samples are only estimates, and products of the turns found complete the group. An axis about which arbitrary turns fit (a surface of revolution) gives
-// no discrete symmetry: that one is continuous, and the ICP's degeneracy report names it.
-// Deterministic; sorted by angle.
+// samples are only estimates, and products of the turns found complete the group. An axis about
+// which arbitrary turns fit (a surface of revolution) gives no discrete symmetry: that one is
+// continuous, and the ICP's degeneracy report names it. Deterministic; sorted by angle.
 std::vector<Eigen::Isometry3d> find_model_symmetries(const engine::PreparedModel& model,
                                                      const ModelKeypoints& keypoints, double voxel);
 
