@@ -170,7 +170,8 @@ AlignmentResult Aligner::align(std::span<const engine::Vec3> scan) {
   // A continuous symmetry (a surface of revolution, a plane patch) leaves the pose free along
   // it: the pose is one of infinitely many that fit, and the report says so.
   if (frame.icp.degeneracy.degenerate()) {
-    const std::string continuous = detail::describe_continuous_symmetry(frame.icp.degeneracy);
+    const std::string continuous = detail::describe_continuous_symmetry(
+        frame.icp.degeneracy, detail::kSymmetryTextVoxels * f.voxel());
     std::string& symmetry = frame.coarse->symmetry;
     symmetry = symmetry.empty() ? continuous : continuous + "; " + symmetry;
   }

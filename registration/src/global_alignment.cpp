@@ -379,7 +379,8 @@ CoarseOutcome coarse_align(std::span<const Vec3> scan, const ModelFeatures& feat
   for (std::size_t i = 1; i < distinct.size(); ++i) {
     if (distinct[i].inlier_fraction < o.symmetry_ratio * r.winner.inlier_fraction) continue;
     r.alternatives.push_back(distinct[i]);
-    symmetries.push_back(describe_symmetry(r.winner.T_model_scan, distinct[i].T_model_scan));
+    symmetries.push_back(describe_symmetry(r.winner.T_model_scan, distinct[i].T_model_scan,
+                                           kSymmetryTextVoxels * v));
   }
   for (std::size_t i = 0; i < symmetries.size(); ++i)
     r.symmetry += (i ? "; " : "") + symmetries[i];

@@ -263,7 +263,7 @@ void add_symmetric_alternatives(CoarseReport& report, std::span<const Isometry3d
     const PoseScore s = score(T);
     if (s.inlier_fraction < options.symmetry_ratio * report.winner.inlier_fraction) continue;
     report.alternatives.push_back(s);
-    const std::string turn = describe_symmetry(winner, T);
+    const std::string turn = describe_symmetry(winner, T, kSymmetryTextVoxels * voxel);
     report.symmetry += (report.symmetry.empty() ? "" : "; ") + turn;
   }
 }

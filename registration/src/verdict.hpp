@@ -19,15 +19,20 @@ FitVerdict judge_fit(std::span<const engine::Vec3> aligned, std::span<const doub
                      double noise, double scan_diagonal, const ModelFeatures& features,
                      const VerdictOptions& options);
 
+// The resolution of the lengths in the symmetry texts, in sample spacings (voxels).
+inline constexpr double kSymmetryTextVoxels = 0.01;
+
 // The model's motion that takes the scan aligned by `winner` onto the scan aligned by
-// `alternative` (alternative * winner^-1), in words: "rotation by 180.0 deg about (0, 0, 1)
-// through (1, 2, 0)" (or a translation when it does not rotate).
-std::string describe_symmetry(const Eigen::Isometry3d& winner,
-                              const Eigen::Isometry3d& alternative);
+// `alternative` (alternative * winner^-1), in words: "rotation by 180.0 deg about (0.000, 0.000,
+// 1.000) through (1.00, 2.00, 0.00)" (or a translation when it does not rotate). Lengths are
+// rounded to `resolution` (model units; the callers give a hundredth of the sample spacing).
+std::string describe_symmetry(const Eigen::Isometry3d& winner, const Eigen::Isometry3d& alternative,
+                              double resolution);
 
 // The motions that map the model onto itself where the scan lies (the final ICP's free
 // directions: a surface of revolution turns about its axis, a plane slides and turns), in
 // words: "continuous rotation about (0.000, 0.000, 1.000) through (0, 0, 20)"; empty when none.
-std::string describe_continuous_symmetry(const icp::DegeneracyReport& degeneracy);
+std::string describe_continuous_symmetry(const icp::DegeneracyReport& degeneracy,
+                                         double resolution);
 
 }  // namespace nurbsreg::registration::detail

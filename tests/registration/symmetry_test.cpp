@@ -135,6 +135,31 @@ TEST(ModelSymmetry, ARealHexagonalPartsSixfoldAxis) {
     EXPECT_GT(std::abs(Eigen::AngleAxisd(S.linear()).axis().y()), 1 - 1e-9);
 }
 
+// t20 scanned with clutter: the report names the other five poses, in digits a person can read
+// (lengths to a hundredth of the sample spacing: no ICP-level residue such as "through
+// (-9.4e-06, ...)" or "sliding 7.9e-07", and no "-0.000").
+TEST(ModelSymmetry, TheSixfoldPartsReportNamesItsTurnsReadably) {
+  const testing::Part& p = testing::part(testing::kReal + "gmsh/t20_data.step");
+  engine::SyntheticScanOptions o;
+  o.points = 20000;
+  o.noise_sigma = 1e-4 * p.size;
+  o.outlier_fraction = 0.10;
+  o.seed = 5;
+  o.T_scan_model = engine::pose_from_euler_degrees(-70, 25, 140, Vec3(40, 10, -30));
+  const engine::SyntheticScan scan = engine::make_synthetic_scan(p.model->model(), o);
+  Aligner aligner(*p.model, icp::IcpOptions{}, {}, p.features);
+  const AlignmentResult r = aligner.align(scan.points);
+  ASSERT_TRUE(r.ok()) << *r.failure;
+  ASSERT_TRUE(r.coarse);
+  EXPECT_EQ(r.coarse->alternatives.size(), 5u) << r.coarse->symmetry;
+  const std::string& text = r.coarse->symmetry;
+  EXPECT_NE(text.find("rotation by 60.0 deg"), std::string::npos) << text;
+  EXPECT_EQ(text.find("e-"), std::string::npos) << text;
+  EXPECT_EQ(text.find("e+"), std::string::npos) << text;
+  EXPECT_EQ(text.find("-0.0"), std::string::npos) << text;
+  EXPECT_EQ(text.find("sliding"), std::string::npos) << text;
+}
+
 // A real assembly that a half turn about its vertical axis maps onto itself: from a random pose
 // with clutter, the sample consensus finds one of the two poses; the report must name the
 // other instead of returning one silently.
@@ -152,6 +177,11 @@ TEST(ModelSymmetry, ASymmetricAssemblyReportsTheOtherPose) {
   ASSERT_EQ(r.coarse->alternatives.size(), 1u) << r.coarse->symmetry;
   EXPECT_NE(r.coarse->symmetry.find("rotation by 180.0 deg"), std::string::npos)
       << r.coarse->symmetry;
+  // In digits a person can read: lengths to a hundredth of the sample spacing, no ICP-level
+  // residue such as "through (-9.4e-06, ...)" or "sliding 7.9e-07", no "-0.000".
+  EXPECT_EQ(r.coarse->symmetry.find("e-"), std::string::npos) << r.coarse->symmetry;
+  EXPECT_EQ(r.coarse->symmetry.find("sliding"), std::string::npos) << r.coarse->symmetry;
+  EXPECT_EQ(r.coarse->symmetry.find("-0.0"), std::string::npos) << r.coarse->symmetry;
   // The other pose is the winner turned half about the vertical axis through (90, 75).
   const Isometry3d S =
       r.coarse->alternatives.front().T_model_scan * r.coarse->winner.T_model_scan.inverse();
