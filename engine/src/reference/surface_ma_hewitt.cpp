@@ -267,7 +267,9 @@ void SurfaceProjector::ma_hewitt_boundaries(const Vec3& p, SurfaceHit& best,
         stack[top++] = {curve, false, 0};
         while (top > 0) {
           Frame f = stack[--top];
-          Vec3 pts[kNetSide] = {};
+          // Eigen's vectors do not zero themselves ("= {}" leaves them uninitialised).
+          Vec3 pts[kNetSide];
+          std::fill(std::begin(pts), std::end(pts), Vec3::Zero());
           for (int k = 0; k <= f.c.degree; ++k)
             pts[k] = f.c.point(k);
           const int n = f.c.degree;
