@@ -14,6 +14,7 @@
 #include "common.hpp"
 #include "frame_jobs.hpp"
 #include "nurbsreg/engine/projection.hpp"
+#include "nurbsreg/inspect/clutter.hpp"
 #include "nurbsreg/inspect/inspection.hpp"
 #include "nurbsreg/io/errors.hpp"
 #include "nurbsreg/io/point_cloud.hpp"
@@ -38,6 +39,7 @@ struct InspectArgs {
   double min_inside = 0.99;
   std::size_t viewer_points = 300'000;
   bool no_model_mesh = false;
+  std::optional<double> exclude_beyond;
   IcpArgs icp;
   GlobalArgs global;
   int threads = 0;
@@ -80,6 +82,11 @@ void run_inspect(const InspectArgs& args) {
   options.min_inside = args.min_inside;
   options.viewer_points = args.viewer_points;
   options.model_mesh = !args.no_model_mesh;
+  if (args.exclude_beyond) {
+    if (const auto error = inspect::validate_exclusion(*args.exclude_beyond, options.scale.band,
+                                                       "--exclude-beyond"))
+      throw UsageError(*error);
+  }
   const icp::IcpOptions icp = icp_options(args.icp);
   // Before the work: an output folder that cannot be written would waste it.
   std::optional<inspect::OutputFolder> folder;
@@ -145,6 +152,14 @@ void run_inspect(const InspectArgs& args) {
     spdlog::warn("{}: {} points have no closest point on the model and are not inspected",
                  args.scan, deviations.unprojected);
   }
+  if (args.exclude_beyond) {
+    inspect::exclude_beyond(deviations, *args.exclude_beyond);
+    spdlog::warn("{}: {} points farther than {:g} from the model are excluded (--exclude-beyond)",
+                 args.scan, deviations.excluded, *args.exclude_beyond);
+  } else if (const auto hint = inspect::clutter_hint(deviations, options.scale.band,
+                                                     options.min_inside, "--exclude-beyond")) {
+    spdlog::warn("{}: {}", args.scan, *hint);
+  }
 
   const Stopwatch inspection;
   const inspect::InspectionReport done =
@@ -153,9 +168,13 @@ void run_inspect(const InspectArgs& args) {
   const double inspection_seconds = inspection.seconds();
   const inspect::DeviationStats& s = done.stats.overall;
   std::cout << fmt::format(
-      "{}: {:.2f} % of {} points inside [{:+g}, {:+g}] {} ({} above, {} below): {}\n", args.scan,
+      "{}: {:.2f} % of {} points inside [{:+g}, {:+g}] {} ({} above, {} below{}): {}\n", args.scan,
       100.0 * s.inside_fraction(), s.points, done.stats.tolerance.lower, done.stats.tolerance.upper,
-      done.units, s.above, s.below, done.passed() ? "PASS" : "FAIL");
+      done.units, s.above, s.below,
+      args.exclude_beyond ? fmt::format("; {} farther than {:g} excluded", done.stats.excluded,
+                                        *args.exclude_beyond)
+                          : std::string(),
+      done.passed() ? "PASS" : "FAIL");
   std::cout << fmt::format(
       "signed deviation: mean {:+.4g}  std {:.4g}  min {:+.4g}  max {:+.4g}  p5 {:+.4g}  p95 "
       "{:+.4g}\n",
@@ -203,6 +222,9 @@ void add_inspect_command(CLI::App& app) {
                   "At most this many points in the report's 3-D view (default 300000)")
       ->check(CLI::Range(std::size_t{1}, std::size_t{5'000'000}));
   cmd->add_flag("--no-model-mesh", args->no_model_mesh, "Leave the model's grey faces out");
+  cmd->add_option("--exclude-beyond", args->exclude_beyond,
+                  "Leave out (and count) the points farther than this from the model: clutter "
+                  "such as a fixture (model units, beyond the tolerance band)");
   add_icp_options(*cmd, args->icp);
   add_global_options(*cmd, args->global);
   cmd->add_option("--threads", args->threads, "Worker threads (0 = all hardware threads)")

@@ -1,6 +1,7 @@
 #include "nurbsreg/inspect/deviations.hpp"
 
 #include <cassert>
+#include <cmath>
 
 namespace nurbsreg::inspect {
 
@@ -32,6 +33,37 @@ PointDeviations collect_deviations(std::span<const engine::Vec3> aligned,
   }
   out.unprojected = aligned.size() - kept;
   return out;
+}
+
+void exclude_beyond(PointDeviations& d, double distance) {
+  assert(distance > 0.0);
+  std::size_t kept = 0;
+  for (std::size_t i = 0; i < d.size(); ++i) {
+    if (!(std::abs(d.signed_distance[i]) <= distance)) continue;
+    d.points[kept] = d.points[i];
+    d.signed_distance[kept] = d.signed_distance[i];
+    d.face[kept] = d.face[i];
+    d.u[kept] = d.u[i];
+    d.v[kept] = d.v[i];
+    d.source_index[kept] = d.source_index[i];
+    ++kept;
+  }
+  d.excluded += d.size() - kept;
+  d.exclusion_distance = distance;
+  d.points.resize(kept);
+  d.signed_distance.resize(kept);
+  d.face.resize(kept);
+  d.u.resize(kept);
+  d.v.resize(kept);
+  d.source_index.resize(kept);
+}
+
+double fraction_beyond(const PointDeviations& d, double distance) {
+  if (d.size() == 0) return 0.0;
+  std::size_t far = 0;
+  for (const double s : d.signed_distance)
+    far += std::abs(s) > distance;
+  return static_cast<double>(far) / static_cast<double>(d.size());
 }
 
 }  // namespace nurbsreg::inspect

@@ -138,6 +138,16 @@ std::string summary(const InspectionReport& r) {
               fmt::format("NaN/inf points; {} without a foot",
                           number("unprojected_points", double(r.stats.unprojected),
                                  fmt::format("{}", r.stats.unprojected))));
+  if (r.stats.exclusion_distance > 0.0) {
+    out += card(
+        "Excluded",
+        number("excluded_points", double(r.stats.excluded), fmt::format("{}", r.stats.excluded)),
+        fmt::format("farther than {} {} from the model (--exclude-beyond): not in these "
+                    "numbers nor the verdict",
+                    number("exclude_beyond", r.stats.exclusion_distance,
+                           fmt::format("{:g}", r.stats.exclusion_distance)),
+                    escape(r.units)));
+  }
   out += "</section>\n";
   return out;
 }

@@ -58,6 +58,10 @@ std::string inspection_json(const InspectionReport& r) {
   // The contract's overall "points" is the inspected points; the scan's finite points follow.
   j["scan_points"] = r.scan_points;
   j["unprojected_points"] = r.stats.unprojected;
+  // Points left out as clutter (`--exclude-beyond`): not in any statistic nor the verdict.
+  j["excluded_points"] = r.stats.excluded;
+  j["exclude_beyond"] =
+      r.stats.exclusion_distance > 0.0 ? Json(r.stats.exclusion_distance) : Json(nullptr);
   j["pose_given"] = r.pose_given;
   j["degenerate"] = !r.degeneracy.empty();
   if (!r.degeneracy.empty()) j["free_directions"] = r.degeneracy;

@@ -256,7 +256,13 @@ void draw_legend(cairo_t* cr, const InspectionReport& r, int x0, int height) {
       fmt::format("min / max          {:+.4f} / {:+.4f}", s.min, s.max),
       fmt::format("p5 / p95           {:+.4f} / {:+.4f}", s.p5, s.p95),
   };
-  for (const std::string& line : lines) {
+  std::vector<std::string> all = lines;
+  // Clutter left out on request is part of what the verdict stands on: say it on the picture.
+  if (r.stats.exclusion_distance > 0.0) {
+    all.push_back(
+        fmt::format("excluded (|d| > {:g})  {}", r.stats.exclusion_distance, r.stats.excluded));
+  }
+  for (const std::string& line : all) {
     cairo_select_font_face(cr, "DejaVu Sans Mono", CAIRO_FONT_SLANT_NORMAL,
                            CAIRO_FONT_WEIGHT_NORMAL);
     cairo_set_font_size(cr, 13.5);

@@ -83,6 +83,8 @@ InspectionStatistics compute_statistics(const PointDeviations& deviations,
   out.tolerance = tolerance;
   out.skipped_nonfinite = deviations.skipped_nonfinite;
   out.unprojected = deviations.unprojected;
+  out.excluded = deviations.excluded;
+  out.exclusion_distance = deviations.exclusion_distance;
   const std::size_t n = deviations.size();
   const std::size_t faces = model.surfaces.size();
 

@@ -238,8 +238,8 @@ AlignmentResult.to_json = _to_json
 def inspect(model, scan, *, tolerance=None, tolerance_upper=None, tolerance_lower=None,
             init=None, pose=None, global_alignment=None, out_dir=None, ply=None, html=None,
             png=None, colour_scale="metrology", colour_min=None, colour_max=None,
-            min_inside=0.99, viewer_points=300_000, model_mesh=True, threads=None,
-            accept_poor=False, min_inlier_fraction=0.5, **icp_options):
+            min_inside=0.99, viewer_points=300_000, model_mesh=True, exclude_beyond=None,
+            threads=None, accept_poor=False, min_inlier_fraction=0.5, **icp_options):
     """Inspect a scan against ``model`` as ``nurbsreg inspect``: align it (unless ``pose`` is
     the final pose), then the signed deviation of every point, its statistics overall and per
     face, the pass/fail verdict, and the output files asked for.
@@ -262,10 +262,15 @@ def inspect(model, scan, *, tolerance=None, tolerance_upper=None, tolerance_lowe
         saturate; default 3 x the band), min_inside (pass when at least this fraction of the
         points is inside; 0.99), viewer_points (at most this many points in the HTML's 3-D
         view), model_mesh (the model's faces in grey in the HTML and PNG): as the CLI.
+    exclude_beyond: leave out the points farther than this from the model (clutter such as a
+        fixture; model units, beyond the band), counted in ``excluded`` and in every output, as
+        ``--exclude-beyond``. Without it, a warning says when far points alone decide the
+        verdict.
     threads: worker threads (None or 0: all hardware threads).
 
     Returns an InspectionResult: per inspected point (one row each, scan order; points without
-    a foot on the model are left out and counted in ``unprojected``) ``points`` (N, 3, aligned,
+    a foot on the model are left out and counted in ``unprojected``, those beyond
+    ``exclude_beyond`` in ``excluded``) ``points`` (N, 3, aligned,
     model coordinates), ``signed_distance``, ``face``, ``u``, ``v``, ``index`` (row in the file
     or input array); ``summary`` (points, inside, below, above, inside_tolerance, mean, std,
     rms, min, max, p5, p95), ``faces`` (the same per face), ``tolerance`` (lower, upper),
@@ -301,7 +306,7 @@ def inspect(model, scan, *, tolerance=None, tolerance_upper=None, tolerance_lowe
         _global_mode(global_alignment), lower, upper, colour_scale,
         None if colour_min is None else float(colour_min),
         None if colour_max is None else float(colour_max), float(min_inside), int(viewer_points),
-        bool(model_mesh), paths[0], *(p or "" for p in paths[1:]), threads)
+        bool(model_mesh), None if exclude_beyond is None else float(exclude_beyond), paths[0], *(p or "" for p in paths[1:]), threads)
     if result.alignment is not None:
         _checked(result.alignment)
     _warn_all(result.warnings)

@@ -63,6 +63,8 @@ void bind_inspect(py::module_& m) {
           "skipped", [](const InspectionFrame& f) { return f.deviations.skipped_nonfinite; })
       .def_property_readonly("unprojected",
                              [](const InspectionFrame& f) { return f.deviations.unprojected; })
+      .def_property_readonly("excluded",
+                             [](const InspectionFrame& f) { return f.deviations.excluded; })
       .def_property_readonly(
           "summary", [](const InspectionFrame& f) { return stats_dict(f.report.stats.overall); })
       .def_property_readonly("faces",
@@ -104,10 +106,11 @@ void bind_inspect(py::module_& m) {
          const std::string& global, double tolerance_lower, double tolerance_upper,
          const std::string& colour_scale, std::optional<double> colour_min,
          std::optional<double> colour_max, double min_inside, std::size_t viewer_points,
-         bool model_mesh, const std::optional<std::string>& out_dir, const std::string& ply,
-         const std::string& html, const std::string& png, const std::optional<int>& threads) {
-        InspectOptions o{tolerance_lower, tolerance_upper, colour_scale,  colour_min,
-                         colour_max,      min_inside,      viewer_points, model_mesh};
+         bool model_mesh, std::optional<double> exclude_beyond,
+         const std::optional<std::string>& out_dir, const std::string& ply, const std::string& html,
+         const std::string& png, const std::optional<int>& threads) {
+        InspectOptions o{tolerance_lower, tolerance_upper, colour_scale, colour_min,    colour_max,
+                         min_inside,      viewer_points,   model_mesh,   exclude_beyond};
         return run_inspect(aligner, scan, index, file_skipped, scan_name, init, pose, global, o,
                            out_dir, ply, html, png, threads);
       },
@@ -115,8 +118,8 @@ void bind_inspect(py::module_& m) {
       py::arg("scan_name"), py::arg("init"), py::arg("pose"), py::arg("global_mode"),
       py::arg("tolerance_lower"), py::arg("tolerance_upper"), py::arg("colour_scale"),
       py::arg("colour_min"), py::arg("colour_max"), py::arg("min_inside"), py::arg("viewer_points"),
-      py::arg("model_mesh"), py::arg("out_dir"), py::arg("ply"), py::arg("html"), py::arg("png"),
-      py::arg("threads"));
+      py::arg("model_mesh"), py::arg("exclude_beyond"), py::arg("out_dir"), py::arg("ply"),
+      py::arg("html"), py::arg("png"), py::arg("threads"));
 }
 
 }  // namespace nurbsreg::python

@@ -11,6 +11,7 @@
 #include "alignment_frame.hpp"
 #include "bindings.hpp"
 #include "model_handle.hpp"
+#include "nurbsreg/inspect/clutter.hpp"
 #include "nurbsreg/inspect/inspection.hpp"
 #include "nurbsreg/io/alignment_result_report.hpp"
 #include "points_arg.hpp"
@@ -53,6 +54,11 @@ inspect::InspectionOptions inspection_options(const InspectOptions& o) {
   options.min_inside = o.min_inside;
   options.viewer_points = o.viewer_points;
   options.model_mesh = o.model_mesh;
+  if (o.exclude_beyond) {
+    if (const auto error =
+            inspect::validate_exclusion(*o.exclude_beyond, options.scale.band, "exclude_beyond"))
+      throw py::value_error(*error);
+  }
   return options;
 }
 
@@ -159,6 +165,12 @@ InspectionFramePtr run_inspect(PyAligner& aligner, const py::handle& scan_object
     f->warnings.push_back(
         fmt::format("scan: {} points have no closest point on the model and are not inspected",
                     f->deviations.unprojected));
+  }
+  if (inspect_options.exclude_beyond) {
+    inspect::exclude_beyond(f->deviations, *inspect_options.exclude_beyond);
+  } else if (const auto hint = inspect::clutter_hint(f->deviations, options.scale.band,
+                                                     options.min_inside, "exclude_beyond")) {
+    f->warnings.push_back("scan: " + *hint);
   }
   run_released(thread_count(threads), false, [&] {
     if (folder) {

@@ -38,6 +38,7 @@ struct InspectOptions {
   double min_inside = 0.99;
   std::size_t viewer_points = 300'000;
   bool model_mesh = true;
+  std::optional<double> exclude_beyond;  // as `inspect --exclude-beyond`
 };
 
 // `scan`: (N, 3) points; `file_index` (a PointCloud's index: file position of each row) and

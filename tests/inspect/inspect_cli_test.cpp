@@ -233,6 +233,52 @@ void expect_clean_failure(const ScratchDir& dir, const std::string& args, int st
         << "staging left: " << e.path();
 }
 
+// Clutter (points far off the part, like a fixture) decides the verdict unless it is excluded:
+// without --exclude-beyond the run says so and names the option; with it the far points are
+// left out of every statistic and of the PLY, and counted in the JSON, the page and stdout.
+TEST(InspectCli, ClutterIsExcludedOnlyOnRequestAndCounted) {
+  ScratchDir dir("inspect-cli-clutter");
+  const Case c = write_case(dir, 0.04);
+  {
+    std::ofstream scan(c.scan, std::ios::app);
+    for (int k = 0; k < 12; ++k)  // 8 above the top face, 4 below it: |d| 5 and 3
+      scan << 0.5 + 0.7 * k << " 5.5 " << (k < 8 ? 5.0 : -3.0) << "\n";
+  }
+  std::vector<double> part = c.top;
+  part.insert(part.end(), c.under.begin(), c.under.end());
+  const std::string base = "inspect --model " + c.model + " --scan " + c.scan + " --pose " +
+                           c.pose + " --tolerance 0.05 --out-dir ";
+
+  const CommandResult plain = run_nurbsreg(base + (dir / "plain"), dir.path());
+  ASSERT_EQ(plain.status, 0) << plain.err;
+  EXPECT_NE(plain.out.find("FAIL"), std::string::npos) << plain.out;
+  EXPECT_NE(plain.err.find("--exclude-beyond=0.5"), std::string::npos) << plain.err;
+  const nlohmann::json p = read_json(dir / "plain/inspect.json");
+  EXPECT_EQ(p["points"].get<std::size_t>(), part.size() + 12);
+  EXPECT_EQ(p["excluded_points"].get<std::size_t>(), 0u);
+  EXPECT_TRUE(p["exclude_beyond"].is_null());
+
+  const CommandResult cut = run_nurbsreg(base + (dir / "cut") + " --exclude-beyond 1", dir.path());
+  ASSERT_EQ(cut.status, 0) << cut.err;
+  EXPECT_NE(cut.out.find("12 farther than 1 excluded): PASS"), std::string::npos) << cut.out;
+  EXPECT_EQ(cut.err.find("--exclude-beyond="), std::string::npos) << cut.err;
+  const nlohmann::json j = read_json(dir / "cut/inspect.json");
+  expect_stats(j, part, -0.05, 0.05);
+  EXPECT_EQ(j["excluded_points"].get<std::size_t>(), 12u);
+  EXPECT_EQ(j["exclude_beyond"].get<double>(), 1.0);
+  EXPECT_EQ(j["verdict"], "pass");
+  EXPECT_EQ(io::read_point_cloud(dir / "cut/deviations.ply").size(), part.size());
+  const std::string html = read_text(dir / "cut/report.html");
+  EXPECT_NE(html.find("data-key=\"excluded_points\" data-value=\"12\""), std::string::npos);
+
+  // Inside or at the band it would drop deviations, not clutter.
+  const CommandResult bad =
+      run_nurbsreg(base + (dir / "bad") + " --exclude-beyond 0.05", dir.path());
+  EXPECT_EQ(bad.status, 2) << bad.err;
+  EXPECT_NE(bad.err.find("--exclude-beyond"), std::string::npos) << bad.err;
+  EXPECT_FALSE(fs::exists(dir / "bad"));
+}
+
 TEST(InspectCli, BadInputFailsWithOneLineAndLeavesNothing) {
   ScratchDir dir("inspect-cli-bad");
   const Case c = write_case(dir, 0.04);

@@ -103,6 +103,33 @@ def test_given_pose_and_asymmetric_band_as_the_cli(panel, holey_scan, cli_inspec
     assert (tmp_path / "py.ply").read_bytes() == (tmp_path / "cli" / "deviations.ply").read_bytes()
 
 
+def test_clutter_is_excluded_on_request_as_the_cli(panel, holey_scan, cli_inspection, tmp_path):
+    """exclude_beyond= is --exclude-beyond: the same files; far points counted in ``excluded``
+    and left out of every number; without it, a warning names the option."""
+    scan_file, points = holey_scan
+    T = np.array(json.loads((cli_inspection / "inspect.json").read_text())["pose"])
+    cluttered = np.vstack([points, (T[:3, :3].T @ (np.array([[0.0, 0.0, 40.0]]).T
+                                                    - T[:3, 3:4])).T.repeat(300, axis=0)])
+    nurbsreg.write_point_cloud(tmp_path / "cluttered.pcd", cluttered, double_precision=True)
+    (tmp_path / "pose.txt").write_text(
+        "\n".join(" ".join(repr(float(x)) for x in row) for row in T) + "\n")
+    run_cli("inspect", "--model", PANEL, "--scan", tmp_path / "cluttered.pcd", "--pose",
+            tmp_path / "pose.txt", "--tolerance", 0.05, "--exclude-beyond", 2,
+            "--out-dir", tmp_path / "cli")
+    r = nurbsreg.inspect(panel, str(tmp_path / "cluttered.pcd"), pose=T, tolerance=0.05,
+                         exclude_beyond=2, ply=tmp_path / "py.ply")
+    expected = json.loads((tmp_path / "cli" / "inspect.json").read_text())
+    assert without_times(r.report()) == without_times(expected)
+    assert r.excluded == 300 and expected["excluded_points"] == 300
+    assert len(r) == 7998 and expected["exclude_beyond"] == 2
+    assert (tmp_path / "py.ply").read_bytes() == (tmp_path / "cli" / "deviations.ply").read_bytes()
+    with pytest.warns(nurbsreg.NurbsregWarning, match="exclude_beyond=0.5"):
+        plain = nurbsreg.inspect(panel, cluttered, pose=T, tolerance=0.05)
+    assert plain.excluded == 0 and len(plain) == 8298
+    with pytest.raises(ValueError, match="exclude_beyond: must be a distance beyond"):
+        nurbsreg.inspect(panel, points, pose=T, tolerance=0.05, exclude_beyond=0.05)
+
+
 def test_errors(panel, holey_scan, tmp_path):
     _, points = holey_scan
     with pytest.raises(ValueError, match="tolerance is required"):

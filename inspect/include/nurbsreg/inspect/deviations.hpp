@@ -23,6 +23,10 @@ struct PointDeviations {
   std::vector<std::uint64_t> source_index;  // 0-based position of the point in the scan file
   std::size_t skipped_nonfinite = 0;        // file points with a NaN or infinite coordinate
   std::size_t unprojected = 0;              // points without a foot (projection status not ok)
+  // Points farther than `exclusion_distance` from the model, left out of the inspection on
+  // request (clutter: a fixture, another object); 0 when nothing is excluded by distance.
+  std::size_t excluded = 0;
+  double exclusion_distance = 0.0;
 
   std::size_t size() const { return points.size(); }
 };
@@ -34,5 +38,12 @@ PointDeviations collect_deviations(std::span<const engine::Vec3> aligned,
                                    const engine::ProjectionResults& projections,
                                    std::span<const std::uint64_t> source_index,
                                    std::size_t skipped_nonfinite);
+
+// Leaves out the points whose |signed distance| exceeds `distance` (> 0), in place, keeping the
+// order of the others, and counts them in `excluded`.
+void exclude_beyond(PointDeviations& deviations, double distance);
+
+// The fraction of the points whose |signed distance| exceeds `distance`.
+double fraction_beyond(const PointDeviations& deviations, double distance);
 
 }  // namespace nurbsreg::inspect

@@ -62,6 +62,8 @@ struct InspectionStatistics {
   Histogram histogram;
   std::size_t skipped_nonfinite = 0;
   std::size_t unprojected = 0;
+  std::size_t excluded = 0;         // farther than exclusion_distance (PointDeviations)
+  double exclusion_distance = 0.0;  // 0: nothing excluded by distance
 };
 
 // The statistics of the `values` (reordered: they are scratch).
