@@ -39,6 +39,13 @@ constexpr std::size_t kMaxVerified = 6;
 // iterations before a clearly worse hypothesis may be rejected.
 constexpr int kVerifyStep = 4;
 constexpr int kRejectAfter = 8;
+// The short ICPs' first iterations weigh the correspondences with a Tukey scale of one voxel (the
+// sample consensus' accuracy), the later ones with the scale estimated from the residuals. A
+// hypothesis that fits a part's large plane but not its small features (an assembly's base
+// plate, a few voxels off in its own plane) has most residuals at the noise level: the
+// estimated scale is then that small, and rejects the very correspondences that would pull the
+// small features, and with them the pose, into place.
+constexpr int kWideScaleIterations = 6;
 // The second round's seed matches at most.
 constexpr std::size_t kMaxSeedsRetry = 20000;
 
@@ -282,6 +289,7 @@ CoarseOutcome coarse_align(std::span<const Vec3> scan, const ModelFeatures& feat
       for (int done = 0; done < iterations;) {
         // The first step is short: a duplicate is usually on its pose after two iterations.
         vo.max_iterations = std::min(done == 0 ? 2 : kVerifyStep, iterations - done);
+        vo.kernel_scale = done < kWideScaleIterations ? v : 0.0;
         const icp::IcpResult res = icp::IcpSolver(vo).align(finder, sub, T);
         if (res.termination == icp::IcpTermination::too_few_correspondences ||
             res.termination == icp::IcpTermination::numerical_failure ||
