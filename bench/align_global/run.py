@@ -184,6 +184,9 @@ def main():
     ap.add_argument("--nurbsreg", default="build/bin/nurbsreg")
     ap.add_argument("--pcl-peer", default="build/bench/align_global/pcl_global_peer")
     ap.add_argument("--trials", type=int, default=3)
+    ap.add_argument("--peer-trials", type=int,
+                    help="the peers other than nurbsreg on only the first this many poses of "
+                         "each row (they take several times longer; default: all)")
     ap.add_argument("--points", type=int, default=50000)
     ap.add_argument("--threads", type=int, default=1)
     ap.add_argument("--parts", default=",".join(PARTS))
@@ -237,13 +240,15 @@ def main():
                          "--noise", str(1e-4 * diag), "--pose", pose, "--seed", str(t + 1),
                          "--out", scan, "--out-pose", truth_path, *CONDITIONS[cond]])
                     scans.append((scan, np.loadtxt(truth_path), pose))
-                pcl = pcl_align(a, dense, voxel, [s for s, _, _ in scans]) if "pcl" in peers \
-                    else {}
+                peer_scans = scans[:a.peer_trials] if a.peer_trials is not None else scans
+                pcl = pcl_align(a, dense, voxel, [s for s, _, _ in peer_scans]) \
+                    if "pcl" in peers else {}
                 batch = nurbsreg_batch(a, model, [s for s, _, _ in scans], tmp) \
                     if a.batch and "nurbsreg" in peers else {}
                 for name in peers:
                     runs, wrong_exit0 = [], 0
-                    for t, (scan, truth, pose) in enumerate(scans):
+                    for t, (scan, truth, pose) in enumerate(scans if name == "nurbsreg"
+                                                            else peer_scans):
                         r = {"part": part, "condition": cond, "peer": name, "trial": t,
                              "pose_deg_xyz_trans": pose}
                         T = None
