@@ -121,13 +121,15 @@ supp="$PWD/tests/sanitizers"
 
 stage_asan() {
   sanitizer_build build-asan address,undefined -DNURBSREG_FUZZ=ON -- || return 1
-  local status=0
-  ASAN_OPTIONS="detect_leaks=1:suppressions=$supp/asan.supp:detect_stack_use_after_return=0" \
+  local status=0 cpu_log="$PWD/build-asan/asan-test-cpu.log"
+  rm -f "$cpu_log"
+  NURBSREG_TEST_CPU_LOG="$cpu_log" \
+    ASAN_OPTIONS="detect_leaks=1:suppressions=$supp/asan.supp:detect_stack_use_after_return=0" \
     LSAN_OPTIONS="suppressions=$supp/lsan.supp:print_suppressions=0" \
     UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1:suppressions=$supp/ubsan.supp" \
     ctest --test-dir build-asan --output-on-failure --parallel "$(nproc)" --timeout 1200 \
     --output-junit "$PWD/build-asan/asan-tests.xml" || status=1
-  ./scripts/slowest_tests.py build-asan/asan-tests.xml 15 build-asan >&2
+  ./scripts/slowest_tests.py build-asan/asan-tests.xml 15 build-asan "$cpu_log" >&2
   return $status
 }
 
