@@ -33,10 +33,10 @@ else
   stages="${NURBSREG_STAGES:-release asan fuzz tsan}"
 fi
 want() { [[ " $stages " == *" $1 "* ]]; }
-budget_release="${NURBSREG_BUDGET_RELEASE:-1500}"
+budget_release="${NURBSREG_BUDGET_RELEASE:-1200}"
 budget_asan="${NURBSREG_BUDGET_ASAN:-2400}"
-budget_fuzz="${NURBSREG_BUDGET_FUZZ:-600}"
-budget_tsan="${NURBSREG_BUDGET_TSAN:-300}"
+budget_fuzz="${NURBSREG_BUDGET_FUZZ:-420}"
+budget_tsan="${NURBSREG_BUDGET_TSAN:-780}"
 timings=()
 failed=()
 # CPU seconds of this script's finished children (bash `times`, second line: user and system),
