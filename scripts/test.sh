@@ -18,8 +18,8 @@
 # Every stage has a wall-clock budget (seconds; NURBSREG_BUDGET_RELEASE, _ASAN, _FUZZ, _TSAN;
 # 0 = none). A stage still running at its budget is killed and FAILS, naming the stage and the
 # budget: CI stops at 90 minutes, and a run that silently grew past it would end with no result
-# at all. The defaults are the measured times on a fresh 2-core machine with a margin (README);
-# they sum to 80 minutes, which leaves the dependencies' installation 10.
+# at all. The defaults are the estimated times on a fresh 2-core machine with a margin (README);
+# they sum to 85 minutes, which leaves the dependencies' installation 5.
 set -euo pipefail
 self="$(cd "$(dirname "$0")" && pwd)/$(basename "$0")"
 cd "$(dirname "$0")/.."
@@ -33,8 +33,8 @@ else
   stages="${NURBSREG_STAGES:-release asan fuzz tsan}"
 fi
 want() { [[ " $stages " == *" $1 "* ]]; }
-budget_release="${NURBSREG_BUDGET_RELEASE:-1200}"
-budget_asan="${NURBSREG_BUDGET_ASAN:-2400}"
+budget_release="${NURBSREG_BUDGET_RELEASE:-900}"
+budget_asan="${NURBSREG_BUDGET_ASAN:-3000}"
 budget_fuzz="${NURBSREG_BUDGET_FUZZ:-420}"
 budget_tsan="${NURBSREG_BUDGET_TSAN:-780}"
 timings=()
