@@ -47,7 +47,7 @@ read_cpu() {
   times >"$cpu_file"
   cpu_now=$(sed -n 2p "$cpu_file" | awk '{ t = 0; for (i = 1; i <= 2; ++i) { split($i, a, /[ms]/); t += a[1] * 60 + a[2] } printf "%d", t }')
 }
-note() { echo "$*" >>"$NURBSREG_TEST_NOTES"; }
+note() { [ -z "${NURBSREG_TEST_NOTES:-}" ] || echo "$*" >>"$NURBSREG_TEST_NOTES"; }
 summary() {
   [ ${#timings[@]} -eq 0 ] || printf "== test.sh: %s\n" "${timings[@]}" >&2
   [ -s "$NURBSREG_TEST_NOTES" ] && sed 's/^/== test.sh: /' "$NURBSREG_TEST_NOTES" >&2
