@@ -6,8 +6,11 @@
 // Under callgrind (`--callgrind`, run with --collect-atstart=no) only the warm frames are
 // measured.
 //
-//   build/bench/service/warm_frames MODEL FRAMES SCAN... [--threads N] [--callgrind]
+//   build/bench/service/warm_frames MODEL FRAMES SCAN... [--threads N] [--callgrind] [-v]
+//
+// -v: the ICP iterations and each correspondence pass (engine counters) as debug lines.
 
+#include <spdlog/spdlog.h>
 #include <tbb/global_control.h>
 #include <valgrind/callgrind.h>
 
@@ -46,12 +49,15 @@ int main(int argc, char** argv) {
       threads = std::atoi(argv[++i]);
     } else if (a == "--callgrind") {
       callgrind = true;
+    } else if (a == "-v") {
+      spdlog::set_level(spdlog::level::debug);
     } else {
       scans.push_back(a);
     }
   }
   if (argc < 4 || scans.empty()) {
-    std::fprintf(stderr, "usage: %s MODEL FRAMES SCAN... [--threads N] [--callgrind]\n", argv[0]);
+    std::fprintf(stderr, "usage: %s MODEL FRAMES SCAN... [--threads N] [--callgrind] [-v]\n",
+                 argv[0]);
     return 2;
   }
   const int frames = std::atoi(argv[2]);
