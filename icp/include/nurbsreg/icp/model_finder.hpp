@@ -40,6 +40,7 @@ class ModelCorrespondenceFinder final : public CorrespondenceFinder {
   // and with them the last bits of a foot, may differ from a fresh finder's. The atlas keeps one
   // certificate per cell, so it is bounded by the model's size, not by the number of frames.
   void keep_certificates(bool keep) { keep_certificates_ = keep; }
+  bool keeps_certificates() const { return keep_certificates_; }
   void find(const CorrespondenceQuery& query, std::span<Correspondence> out) override;
 
   // The projection results of the last find() (entity, u, v, signed distance, ...), in query
