@@ -6,8 +6,14 @@
 // Under callgrind (`--callgrind`, run with --collect-atstart=no) only the warm frames are
 // measured.
 //
-//   build/bench/service/warm_frames MODEL FRAMES SCAN... [--threads N] [--callgrind]
+//   build/bench/service/warm_frames MODEL FRAMES SCAN... [--threads N] [--callgrind] [-v]
+//                                   [--fresh-certificates]
+//
+// -v: the ICP iterations and each correspondence pass (engine counters) as debug lines.
+// --fresh-certificates: every frame starts without the certificates of the frames before (as
+// `align --init` in a new process; the service's sessions keep them).
 
+#include <spdlog/spdlog.h>
 #include <tbb/global_control.h>
 #include <valgrind/callgrind.h>
 
@@ -40,18 +46,26 @@ int main(int argc, char** argv) {
   std::vector<std::string> scans;
   int threads = 0;
   bool callgrind = false;
+  bool keep = true;
   for (int i = 3; i < argc; ++i) {
     const std::string a = argv[i];
     if (a == "--threads" && i + 1 < argc) {
       threads = std::atoi(argv[++i]);
     } else if (a == "--callgrind") {
       callgrind = true;
+    } else if (a == "--fresh-certificates") {
+      keep = false;
+    } else if (a == "-v") {
+      spdlog::set_level(spdlog::level::debug);
     } else {
       scans.push_back(a);
     }
   }
   if (argc < 4 || scans.empty()) {
-    std::fprintf(stderr, "usage: %s MODEL FRAMES SCAN... [--threads N] [--callgrind]\n", argv[0]);
+    std::fprintf(
+        stderr,
+        "usage: %s MODEL FRAMES SCAN... [--threads N] [--callgrind] [-v] [--fresh-certificates]\n",
+        argv[0]);
     return 2;
   }
   const int frames = std::atoi(argv[2]);
@@ -66,6 +80,7 @@ int main(int argc, char** argv) {
   for (const std::string& s : scans)
     clouds.push_back(io::read_point_cloud(s));
   registration::Aligner aligner(model, icp::IcpOptions{}, options, features);
+  aligner.keep_certificates(keep);
   registration::AlignmentResult first = aligner.align(clouds[0].points);
   if (!first.ok()) {
     std::fprintf(stderr, "first frame: %s\n", first.failure->c_str());

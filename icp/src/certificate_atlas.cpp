@@ -1,5 +1,6 @@
 #include "nurbsreg/icp/certificate_atlas.hpp"
 
+#include <array>
 #include <cmath>
 #include <cstdlib>
 
@@ -98,6 +99,35 @@ namespace {
 double slack(const engine::ProjectionHint& h, const engine::Vec3& p) {
   return static_cast<double>(h.certificate.clearance) - h.certificate.distance_to_anchor(p);
 }
+
+// The 26 neighbours of a cell, nearest first: the 6 faces, the 12 edges, the 8 corners (|dx| +
+// |dy| + |dz| = 1, 2, 3), each ring in (dx, dy, dz) order. A table: the lookup runs for most
+// points of a full pass, and looping over the 27 offsets per ring to pick a ring's ones cost more
+// than the lookups themselves.
+struct Offset {
+  int dx, dy, dz;
+};
+struct Ring {
+  int begin, end;
+};
+constexpr std::array<Offset, 26> neighbour_table() {
+  std::array<Offset, 26> table{};
+  int n = 0;
+  for (int ring = 1; ring <= 3; ++ring) {
+    for (int dx = -1; dx <= 1; ++dx) {
+      for (int dy = -1; dy <= 1; ++dy) {
+        for (int dz = -1; dz <= 1; ++dz) {
+          if ((dx < 0 ? -dx : dx) + (dy < 0 ? -dy : dy) + (dz < 0 ? -dz : dz) == ring) {
+            table[static_cast<std::size_t>(n++)] = {dx, dy, dz};
+          }
+        }
+      }
+    }
+  }
+  return table;
+}
+constexpr std::array<Offset, 26> kNeighbours = neighbour_table();
+constexpr std::array<Ring, 3> kRings = {{{0, 6}, {6, 18}, {18, 26}}};
 }  // namespace
 
 const engine::ProjectionHint* CertificateAtlas::find(const engine::Vec3& p) const {
@@ -111,15 +141,11 @@ const engine::ProjectionHint* CertificateAtlas::find(const engine::Vec3& p) cons
   const Cell c = cell_of(p);
   const engine::ProjectionHint* best = find_in_cell(p, c);
   if (best != nullptr && slack(*best, p) >= enough) return best;
-  for (int ring = 1; ring <= 3; ++ring) {
-    for (int dx = -1; dx <= 1; ++dx) {
-      for (int dy = -1; dy <= 1; ++dy) {
-        for (int dz = -1; dz <= 1; ++dz) {
-          if (std::abs(dx) + std::abs(dy) + std::abs(dz) != ring) continue;
-          const engine::ProjectionHint* h = find_in_cell(p, {c.x + dx, c.y + dy, c.z + dz});
-          if (h != nullptr && (best == nullptr || slack(*h, p) > slack(*best, p))) best = h;
-        }
-      }
+  for (const Ring& ring : kRings) {
+    for (int k = ring.begin; k < ring.end; ++k) {
+      const Offset& o = kNeighbours[k];
+      const engine::ProjectionHint* h = find_in_cell(p, {c.x + o.dx, c.y + o.dy, c.z + o.dz});
+      if (h != nullptr && (best == nullptr || slack(*h, p) > slack(*best, p))) best = h;
     }
     if (best != nullptr && slack(*best, p) >= enough) return best;
   }

@@ -28,7 +28,7 @@ void ModelCorrespondenceFinder::reset(std::size_t scan_size) {
   scan_size_ = scan_size;
   has_previous_ = false;
   previous_position_.assign(scan_size, kNoPosition);
-  atlas_.reset(cell_side());
+  if (!keep_certificates_) atlas_.reset(cell_side());
 }
 
 bool ModelCorrespondenceFinder::repeats_previous_query(const CorrespondenceQuery& query) const {

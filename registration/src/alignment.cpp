@@ -89,6 +89,16 @@ AlignmentResult Aligner::align(std::span<const engine::Vec3> scan, const Eigen::
 }
 
 AlignmentResult Aligner::align(std::span<const engine::Vec3> scan) {
+  // From any pose the answer is a fresh aligner's to the bit: no certificates of the frames
+  // before (keep_certificates) in the coarse stage's or the fine ICP's passes.
+  struct FreshCertificates {
+    icp::ModelCorrespondenceFinder& finder;
+    bool keep = finder.keeps_certificates();
+    explicit FreshCertificates(icp::ModelCorrespondenceFinder& f) : finder(f) {
+      finder.keep_certificates(false);
+    }
+    ~FreshCertificates() { finder.keep_certificates(keep); }
+  } fresh{finder_};
   const auto wall0 = std::chrono::steady_clock::now();
   const double cpu0 = detail::process_cpu_seconds();
   AlignmentResult frame;

@@ -1,5 +1,6 @@
 #include "features.hpp"
 
+#include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
 
 #include <Eigen/Cholesky>
@@ -58,18 +59,26 @@ double between(double abs_cos) {
 }
 
 // The residual variance of the least-squares quadric h = a x^2 + b xy + c y^2 + d x + e y + f
-// through the neighbours of q within `radius`, in the PCA frame `axes` (column 0: the normal):
-// a plane's residuals also hold the surface's curvature (r^4 k^2 / 8 at a radius r: on fillets
-// and holes it exceeds the noise and biased the estimate high, on flat parts it was right), a
-// quadric's only the noise. Uniform outliers close to a thin part fall inside most
-// neighbourhoods (a plate's box is thin), so the fit is repeated four times on the points
-// within 2.5 standard deviations of the previous fit (Gaussian noise loses 1.2% of its points
-// and 8.9% of its variance to that cut, which is given back). Divided by count - 6 (the fit
-// takes six degrees of freedom). -1 when the fit is degenerate.
-double quadric_residual_variance(std::span<const Vec3> points, const PointGrid& grid, const Vec3& q,
-                                 double radius, const Eigen::Matrix3d& axes) {
+// through the neighbours of q within the probe's radius, in the PCA frame `axes` (column 0: the
+// normal): a plane's residuals also hold the surface's curvature (r^4 k^2 / 8 at a radius r: on
+// fillets and holes it exceeds the noise and biased the estimate high, on flat parts it was
+// right), a quadric's only the noise. Uniform outliers close to a thin part fall inside most
+// neighbourhoods (a plate's box is thin), so the fit is repeated four times on the points within
+// 2.5 standard deviations of the previous fit (Gaussian noise loses 1.2% of its points and 8.9% of
+// its variance to that cut, which is given back). Divided by count - 6 (the fit takes six degrees
+// of freedom). -1 when the fit is degenerate.
+//
+// `offsets` are the neighbours' p - q in the grid's order (gathered once per probe: the five fits
+// and the PCA before them read the same neighbourhood, which walking the grid again for each cost
+// more than the fits). The sums are taken in the same order and with the same operations as a
+// per-neighbour rank update, so the estimate does not depend on how the neighbours are held.
+double quadric_residual_variance(std::span<const Vec3> offsets, double radius,
+                                 const Eigen::Matrix3d& axes, std::vector<Vec3>& local) {
   using Vec6 = Eigen::Matrix<double, 6, 1>;
   const double inv = 1.0 / radius;  // unit-sized coordinates keep the normal equations balanced
+  local.resize(offsets.size());
+  for (std::size_t k = 0; k < offsets.size(); ++k)
+    local[k] = axes.transpose() * (offsets[k] * inv);
   Vec6 coef = Vec6::Zero();
   double cut2 = std::numeric_limits<double>::infinity();  // squared residual bound (unit scale)
   double variance = -1.0;
@@ -79,19 +88,22 @@ double quadric_residual_variance(std::span<const Vec3> points, const PointGrid& 
     Vec6 atb = Vec6::Zero();
     double btb = 0.0;
     int count = 0;
-    grid.for_each_within(q, radius, [&](std::uint32_t j, double) {
-      const Vec3 local = axes.transpose() * ((points[j] - q) * inv);
-      const double x = local.y(), y = local.z(), h = local.x();
+    for (const Vec3& l : local) {
+      const double x = l.y(), y = l.z(), h = l.x();
       const Vec6 a(x * x, x * y, y * y, x, y, 1.0);
       if (fit > 0) {
         const double r = h - a.dot(coef);
-        if (r * r > cut2) return;
+        if (r * r > cut2) continue;
       }
-      ata.selfadjointView<Eigen::Lower>().rankUpdate(a);
+      // The lower triangle of a a^T (as selfadjointView<Lower>().rankUpdate(a)).
+      for (int c = 0; c < 6; ++c) {
+        for (int r = c; r < 6; ++r)
+          ata(r, c) += a(c) * a(r);
+      }
       atb += a * h;
       btb += h * h;
       ++count;
-    });
+    }
     if (count < 10) return fit == 0 ? -1.0 : variance;
     const Eigen::LDLT<Eigen::Matrix<double, 6, 6>> ldlt(ata.selfadjointView<Eigen::Lower>());
     if (ldlt.info() != Eigen::Success) return fit == 0 ? -1.0 : variance;
@@ -204,15 +216,25 @@ double estimate_noise(std::span<const Vec3> scan, double voxel, std::uint64_t se
   const std::size_t probes = std::min<std::size_t>(3000, subset.size());
   const std::size_t stride = subset.size() / probes;
   std::vector<double> variances(probes, -1.0);
+  // Per thread: the probe's neighbourhood (grown to the largest one, then reused).
+  struct Neighbourhood {
+    std::vector<Vec3> offsets, local;
+  };
+  tbb::enumerable_thread_specific<Neighbourhood> scratch;
   tbb::parallel_for(std::size_t{0}, probes, [&](std::size_t k) {
     const Vec3& q = subset[k * stride];
+    Neighbourhood& near = scratch.local();
+    near.offsets.clear();
+    grid.for_each_within(q, radius,
+                         [&](std::uint32_t j, double) { near.offsets.push_back(subset[j] - q); });
     Moments3 m;
-    grid.for_each_within(q, radius, [&](std::uint32_t j, double) { m.add(subset[j] - q); });
+    for (const Vec3& d : near.offsets)
+      m.add(d);
     if (m.count < 10) return;
     const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(m.covariance());
     const Vec3 l = eig.eigenvalues();
     if (l(0) > 0.25 * l(1)) return;  // not a surface: an outlier blob or an edge
-    variances[k] = quadric_residual_variance(subset, grid, q, radius, eig.eigenvectors());
+    variances[k] = quadric_residual_variance(near.offsets, radius, eig.eigenvectors(), near.local);
   });
   std::vector<double> valid;
   for (double v : variances) {

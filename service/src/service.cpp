@@ -497,6 +497,9 @@ void Service::Impl::align(const httplib::Request& req, httplib::Response& res,
   if (session) {
     if (!session->aligner || session->overrides != overrides) {
       session->aligner = model->make_aligner(icp_options);
+      // The session's warm state: its frames borrow the certificates of the frames before (exact
+      // answers, not bit-identical to `align --init` of the previous pose from a fresh process).
+      session->aligner->keep_certificates(true);
       session->overrides = overrides;
     }
     aligner = session->aligner.get();

@@ -160,5 +160,27 @@ TEST_F(ModelFinderHints, CertificatesAreReusedInPlaceCarriedAndForgotten) {
   EXPECT_EQ(find_and_check(finder, coarse, 2e-4, kUnknown).certified, 0u);
 }
 
+// A session's frames (keep_certificates): after reset() for a new scan, the first query borrows
+// the certificates made for the scan before (a cold finder proves none; the sheet is large for
+// 400 anchors, so only some points lie in a borrowed ball), and every answer is
+// still the exact closest point; a finder that stops keeping them forgets them at the next reset.
+TEST_F(ModelFinderHints, KeptCertificatesProveTheNextScansFirstQuery) {
+  tbb::global_control limit(tbb::global_control::max_allowed_parallelism, 2);
+  const std::vector<std::size_t> coarse = every(10, 3);
+  const double small = 1e-5 * prepared_.bounds().diagonal();
+  ModelCorrespondenceFinder finder(prepared_);
+  finder.keep_certificates(true);
+  finder.reset(scan_.size());
+  find_and_check(finder, coarse, 0.0, kUnknown);
+  EXPECT_GT(find_and_check(finder, coarse, 1e-4, small).certificates_made, coarse.size() * 3 / 4);
+  // The next frame: other scan points (the odd ones, none of them in `coarse`), a new pose.
+  finder.reset(scan_.size());
+  const engine::ProjectionCounters next = find_and_check(finder, every(2, 0), 2e-4, kUnknown);
+  EXPECT_GT(next.certified, 0u);
+  finder.keep_certificates(false);
+  finder.reset(scan_.size());
+  EXPECT_EQ(find_and_check(finder, every(2, 0), 3e-4, kUnknown).certified, 0u);
+}
+
 }  // namespace
 }  // namespace nurbsreg::icp

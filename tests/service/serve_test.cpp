@@ -227,6 +227,25 @@ TEST_F(Serve, SessionsStartFromThePreviousPose) {
   // RMS is already the converged one's order (not the identity's).
   EXPECT_LE(b.at("iterations").get<int>(), a.at("iterations").get<int>());
   EXPECT_LT(b["history"][0]["rms"].get<double>(), 0.5 * a["history"][0]["rms"].get<double>());
+  // The second frame borrowed the first's certificates (README "Sessions"): exact, so it is
+  // `align --init <first pose>` of a fresh process up to the last bits of the feet.
+  Eigen::Matrix4d first_pose;
+  for (int r = 0; r < 4; ++r) {
+    for (int k = 0; k < 4; ++k)
+      first_pose(r, k) = a.at("pose").at(r).at(k).get<double>();
+  }
+  io::write_pose(path("session_init.txt"), first_pose);
+  const Json cli = cli_report("scan.pcd", " --init " + path("session_init.txt"));
+  EXPECT_EQ(b.at("iterations"), cli.at("iterations"));
+  EXPECT_EQ(b.at("inliers"), cli.at("inliers"));
+  EXPECT_NEAR(b.at("rms").get<double>(), cli.at("rms").get<double>(), 1e-12);
+  for (int r = 0; r < 4; ++r) {
+    for (int k = 0; k < 4; ++k) {
+      EXPECT_NEAR(b.at("pose").at(r).at(k).get<double>(), cli.at("pose").at(r).at(k).get<double>(),
+                  1e-9)
+          << r << k;
+    }
+  }
   // A session belongs to its model.
   const auto other = c->Post("/v1/align?model=sphere&session=cam-1", scan, kPcd);
   ASSERT_TRUE(other);

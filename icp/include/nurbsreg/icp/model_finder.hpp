@@ -33,6 +33,14 @@ class ModelCorrespondenceFinder final : public CorrespondenceFinder {
   ModelCorrespondenceFinder(const engine::PreparedModel&&) = delete;
 
   void reset(std::size_t scan_size) override;
+  // A stream of frames of one model (a service session): reset() keeps the certificates made so
+  // far, so a frame's first passes borrow those of the frames before instead of searching the
+  // model from scratch. A certificate speaks for a ball of space around its anchor on this model,
+  // whichever scan asks, so the answers stay the exact closest points; only the Newton starts,
+  // and with them the last bits of a foot, may differ from a fresh finder's. The atlas keeps one
+  // certificate per cell, so it is bounded by the model's size, not by the number of frames.
+  void keep_certificates(bool keep) { keep_certificates_ = keep; }
+  bool keeps_certificates() const { return keep_certificates_; }
   void find(const CorrespondenceQuery& query, std::span<Correspondence> out) override;
 
   // The projection results of the last find() (entity, u, v, signed distance, ...), in query
@@ -78,6 +86,7 @@ class ModelCorrespondenceFinder final : public CorrespondenceFinder {
   // Per query point: the atlas certificate it borrows, or null (HintSource::borrowed).
   engine::FrameVector<const engine::ProjectionHint*> borrowed_;
   CertificateAtlas atlas_;
+  bool keep_certificates_ = false;
 };
 
 }  // namespace nurbsreg::icp

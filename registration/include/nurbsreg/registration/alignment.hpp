@@ -93,6 +93,12 @@ class Aligner {
   // The exact projections of the last align()'s aligned points (entity, u, v, distance, signed
   // distance; no feet or normals), in scan order.
   const engine::ProjectionResults& last_projections() const { return finder_.last_results(); }
+  // Frames of one stream (a service session): the finder keeps its certificates from frame to
+  // frame (icp::ModelCorrespondenceFinder::keep_certificates) for the frames from a pose. The
+  // answers stay exact, but not bit-identical to a fresh aligner's. A frame from any pose (the
+  // global stage) starts without them and is a fresh aligner's to the bit; the certificates of
+  // its fine ICP serve the frames after it.
+  void keep_certificates(bool keep) { finder_.keep_certificates(keep); }
   const engine::PreparedModel& model() const { return model_; }
   const icp::IcpOptions& options() const { return solver_.options(); }
   const RegistrationOptions& registration_options() const { return registration_; }
