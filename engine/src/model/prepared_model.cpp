@@ -189,7 +189,7 @@ PreparedModel::PreparedModel(Model model)
       patch_surface_.push_back(static_cast<int>(s));
       patch_class_.push_back(RegionClass::inside);
       bounds_.extend(patches_.back().box);
-      if (!surface.is_trimmed() && !patches_.back().rational) {
+      if (!patches_.back().rational) {
         surface_certifiable_.back() = 1;
         any_certifiable_ = true;
       }

@@ -42,6 +42,13 @@ struct Projector::OtherItems {
   static constexpr std::int64_t kNone = std::numeric_limits<std::int64_t>::min();
   static constexpr int kSlots = 12;
   double margin = 0.0;
+  // The cheap failure path: the walk stops certifying (prunes as a plain search from then on) once
+  // two items that no box N can hold together both come within `give_up_margin` of the best
+  // distance: one of them would cap any certificate's clearance below that, so it would serve
+  // moves below half of it (thin walls, close sheets). Only a matter of cost: a point whose
+  // walk gave up gets no certificate (tried_at), its answer is the plain search's.
+  double give_up_margin = 0.0;
+  bool gave_up = false;
   // Ascending by minimum; unused slots at the end (kNone, infinity).
   std::int64_t item[kSlots];
   double minimum[kSlots];
@@ -51,7 +58,12 @@ struct Projector::OtherItems {
     std::fill(std::begin(minimum), std::end(minimum), std::numeric_limits<double>::infinity());
   }
   double threshold(double best_sq) const {
+    if (gave_up) return best_sq;
     const double d = std::sqrt(best_sq) + margin;
+    return d * d;
+  }
+  double give_up_sq(double best_sq) const {
+    const double d = std::sqrt(best_sq) + give_up_margin;
     return d * d;
   }
   void add(std::int64_t id, double value) {

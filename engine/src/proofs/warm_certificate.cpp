@@ -103,9 +103,12 @@ double outside_lower_bound(const double* full, double* strip, double* work, doub
       if (!(t1 > t0)) continue;
       double value = smallest(strip, t0, t1);
       if (value < bound) {
-        // Halved along the longer side; each half restricted from the full grid, as the tile was.
+        // Halved, each half restricted from the full grid, as the tile was: a tile beside N
+        // across N's own range (about the foot, where F's coefficients along that range dip
+        // below its values: a side tile of a small N stayed near d^2 whatever its distance),
+        // a corner tile along its longer side.
         const double s0 = s_cuts[a], s1 = s_cuts[a + 1];
-        if (s1 - s0 >= t1 - t0) {
+        if (a == 1 || (b != 1 && s1 - s0 >= t1 - t0)) {
           const double mid = 0.5 * (s0 + s1);
           double* half = work;  // the strip is transposed: `work` is free
           restrict_s(full, tile, rows, cols, s0, mid);
@@ -194,8 +197,24 @@ void float_range(double center, double h, float& lo, float& hi, double lo_limit 
 
 }  // namespace
 
+bool box_in_region(const TrimRegion* region, const BezierPatch& bp, double s0, double s1, double t0,
+                   double t1) {
+  if (region == nullptr) return true;
+  // Newton's points in the box map to (u, v) = to_parent(s, t), which rounds: the box is
+  // widened by far more than that rounding.
+  const auto widened = [](const ParamInterval& p, double a, double b, double& lo, double& hi) {
+    const double slack = 1e-12 * (std::abs(p.lo) + std::abs(p.hi));
+    lo = p.to_parent(a) - slack;
+    hi = p.to_parent(b) + slack;
+  };
+  double u0, u1, v0, v1;
+  widened(bp.param_u, s0, s1, u0, u1);
+  widened(bp.param_v, t0, t1, v0, v1);
+  return region->classify(u0, u1, v0, v1) == RegionClass::inside;
+}
+
 PatchCertificate certify_patch(const PreparedPatch& pp, const Vec3& a, double s, double t, double d,
-                               double r_max, SurfaceScratch& scratch) {
+                               double r_max, SurfaceScratch& scratch, const TrimRegion* region) {
   PatchCertificate c;
   if (pp.rational || !a.allFinite() || !(r_max > 0.0)) return c;
   const int rows = pp.rows, cols = pp.cols;
@@ -204,10 +223,12 @@ PatchCertificate certify_patch(const PreparedPatch& pp, const Vec3& a, double s,
   double* strip = grid + SurfaceScratch::kGridCapacity;
   double* work = strip + SurfaceScratch::kGridCapacity;
   pp.numerator(a, full);
-  c.radius = grid_convexity_radius(full, rows, cols, pp.e_ss, pp.e_tt, pp.e_st, r_max);
-  if (c.radius > 0.0) {
-    c.outside_sq = std::numeric_limits<double>::infinity();
-    return c;
+  if (box_in_region(region, pp.patch, 0.0, 1.0, 0.0, 1.0)) {
+    c.radius = grid_convexity_radius(full, rows, cols, pp.e_ss, pp.e_tt, pp.e_st, r_max);
+    if (c.radius > 0.0) {
+      c.outside_sq = std::numeric_limits<double>::infinity();
+      return c;
+    }
   }
   // The same rounding allowance as the clipping's (coefficients carry ~eps reach^2).
   const double reach = pp.sphere.radius + (a - pp.origin).norm();
@@ -215,18 +236,42 @@ PatchCertificate certify_patch(const PreparedPatch& pp, const Vec3& a, double s,
   // A foot on the patch's edge: which edge (s = 0 edge: F must increase with s, and so on).
   const int s_edge = s <= 0.0 ? 1 : (s >= 1.0 ? -1 : 0);
   const int t_edge = t <= 0.0 ? 1 : (t >= 1.0 ? -1 : 0);
-  for (const double h : {1.0, 0.25, 0.1}) {
+  // Half-widths to try: all of P (a foot on its edge), 1/4 and 1/10; on a trimmed face, where
+  // only a smaller box may fit in the region, then the size a certificate needs (the disc of
+  // surface points that may come within d + 2 r_max of a, about the foot, if the surface curves
+  // away no faster than its tangent plane: sqrt((d + 2 r_max)^2 - d^2), half as wide again, in
+  // P's local units along |S_s| and |S_t|) and its halves, down to an eighth.
+  struct Half {
+    double s, t;
+  };
+  Half halves[7] = {{1.0, 1.0}, {0.25, 0.25}, {0.1, 0.1}};
+  int count = 3;
+  if (region != nullptr) {
+    Vec3 der[6];
+    pp.patch.derivatives(s, t, der);
+    const double disc = 1.5 * std::sqrt(4.0 * r_max * (d + r_max));
+    const auto half = [disc](const Vec3& tangent) {
+      const double length = tangent.norm();
+      return length > 0.0 ? std::min(disc / length, 0.1) : 0.1;
+    };
+    const Half need{half(der[1]), half(der[2])};
+    for (const double k : {1.0, 0.5, 0.25, 0.125})
+      halves[count++] = {k * need.s, k * need.t};
+  }
+  for (int n = 0; n < count; ++n) {
+    const double h = halves[n].s;
     if (h == 1.0 && s_edge == 0 && t_edge == 0) continue;  // all of P: tested above
-    float_range(s, h, c.s0, c.s1);
-    float_range(t, h, c.t0, c.t1);
+    float_range(s, halves[n].s, c.s0, c.s1);
+    float_range(t, halves[n].t, c.t0, c.t1);
     const double ws = double(c.s1) - c.s0, wt = double(c.t1) - c.t0;
     if (!(ws > 0.0) || !(wt > 0.0)) continue;
+    if (!box_in_region(region, pp.patch, c.s0, c.s1, c.t0, c.t1)) continue;
     restrict_grid(full, grid, work, strip, rows, cols, {c.s0, c.s1, c.t0, c.t1});
     // E restricted to the box: its first and second differences are those of the derivatives'
     // coefficients scaled by the box's widths, convex combinations of the whole patch's.
-    c.radius = h == 1.0 ? 0.0
-                        : grid_convexity_radius(grid, rows, cols, pp.e_ss * ws * ws,
-                                                pp.e_tt * wt * wt, pp.e_st * ws * wt, r_max);
+    c.radius = n == 0 ? 0.0
+                      : grid_convexity_radius(grid, rows, cols, pp.e_ss * ws * ws,
+                                              pp.e_tt * wt * wt, pp.e_st * ws * wt, r_max);
     if (!(c.radius > 0.0) && (s_edge != 0 || t_edge != 0)) {
       c.radius = edge_radius(grid, rows, cols, s_edge, t_edge, pp.e_s * ws, pp.e_t * wt,
                              pp.e_ss * ws * ws, pp.e_tt * wt * wt, r_max);
@@ -358,7 +403,12 @@ SpanCertificate certify_span(const PreparedModel& model, std::size_t patch, cons
       LocalBox box;
       if (!span_piece(c.s0, c.s1, c.t0, c.t1, i, j, box.s0, box.s1, box.t0, box.t1)) continue;
       const std::int64_t k = model.patch_at(surface, at.a + i, at.b + j);
-      if (k < 0 || model.patch(static_cast<std::size_t>(k)).rational) return SpanCertificate{};
+      if (k < 0 || model.patch(static_cast<std::size_t>(k)).rational ||
+          !box_in_region(model.surface_region(surface),
+                         model.patch(static_cast<std::size_t>(k)).patch, box.s0, box.s1, box.t0,
+                         box.t1)) {
+        return SpanCertificate{};
+      }
       pieces[c.count] = {&model.patch(static_cast<std::size_t>(k)), box};
       c.patches[c.count++] = k;
     }
