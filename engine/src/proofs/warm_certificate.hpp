@@ -25,8 +25,9 @@ struct PatchCertificate {
 // Tries N = all of P, then boxes of local half-width 1/4 and 1/10 around (s, t); the first on which
 // the convexity test holds (or, for a foot on P's edge or corner, F increasing away from it and
 // convex along it: edge_radius in the .cpp) is kept, with radius <= r_max, and P outside it is
-// bounded against (d + 2 radius)^2 where d = |S(s, t) - a|. Polynomial patches only (radius 0
-// otherwise). Uses the scratch's first four grids; no heap allocation.
+// bounded against (d + 2 radius)^2 where d = |S(s, t) - a|. A rational patch: interior feet only,
+// convexity of G = N_q - m D for every value m a query's proof can meet (the .cpp). Uses the
+// scratch's first seven grids; no heap allocation.
 // On a trimmed face (region not null) only boxes N that the region proves inside it are tried
 // (box_in_region), down to half-width 1/25: every point of N is then a point of the face, so
 // N's minimum is the face's there, and P outside N is bounded as untrimmed (a lower bound of
