@@ -41,8 +41,7 @@ void Projector::search_surfaces(const Vec3& p, SurfaceSearch& search, std::int64
     // Certifying: would item `id` (its minimum `value`), next to the best so far, leave any
     // certificate too little clearance (OtherItems::gave_up)? Not when a box N about the best's
     // foot may hold it: the best's own patch and its grid neighbours on the same surface.
-    const auto blocks = [&](std::int64_t id, double value) {
-      if (!(value < others->give_up_sq(best.distance_sq))) return false;
+    const auto blocking = [&](std::int64_t id) {
       if (id >= 0 && search.patch >= 0 && search.edge < 0) {
         const std::size_t k = static_cast<std::size_t>(id);
         if (id == search.patch) return false;
@@ -55,19 +54,23 @@ void Projector::search_surfaces(const Vec3& p, SurfaceSearch& search, std::int64
       }
       return true;
     };
+    // A blocking item gives up the certificate when it is that close, or else caps its clearance
+    // (OtherItems::cut_sq); `a` follows.
+    const auto note = [&](std::int64_t id, double value, double& a) {
+      if constexpr (kCertifying) {
+        if (others->gave_up || id == OtherItems::kNone || !blocking(id)) return;
+        if (value < others->give_up_sq(best.distance_sq)) {
+          others->gave_up = true;
+        } else {
+          others->cut_sq = std::min(others->cut_sq, value);
+        }
+        a = threshold(best.distance_sq);
+      }
+    };
     // The best so far as an item id (OtherItems), or kNone.
     const auto best_item = [&]() -> std::int64_t {
       if (search.edge >= 0) return -1 - search.edge;
       return search.patch >= 0 ? search.patch : OtherItems::kNone;
-    };
-    // Called with the previous best's item and value after an improvement.
-    const auto check_previous = [&](std::int64_t id, double value, double& a) {
-      if constexpr (kCertifying) {
-        if (!others->gave_up && id != OtherItems::kNone && blocks(id, value)) {
-          others->gave_up = true;
-          a = threshold(best.distance_sq);
-        }
-      }
     };
     if constexpr (kCertifying) {
       if (skip_patch >= 0) others->add(skip_patch, best.distance_sq);
@@ -96,10 +99,7 @@ void Projector::search_surfaces(const Vec3& p, SurfaceSearch& search, std::int64
               }
               others->add(patch, hit.distance_sq);
               if (!(hit.distance_sq < best.distance_sq)) {
-                if (!others->gave_up && blocks(patch, hit.distance_sq)) {
-                  others->gave_up = true;
-                  a = threshold(best.distance_sq);
-                }
+                note(patch, hit.distance_sq, a);
                 return;
               }
               const std::int64_t previous = best_item();
@@ -109,7 +109,7 @@ void Projector::search_surfaces(const Vec3& p, SurfaceSearch& search, std::int64
               search.patch = patch;
               search.edge = -1;
               a = threshold(best.distance_sq);
-              check_previous(previous, previous_sq, a);
+              note(previous, previous_sq, a);
               return;
             } else if (!project_onto_patch(model_.patch(patch), p, best, state.surface_scratch,
                                            &state.surface_stats, guessed ? guess_s : kNaN,
@@ -135,10 +135,7 @@ void Projector::search_surfaces(const Vec3& p, SurfaceSearch& search, std::int64
               const std::int64_t id = -1 - static_cast<std::int64_t>(e);
               others->add(id, hit.distance_sq);
               if (!(hit.distance_sq < best.distance_sq)) {
-                if (!others->gave_up && blocks(id, hit.distance_sq)) {
-                  others->gave_up = true;
-                  a = threshold(best.distance_sq);
-                }
+                note(id, hit.distance_sq, a);
                 return;
               }
               previous = best_item();
@@ -151,7 +148,7 @@ void Projector::search_surfaces(const Vec3& p, SurfaceSearch& search, std::int64
             search.edge = static_cast<std::int64_t>(e);
             search.edge_t = hit.u;
             a = threshold(best.distance_sq);
-            check_previous(previous, previous_sq, a);
+            note(previous, previous_sq, a);
           }
         });
   };
@@ -200,7 +197,8 @@ WarmCertificate Projector::make_certificate(const Vec3& p, const SurfaceHit& bes
                       model_.surface_region(model_.patch_surface(k)));
     if (!(local.radius > 0.0)) return;
     const double reach = (d + 2.0 * local.radius) * (d + 2.0 * local.radius);
-    const double c = std::sqrt(std::min({reach, local.outside_sq, others.excluding(patch)}));
+    const double c =
+        std::sqrt(std::min({reach, local.outside_sq, others.excluding(patch), others.cut_sq}));
     keep(local.radius, c, local.s0, local.s1, local.t0, local.t1);
   };
   // N reaching into the neighbours of the foot's patch (certify_span), which then do not limit
@@ -227,8 +225,8 @@ WarmCertificate Projector::make_certificate(const Vec3& p, const SurfaceHit& bes
       const double others_sq = others.excluding([&span](std::int64_t id) {
         return std::find(span.patches, span.patches + span.count, id) != span.patches + span.count;
       });
-      keep(span.radius, std::sqrt(std::min({reach, span.outside_sq, others_sq})), span.s0, span.s1,
-           span.t0, span.t1);
+      keep(span.radius, std::sqrt(std::min({reach, span.outside_sq, others_sq, others.cut_sq})),
+           span.s0, span.s1, span.t0, span.t1);
       return;
     }
   };
