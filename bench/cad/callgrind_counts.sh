@@ -1,7 +1,8 @@
 #!/bin/bash
 # Instructions per point of Projector::project for each model (issue 26; see bench/README.md,
-# "Real CAD models"): near and mixed points and every projection pass of an alignment, with the
-# answers' checksums (a change that should not move any result must print the same ones).
+# "Real CAD models"): near and mixed points, the warm set's hinted frame (the near points moved by
+# 1e-4 of the diagonal after a certifying frame) and every projection pass of an alignment, with
+# the answers' checksums (a change that should not move any result must print the same ones).
 #   bench/cad/callgrind_counts.sh TAG PROJECTION_COUNTS DIR_OF_JSON_MODELS OUT_DIR [POINTS]
 # The JSON models come from `nurbsreg convert` (bearing.json, hammer.json, IEA_15MW_CFD.json,
 # nist_ctc_02_asme1_ap242-1.json, linkrods.json).
@@ -11,15 +12,18 @@ mkdir -p "$OUT"
 count() {  # name out-file args...
   local name=$1 out=$2
   shift 2
+  # The warm set: only its hinted frame (the certifying frame before it is not counted).
+  local toggle='nurbsreg::engine::Projector::project(*'
+  [[ $name == *warm ]] && toggle='*warm_frame*'
   valgrind --tool=callgrind --collect-atstart=no \
-    --toggle-collect='nurbsreg::engine::Projector::project(*' --callgrind-out-file="$out.cg" \
+    --toggle-collect="$toggle" --callgrind-out-file="$out.cg" \
     "$BIN" "$@" >"$out.txt" 2>"$out.err"
   local ir
   ir=$(grep -E "^summary:|^totals:" "$out.cg" | head -1 | awk '{print $2}')
   echo "$TAG $name Ir=$ir per_point=$((ir / N)) $(grep -hE 'checksum' "$out.txt" | tr '\n' ' ')"
 }
 for m in bearing hammer IEA_15MW_CFD nist_ctc_02_asme1_ap242-1 linkrods; do
-  for set in near mixed; do
+  for set in near mixed warm; do
     count "$m $set" "$OUT/$TAG.$m.$set" "$MODELS/$m.json" --points "$N" --sets "$set"
   done
   count "$m align" "$OUT/$TAG.$m.align" "$MODELS/$m.json" --points 100 --sets none --align "$N"

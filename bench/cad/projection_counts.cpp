@@ -11,6 +11,7 @@
 //       --toggle-collect='nurbsreg::engine::Projector::project(*'
 //       build/bench/cad/projection_counts model.json --points 2000 --sets near   (one line)
 
+#include <spdlog/spdlog.h>
 #include <tbb/task_arena.h>
 #include <CLI/CLI.hpp>
 
@@ -80,6 +81,43 @@ void print_counters(const char* what, const engine::ProjectionCounters& c) {
       c.region_drops / n, c.region_rejections / n, (c.certified + c.reach_proven) / n);
 }
 
+// Where the certifying frame's answers lie and which of them got a certificate: a foot on a
+// trim edge, or on a rational / polynomial patch of a trimmed / untrimmed face (why a warm
+// point is not certified: no certificate can be made there, or the proof failed).
+void print_certificate_kinds(const engine::PreparedModel& model, const engine::ProjectionResults& r,
+                             std::size_t n) {
+  enum { kEdge, kTrimRational, kTrimPoly, kRational, kPoly, kKinds };
+  const char* names[kKinds] = {"trim edge", "trimmed rational", "trimmed polynomial",
+                               "untrimmed rational", "untrimmed polynomial"};
+  std::size_t count[kKinds] = {}, made[kKinds] = {};
+  for (std::size_t i = 0; i < n; ++i) {
+    if (r.status[i] != engine::ProjectionStatus::ok) continue;
+    int kind = kEdge;
+    if (!r.on_trim_edge[i]) {
+      const std::int64_t k = model.locate_patch(r.entity[i], r.u[i], r.v[i]);
+      const bool rational = k >= 0 && model.patch(static_cast<std::size_t>(k)).rational;
+      const bool trimmed = model.surface_region(r.entity[i]) != nullptr;
+      kind = trimmed ? (rational ? kTrimRational : kTrimPoly) : (rational ? kRational : kPoly);
+    }
+    ++count[kind];
+    made[kind] += r.certificate.empty() ? 0 : r.certificate[i].radius > 0.0f;
+  }
+  std::printf("feet:");
+  for (int k = 0; k < kKinds; ++k) {
+    std::printf(" %s %.3f (certified %.3f)%s", names[k], double(count[k]) / n, double(made[k]) / n,
+                k + 1 < kKinds ? "," : "\n");
+  }
+}
+
+// The hinted frame of the warm set, on its own so that callgrind can count it alone
+// (--toggle-collect='*warm_frame*': callgrind_counts.sh).
+[[gnu::noinline]] void warm_frame(engine::Projector& projector, const std::vector<Vec3>& points,
+                                  const std::vector<engine::ProjectionHint>& hints,
+                                  engine::ProjectionResults& out,
+                                  engine::ProjectionCounters& counters) {
+  projector.project(engine::PointView::of(points), {}, out, hints, &counters);
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -94,7 +132,10 @@ int main(int argc, char** argv) {
   app.add_option("--threads", threads);
   app.add_option("--sets", sets,
                  "which point sets to project: near, mixed, warm (comma-separated)");
+  bool verbose = false;
+  app.add_flag("-v,--verbose", verbose, "log every ICP pass (the finder's debug lines)");
   CLI11_PARSE(app, argc, argv);
+  if (verbose) spdlog::set_level(spdlog::level::debug);
 
   tbb::task_arena arena(threads);
   double c = cpu_seconds();
@@ -168,9 +209,10 @@ int main(int argc, char** argv) {
       for (std::size_t i = 0; i < near.size(); ++i)
         hints[i] = first.hint(i);
       c = cpu_seconds();
-      projector.project(engine::PointView::of(moved), {}, out, hints, &counters);
+      warm_frame(projector, moved, hints, out, counters);
     });
     const double s = cpu_seconds() - c;
+    print_certificate_kinds(prepared, first, moved.size());
     std::printf(
         "warm: %zu points, %.0f pts per CPU-s, certificates made %.3f per point, checksum "
         "%016llx\n",

@@ -189,10 +189,8 @@ PreparedModel::PreparedModel(Model model)
       patch_surface_.push_back(static_cast<int>(s));
       patch_class_.push_back(RegionClass::inside);
       bounds_.extend(patches_.back().box);
-      if (!surface.is_trimmed() && !patches_.back().rational) {
-        surface_certifiable_.back() = 1;
-        any_certifiable_ = true;
-      }
+      surface_certifiable_.back() = 1;
+      any_certifiable_ = true;
     }
     // Recover the span grid from the patches' parameter boxes and check the layout: the warm
     // start's patch lookup relies on it (a mismatch is an internal error, not bad input).

@@ -170,8 +170,8 @@ std::int64_t hinted_patch(const PreparedModel& model, const ProjectionHint& hint
 
 // Cheapest: the hint's WarmCertificate covers p. One Newton on its box N proves the answer (see
 // WarmCertificate), or, when it proves nothing (p near the ball's rim, or too little
-// clearance), its point still bounds alpha (certificates are made on untrimmed surfaces, so it
-// is a face point) and is where the patch's clipping restarts Newton, which costs less than a
+// clearance), its point still bounds alpha (a certificate's box lies in its face's region, so
+// it is a face point) and is where the patch's clipping restarts Newton, which costs less than a
 // second Newton over the whole patch and the patch-wide convexity test (4-11% fewer
 // instructions per point on the peers benchmark's panels with certificates). Returns whether
 // the Newton ran (then `point` has its patch and result); `proven` and `stationary` as it found.
@@ -247,7 +247,7 @@ void warm_start(const PreparedModel& model, const ProjectionOptions& options,
   // zero-size Newton box evaluates it).
   const TrimRegion* region = model.surface_region(hint.entity);
   if (point.proven) {
-    // Certificates are made on untrimmed surfaces only: nothing more to check.
+    // A certificate's box N lies in its face's region (make_certificate): nothing to check.
   } else if (region == nullptr || region->contains(best.u, best.v)) {
     // The clipping of this patch restarts Newton from the converged point (one step).
     point.hint_s = s_loc;
@@ -376,10 +376,14 @@ void write_surface_answer(const PreparedModel& model, const ProjectionOptions& o
   // A point that gets a new certificate: its search also bounds the rest of the model, for the
   // certificate's clearance (a radius of at most the cap needs (d + 2 cap)^2). Only where one
   // can be made: none on a model without an untrimmed polynomial surface, and none for a hint on
-  // a trimmed or rational surface, where the answer most likely lies again (such a point is
+  // a rational-only surface, where the answer most likely lies again (such a point is
   // marked as tried instead).
   OtherItems others;
   others.margin = 2.0 * certificate_cap;
+  // A certificate that could serve moves of less than this share of the cap is not worth its
+  // search (the walk gives up: OtherItems::gave_up).
+  constexpr double kGiveUpShare = 1.0 / 32.0;
+  others.give_up_margin = 2.0 * kGiveUpShare * certificate_cap;
   const bool certifying = options.certify && !point.proven && !tried_here &&
                           model_.any_certifiable() &&
                           (!valid_hint(hint, entities) || model_.surface_certifiable(hint->entity));
@@ -416,9 +420,10 @@ void write_surface_answer(const PreparedModel& model, const ProjectionOptions& o
   } else if (options.certify) {
     // make_certificate needs what the certifying search learnt (`others`).
     out.certificate[i] =
-        tried_here   ? hint->certificate
-        : certifying ? make_certificate(p, point.best, point.patch, point.edge, others, state)
-                     : tried_at(p);
+        tried_here ? hint->certificate
+        : certifying && !others.gave_up
+            ? make_certificate(p, point.best, point.patch, point.edge, others, state)
+            : tried_at(p);
   } else {
     clear_certificate(out, i);
   }

@@ -32,9 +32,9 @@ struct Projector::Impl {
 };
 
 // What a certifying search learns of the items other than its answer, so that the certificate
-// needs no second search: the walk prunes at (d + margin)^2 instead of d^2 (d: the best distance
-// so far) and clips each item it visits against that threshold, so every item ends up either
-// with its exact minimum recorded or proven at least (d_final + margin)^2 away (pruned, or
+// needs no second search: the walk prunes at (d + margin)^2 (or cut_sq) instead of d^2 (d: the best
+// distance so far) and clips each item it visits against that threshold, so every item ends up
+// either with its exact minimum recorded or proven at least (d_final + margin)^2 away (pruned, or
 // clipped without a point below the threshold, which never falls below the final one). Kept:
 // the kSlots smallest minima of distinct items (patch index, or -1 - edge piece), enough for "the
 // nearest item other than those of a certificate's box N" (N spans up to 3 x 3 patches).
@@ -42,6 +42,17 @@ struct Projector::OtherItems {
   static constexpr std::int64_t kNone = std::numeric_limits<std::int64_t>::min();
   static constexpr int kSlots = 12;
   double margin = 0.0;
+  // The cheap failure path: the walk stops certifying (prunes as a plain search from then on) once
+  // two items that no box N can hold together both come within `give_up_margin` of the best
+  // distance: one of them would cap any certificate's clearance below that, so it would serve
+  // moves below half of it (thin walls, close sheets). Only a matter of cost: a point whose
+  // walk gave up gets no certificate (tried_at), its answer is the plain search's.
+  double give_up_margin = 0.0;
+  bool gave_up = false;
+  // Such an item found farther out caps every certificate's clearance at its minimum: the walk
+  // prunes there from then on (cut_sq), and the clearance is at most sqrt(cut_sq), since items
+  // pruned against it are known only to be beyond it.
+  double cut_sq = std::numeric_limits<double>::infinity();
   // Ascending by minimum; unused slots at the end (kNone, infinity).
   std::int64_t item[kSlots];
   double minimum[kSlots];
@@ -51,7 +62,12 @@ struct Projector::OtherItems {
     std::fill(std::begin(minimum), std::end(minimum), std::numeric_limits<double>::infinity());
   }
   double threshold(double best_sq) const {
+    if (gave_up) return best_sq;
     const double d = std::sqrt(best_sq) + margin;
+    return std::min(d * d, std::max(cut_sq, best_sq));
+  }
+  double give_up_sq(double best_sq) const {
+    const double d = std::sqrt(best_sq) + give_up_margin;
     return d * d;
   }
   void add(std::int64_t id, double value) {

@@ -38,6 +38,40 @@ void Projector::search_surfaces(const Vec3& p, SurfaceSearch& search, std::int64
         return best_sq;
       }
     };
+    // Certifying: would item `id` (its minimum `value`), next to the best so far, leave any
+    // certificate too little clearance (OtherItems::gave_up)? Not when a box N about the best's
+    // foot may hold it: the best's own patch and its grid neighbours on the same surface.
+    const auto blocking = [&](std::int64_t id) {
+      if (id >= 0 && search.patch >= 0 && search.edge < 0) {
+        const std::size_t k = static_cast<std::size_t>(id);
+        if (id == search.patch) return false;
+        if (model_.patch_surface(k) == search.surface) {
+          const PreparedModel::SpanCell a = model_.patch_span(k);
+          const PreparedModel::SpanCell b =
+              model_.patch_span(static_cast<std::size_t>(search.patch));
+          if (std::abs(a.a - b.a) <= 1 && std::abs(a.b - b.b) <= 1) return false;
+        }
+      }
+      return true;
+    };
+    // A blocking item gives up the certificate when it is that close, or else caps its clearance
+    // (OtherItems::cut_sq); `a` follows.
+    const auto note = [&](std::int64_t id, double value, double& a) {
+      if constexpr (kCertifying) {
+        if (others->gave_up || id == OtherItems::kNone || !blocking(id)) return;
+        if (value < others->give_up_sq(best.distance_sq)) {
+          others->gave_up = true;
+        } else {
+          others->cut_sq = std::min(others->cut_sq, value);
+        }
+        a = threshold(best.distance_sq);
+      }
+    };
+    // The best so far as an item id (OtherItems), or kNone.
+    const auto best_item = [&]() -> std::int64_t {
+      if (search.edge >= 0) return -1 - search.edge;
+      return search.patch >= 0 ? search.patch : OtherItems::kNone;
+    };
     if constexpr (kCertifying) {
       if (skip_patch >= 0) others->add(skip_patch, best.distance_sq);
     }
@@ -64,8 +98,19 @@ void Projector::search_surfaces(const Vec3& p, SurfaceSearch& search, std::int64
                 return;
               }
               others->add(patch, hit.distance_sq);
-              if (!(hit.distance_sq < best.distance_sq)) return;
+              if (!(hit.distance_sq < best.distance_sq)) {
+                note(patch, hit.distance_sq, a);
+                return;
+              }
+              const std::int64_t previous = best_item();
+              const double previous_sq = best.distance_sq;
               best = hit;
+              search.surface = model_.patch_surface(patch);
+              search.patch = patch;
+              search.edge = -1;
+              a = threshold(best.distance_sq);
+              note(previous, previous_sq, a);
+              return;
             } else if (!project_onto_patch(model_.patch(patch), p, best, state.surface_scratch,
                                            &state.surface_stats, guessed ? guess_s : kNaN,
                                            guessed ? guess_t : kNaN, model_.patch_region(patch))) {
@@ -84,9 +129,17 @@ void Projector::search_surfaces(const Vec3& p, SurfaceSearch& search, std::int64
           CurveHit hit;
           hit.distance_sq = kCertifying ? a : best.distance_sq;
           if (project_onto_piece(model_.edge_piece(e), p, hit, &state.curve_stats)) {
+            std::int64_t previous = OtherItems::kNone;
+            double previous_sq = 0.0;
             if constexpr (kCertifying) {
-              others->add(-1 - static_cast<std::int64_t>(e), hit.distance_sq);
-              if (!(hit.distance_sq < best.distance_sq)) return;
+              const std::int64_t id = -1 - static_cast<std::int64_t>(e);
+              others->add(id, hit.distance_sq);
+              if (!(hit.distance_sq < best.distance_sq)) {
+                note(id, hit.distance_sq, a);
+                return;
+              }
+              previous = best_item();
+              previous_sq = best.distance_sq;
             }
             best.distance_sq = hit.distance_sq;
             best.foot = hit.foot;
@@ -95,6 +148,7 @@ void Projector::search_surfaces(const Vec3& p, SurfaceSearch& search, std::int64
             search.edge = static_cast<std::int64_t>(e);
             search.edge_t = hit.u;
             a = threshold(best.distance_sq);
+            note(previous, previous_sq, a);
           }
         });
   };
@@ -109,8 +163,8 @@ WarmCertificate Projector::make_certificate(const Vec3& p, const SurfaceHit& bes
                                             std::int64_t patch, std::int64_t edge,
                                             const OtherItems& others, ThreadState& state) const {
   const WarmCertificate tried = tried_at(p);
-  // Only a foot on an untrimmed polynomial patch (a foot on a trim edge, or on a patch edge
-  // shared with a neighbour, gets no clearance anyway).
+  // Only a foot on a polynomial patch (a foot on a trim edge, or on a patch edge shared with a
+  // neighbour, gets no clearance anyway); on a trimmed face, with a box N inside its region.
   if (patch < 0 || edge >= 0) return tried;
   const std::size_t k = static_cast<std::size_t>(patch);
   if (!model_.surface_certifiable(model_.patch_surface(k))) return tried;
@@ -139,10 +193,12 @@ WarmCertificate Projector::make_certificate(const Vec3& p, const SurfaceHit& bes
   // bounds the distance from p to everything outside N from below.
   const auto try_patch = [&] {
     const PatchCertificate local =
-        certify_patch(model_.patch(k), p, best.s, best.t, d, radius_cap, state.surface_scratch);
+        certify_patch(model_.patch(k), p, best.s, best.t, d, radius_cap, state.surface_scratch,
+                      model_.surface_region(model_.patch_surface(k)));
     if (!(local.radius > 0.0)) return;
     const double reach = (d + 2.0 * local.radius) * (d + 2.0 * local.radius);
-    const double c = std::sqrt(std::min({reach, local.outside_sq, others.excluding(patch)}));
+    const double c =
+        std::sqrt(std::min({reach, local.outside_sq, others.excluding(patch), others.cut_sq}));
     keep(local.radius, c, local.s0, local.s1, local.t0, local.t1);
   };
   // N reaching into the neighbours of the foot's patch (certify_span), which then do not limit
@@ -169,8 +225,8 @@ WarmCertificate Projector::make_certificate(const Vec3& p, const SurfaceHit& bes
       const double others_sq = others.excluding([&span](std::int64_t id) {
         return std::find(span.patches, span.patches + span.count, id) != span.patches + span.count;
       });
-      keep(span.radius, std::sqrt(std::min({reach, span.outside_sq, others_sq})), span.s0, span.s1,
-           span.t0, span.t1);
+      keep(span.radius, std::sqrt(std::min({reach, span.outside_sq, others_sq, others.cut_sq})),
+           span.s0, span.s1, span.t0, span.t1);
       return;
     }
   };

@@ -857,7 +857,11 @@ ReachTable build_reach_table(const PreparedModel& model) {
   std::vector<std::uint32_t> with_cells;
   for (std::size_t i = 0; i < model.patch_count(); ++i) {
     const int s = model.patch_surface(i);
-    if (!model.surface_certifiable(s) || model.patch(i).rational) continue;
+    // Untrimmed polynomial surfaces only: a Newton foot on a trimmed face may lie outside it.
+    if (model.surface_region(s) != nullptr || !model.surface_certifiable(s) ||
+        model.patch(i).rational) {
+      continue;
+    }
     with_cells.push_back(static_cast<std::uint32_t>(i));
   }
   // Smaller cells give tighter bounds (the normal varies less over them); at most kCellBudget

@@ -103,9 +103,12 @@ double outside_lower_bound(const double* full, double* strip, double* work, doub
       if (!(t1 > t0)) continue;
       double value = smallest(strip, t0, t1);
       if (value < bound) {
-        // Halved along the longer side; each half restricted from the full grid, as the tile was.
+        // Halved, each half restricted from the full grid, as the tile was: a tile beside N
+        // across N's own range (about the foot, where F's coefficients along that range dip
+        // below its values: a side tile of a small N stayed near d^2 whatever its distance),
+        // a corner tile along its longer side.
         const double s0 = s_cuts[a], s1 = s_cuts[a + 1];
-        if (s1 - s0 >= t1 - t0) {
+        if (a == 1 || (b != 1 && s1 - s0 >= t1 - t0)) {
           const double mid = 0.5 * (s0 + s1);
           double* half = work;  // the strip is transposed: `work` is free
           restrict_s(full, tile, rows, cols, s0, mid);
@@ -117,6 +120,50 @@ double outside_lower_bound(const double* full, double* strip, double* work, doub
         } else {
           const double mid = 0.5 * (t0 + t1);
           value = std::min(smallest(strip, t0, mid), smallest(strip, mid, t1));
+        }
+      }
+      bound = std::min(bound, value);
+    }
+  }
+  return std::max(bound, 0.0);
+}
+
+// outside_lower_bound for a rational patch, F = N / D: the same tiles and halvings, each bounded
+// by the smallest ratio of its restricted grids' coefficients (N and D restricted alike; D > 0),
+// less the rounding allowance. Each tile is restricted from the full grids on its own (certificates
+// on rational patches are made rarely; this keeps one simple path). `tn`, `td`, `work` and
+// `strip` are scratch grids.
+double outside_lower_bound_rational(const double* full_n, const double* full_d, double* tn,
+                                    double* td, double* work, double* strip, int rows, int cols,
+                                    const LocalBox& n, double target_sq, double rounding) {
+  const double s_cuts[4] = {0.0, n.s0, n.s1, 1.0};
+  const double t_cuts[4] = {0.0, n.t0, n.t1, 1.0};
+  const int size = rows * cols;
+  const auto smallest = [&](const LocalBox& b) {
+    restrict_grid(full_n, tn, work, strip, rows, cols, b);
+    restrict_grid(full_d, td, work, strip, rows, cols, b);
+    double least = std::numeric_limits<double>::infinity();
+    for (int k = 0; k < size; ++k)
+      least = std::min(least, (tn[k] - rounding) / td[k]);
+    return least;
+  };
+  double bound = target_sq;
+  for (int a = 0; a < 3; ++a) {
+    const double s0 = s_cuts[a], s1 = s_cuts[a + 1];
+    if (!(s1 > s0)) continue;
+    for (int b = 0; b < 3; ++b) {
+      if (a == 1 && b == 1) continue;
+      const double t0 = t_cuts[b], t1 = t_cuts[b + 1];
+      if (!(t1 > t0)) continue;
+      double value = smallest({s0, s1, t0, t1});
+      if (value < bound) {
+        // Halved as outside_lower_bound halves.
+        if (a == 1 || (b != 1 && s1 - s0 >= t1 - t0)) {
+          const double mid = 0.5 * (s0 + s1);
+          value = std::min(smallest({s0, mid, t0, t1}), smallest({mid, s1, t0, t1}));
+        } else {
+          const double mid = 0.5 * (t0 + t1);
+          value = std::min(smallest({s0, s1, t0, mid}), smallest({s0, s1, mid, t1}));
         }
       }
       bound = std::min(bound, value);
@@ -192,22 +239,142 @@ void float_range(double center, double h, float& lo, float& hi, double lo_limit 
   hi = std::min(hi, static_cast<float>(hi_limit));
 }
 
+// The boxes certify_patch tries, as half-widths about the foot: 1/4 and 1/10 of P; on a trimmed
+// face, where only a smaller box may fit in the region, then the size a certificate needs (the
+// disc of surface points that may come within d + 2 r_max of a, about the foot, if the surface
+// curves away no faster than its tangent plane: sqrt((d + 2 r_max)^2 - d^2), half as wide
+// again, in P's local units along |S_s| and |S_t|) and its halves, down to an eighth.
+struct Half {
+  double s, t;
+};
+int candidate_halves(const PreparedPatch& pp, double s, double t, double d, double r_max,
+                     bool trimmed, Half* halves) {
+  int count = 0;
+  halves[count++] = {0.25, 0.25};
+  halves[count++] = {0.1, 0.1};
+  if (trimmed) {
+    Vec3 der[6];
+    pp.patch.derivatives(s, t, der);
+    const double disc = 1.5 * std::sqrt(4.0 * r_max * (d + r_max));
+    const auto half = [disc](const Vec3& tangent) {
+      const double length = tangent.norm();
+      return length > 0.0 ? std::min(disc / length, 0.1) : 0.1;
+    };
+    const Half need{half(der[1]), half(der[2])};
+    for (const double k : {1.0, 0.5, 0.25, 0.125})
+      halves[count++] = {k * need.s, k * need.t};
+  }
+  return count;
+}
+constexpr int kMaxHalves = 6;
+
+// certify_patch for a rational patch, F = N / D. For q = a + delta (|delta| <= r) and a value m,
+// G = N_q - m D = H + k D - 2 delta . E' with H = N_a - d^2 D, E' = E - (a - o) D (o the
+// patch's origin) and k = d^2 - m + |delta|^2. A query's proof (newton_on_certificate) has m, its
+// minimum on N, within [(d - r)^2, (d + 2 r)^2] (no model point is nearer to q than d - r, and
+// the proof needs sqrt(m) <= clearance <= d + 2 r), so |k| <= 4 r (d + r). If every such G is
+// strictly convex on N, a KKT point x* of F on N with F(x*) = m is one of G_m (grad F = grad G_m
+// / D there), hence G_m's minimum, 0: F >= m on N (f_derivatives' argument). The test: H's
+// second-derivative ranges on N widened by 2 r |E'| + 4 r (d + r) |D| differences (bounded by the
+// whole patch's, scaled by N's widths: restriction takes convex combinations). Interior feet
+// only (no edge proof).
+PatchCertificate certify_rational_patch(const PreparedPatch& pp, const Vec3& a, double s, double t,
+                                        double d, double r_max, SurfaceScratch& scratch,
+                                        const TrimRegion* region) {
+  PatchCertificate c;
+  if (!(s > 0.0 && s < 1.0 && t > 0.0 && t < 1.0)) return c;
+  const int rows = pp.rows, cols = pp.cols, size = rows * cols;
+  double* full = scratch.grids.data();
+  double* h = full + SurfaceScratch::kGridCapacity;
+  double* grid = h + SurfaceScratch::kGridCapacity;
+  double* strip = grid + SurfaceScratch::kGridCapacity;
+  double* work = strip + SurfaceScratch::kGridCapacity;
+  double* tn = work + SurfaceScratch::kGridCapacity;
+  double* td = tn + SurfaceScratch::kGridCapacity;
+  const double* dd = pp.d.data();
+  pp.numerator(a, full);
+  const double d2 = d * d;
+  for (int k = 0; k < size; ++k)
+    h[k] = full[k] - d2 * dd[k];
+  const double ao = (a - pp.origin).norm();
+  // The rounding of d^2 against the true F_a(foot) (relative), on k's bound.
+  const double fixed = 1e-12 * (d + r_max) * (d + r_max);
+  const auto widening = [&](double ws, double wt) {
+    const double ss = ws * ws, tt = wt * wt, st = ws * wt;
+    return Widening{ss * (2.0 * (pp.e_ss + ao * pp.d_ss) + 4.0 * d * pp.d_ss),
+                    tt * (2.0 * (pp.e_tt + ao * pp.d_tt) + 4.0 * d * pp.d_tt),
+                    st * (2.0 * (pp.e_st + ao * pp.d_st) + 4.0 * d * pp.d_st),
+                    ss * 4.0 * pp.d_ss,
+                    tt * 4.0 * pp.d_tt,
+                    st * 4.0 * pp.d_st,
+                    ss * fixed * pp.d_ss,
+                    tt * fixed * pp.d_tt,
+                    st * fixed * pp.d_st};
+  };
+  if (box_in_region(region, pp.patch, 0.0, 1.0, 0.0, 1.0)) {
+    c.radius = grid_convexity_radius_widened(h, rows, cols, widening(1.0, 1.0), r_max);
+    if (c.radius > 0.0) {
+      c.outside_sq = std::numeric_limits<double>::infinity();
+      return c;
+    }
+  }
+  const double reach = pp.sphere.radius + ao;
+  const double rounding = 1e-14 * reach * reach;
+  Half halves[kMaxHalves];
+  const int count = candidate_halves(pp, s, t, d, r_max, region != nullptr, halves);
+  for (int n = 0; n < count; ++n) {
+    float_range(s, halves[n].s, c.s0, c.s1);
+    float_range(t, halves[n].t, c.t0, c.t1);
+    const double ws = double(c.s1) - c.s0, wt = double(c.t1) - c.t0;
+    if (!(ws > 0.0) || !(wt > 0.0)) continue;
+    if (!box_in_region(region, pp.patch, c.s0, c.s1, c.t0, c.t1)) continue;
+    restrict_grid(h, grid, work, strip, rows, cols, {c.s0, c.s1, c.t0, c.t1});
+    c.radius = grid_convexity_radius_widened(grid, rows, cols, widening(ws, wt), r_max);
+    if (c.radius > 0.0) {
+      const double target = (d + 2.0 * c.radius) * (d + 2.0 * c.radius);
+      c.outside_sq = outside_lower_bound_rational(full, dd, tn, td, work, strip, rows, cols,
+                                                  {c.s0, c.s1, c.t0, c.t1}, target, rounding);
+      return c;
+    }
+  }
+  return PatchCertificate{};
+}
+
 }  // namespace
 
+bool box_in_region(const TrimRegion* region, const BezierPatch& bp, double s0, double s1, double t0,
+                   double t1) {
+  if (region == nullptr) return true;
+  // Newton's points in the box map to (u, v) = to_parent(s, t), which rounds: the box is
+  // widened by far more than that rounding.
+  const auto widened = [](const ParamInterval& p, double a, double b, double& lo, double& hi) {
+    const double slack = 1e-12 * (std::abs(p.lo) + std::abs(p.hi));
+    lo = p.to_parent(a) - slack;
+    hi = p.to_parent(b) + slack;
+  };
+  double u0, u1, v0, v1;
+  widened(bp.param_u, s0, s1, u0, u1);
+  widened(bp.param_v, t0, t1, v0, v1);
+  return region->classify(u0, u1, v0, v1) == RegionClass::inside;
+}
+
 PatchCertificate certify_patch(const PreparedPatch& pp, const Vec3& a, double s, double t, double d,
-                               double r_max, SurfaceScratch& scratch) {
+                               double r_max, SurfaceScratch& scratch, const TrimRegion* region) {
   PatchCertificate c;
-  if (pp.rational || !a.allFinite() || !(r_max > 0.0)) return c;
+  if (!a.allFinite() || !(r_max > 0.0)) return c;
+  if (pp.rational) return certify_rational_patch(pp, a, s, t, d, r_max, scratch, region);
   const int rows = pp.rows, cols = pp.cols;
   double* full = scratch.grids.data();
   double* grid = full + SurfaceScratch::kGridCapacity;
   double* strip = grid + SurfaceScratch::kGridCapacity;
   double* work = strip + SurfaceScratch::kGridCapacity;
   pp.numerator(a, full);
-  c.radius = grid_convexity_radius(full, rows, cols, pp.e_ss, pp.e_tt, pp.e_st, r_max);
-  if (c.radius > 0.0) {
-    c.outside_sq = std::numeric_limits<double>::infinity();
-    return c;
+  if (box_in_region(region, pp.patch, 0.0, 1.0, 0.0, 1.0)) {
+    c.radius = grid_convexity_radius(full, rows, cols, pp.e_ss, pp.e_tt, pp.e_st, r_max);
+    if (c.radius > 0.0) {
+      c.outside_sq = std::numeric_limits<double>::infinity();
+      return c;
+    }
   }
   // The same rounding allowance as the clipping's (coefficients carry ~eps reach^2).
   const double reach = pp.sphere.radius + (a - pp.origin).norm();
@@ -215,18 +382,23 @@ PatchCertificate certify_patch(const PreparedPatch& pp, const Vec3& a, double s,
   // A foot on the patch's edge: which edge (s = 0 edge: F must increase with s, and so on).
   const int s_edge = s <= 0.0 ? 1 : (s >= 1.0 ? -1 : 0);
   const int t_edge = t <= 0.0 ? 1 : (t >= 1.0 ? -1 : 0);
-  for (const double h : {1.0, 0.25, 0.1}) {
+  // All of P first for a foot on its edge, then candidate_halves.
+  Half halves[kMaxHalves + 1] = {{1.0, 1.0}};
+  const int count = 1 + candidate_halves(pp, s, t, d, r_max, region != nullptr, halves + 1);
+  for (int n = 0; n < count; ++n) {
+    const double h = halves[n].s;
     if (h == 1.0 && s_edge == 0 && t_edge == 0) continue;  // all of P: tested above
-    float_range(s, h, c.s0, c.s1);
-    float_range(t, h, c.t0, c.t1);
+    float_range(s, halves[n].s, c.s0, c.s1);
+    float_range(t, halves[n].t, c.t0, c.t1);
     const double ws = double(c.s1) - c.s0, wt = double(c.t1) - c.t0;
     if (!(ws > 0.0) || !(wt > 0.0)) continue;
+    if (!box_in_region(region, pp.patch, c.s0, c.s1, c.t0, c.t1)) continue;
     restrict_grid(full, grid, work, strip, rows, cols, {c.s0, c.s1, c.t0, c.t1});
     // E restricted to the box: its first and second differences are those of the derivatives'
     // coefficients scaled by the box's widths, convex combinations of the whole patch's.
-    c.radius = h == 1.0 ? 0.0
-                        : grid_convexity_radius(grid, rows, cols, pp.e_ss * ws * ws,
-                                                pp.e_tt * wt * wt, pp.e_st * ws * wt, r_max);
+    c.radius = n == 0 ? 0.0
+                      : grid_convexity_radius(grid, rows, cols, pp.e_ss * ws * ws,
+                                              pp.e_tt * wt * wt, pp.e_st * ws * wt, r_max);
     if (!(c.radius > 0.0) && (s_edge != 0 || t_edge != 0)) {
       c.radius = edge_radius(grid, rows, cols, s_edge, t_edge, pp.e_s * ws, pp.e_t * wt,
                              pp.e_ss * ws * ws, pp.e_tt * wt * wt, r_max);
@@ -358,7 +530,12 @@ SpanCertificate certify_span(const PreparedModel& model, std::size_t patch, cons
       LocalBox box;
       if (!span_piece(c.s0, c.s1, c.t0, c.t1, i, j, box.s0, box.s1, box.t0, box.t1)) continue;
       const std::int64_t k = model.patch_at(surface, at.a + i, at.b + j);
-      if (k < 0 || model.patch(static_cast<std::size_t>(k)).rational) return SpanCertificate{};
+      if (k < 0 || model.patch(static_cast<std::size_t>(k)).rational ||
+          !box_in_region(model.surface_region(surface),
+                         model.patch(static_cast<std::size_t>(k)).patch, box.s0, box.s1, box.t0,
+                         box.t1)) {
+        return SpanCertificate{};
+      }
       pieces[c.count] = {&model.patch(static_cast<std::size_t>(k)), box};
       c.patches[c.count++] = k;
     }

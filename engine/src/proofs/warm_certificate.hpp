@@ -25,10 +25,21 @@ struct PatchCertificate {
 // Tries N = all of P, then boxes of local half-width 1/4 and 1/10 around (s, t); the first on which
 // the convexity test holds (or, for a foot on P's edge or corner, F increasing away from it and
 // convex along it: edge_radius in the .cpp) is kept, with radius <= r_max, and P outside it is
-// bounded against (d + 2 radius)^2 where d = |S(s, t) - a|. Polynomial patches only (radius 0
-// otherwise). Uses the scratch's first four grids; no heap allocation.
+// bounded against (d + 2 radius)^2 where d = |S(s, t) - a|. A rational patch: interior feet only,
+// convexity of G = N_q - m D for every value m a query's proof can meet (the .cpp). Uses the
+// scratch's first seven grids; no heap allocation.
+// On a trimmed face (region not null) only boxes N that the region proves inside it are tried
+// (box_in_region), down to half-width 1/25: every point of N is then a point of the face, so
+// N's minimum is the face's there, and P outside N is bounded as untrimmed (a lower bound of
+// its face part too). The face's trim edges are items of the search like the other faces.
 PatchCertificate certify_patch(const PreparedPatch& pp, const Vec3& a, double s, double t, double d,
-                               double r_max, SurfaceScratch& scratch);
+                               double r_max, SurfaceScratch& scratch,
+                               const TrimRegion* region = nullptr);
+
+// Is every point of patch pp's local box [s0, s1] x [t0, t1] in the region (proven: the
+// region's classify, on the box's parameters widened by their rounding)? True without a region.
+bool box_in_region(const TrimRegion* region, const BezierPatch& bp, double s0, double s1, double t0,
+                   double t1);
 
 // A box N that reaches into the neighbours of the anchor's foot patch P (same surface, which
 // must be surface_c1): N is given in P's grid coordinates, where the patch i spans after P in u
@@ -63,8 +74,9 @@ struct SpanCertificate {
 // for every q within the radius of a (then on N: the surface is C1), or, for a foot on the
 // surface's own edge or corner, F_q increasing away from it on every piece and convex along it.
 // Gives up (radius 0) as soon as it cannot serve moves beyond `floor`: radius <= floor, or the
-// overlapped patches within d + 2 floor of a. Polynomial patches only. Uses the scratch's first
-// four grids; no heap allocation.
+// overlapped patches within d + 2 floor of a. Polynomial patches only; on a trimmed face every
+// piece of N must be proven inside the region (box_in_region). Uses the scratch's first four
+// grids; no heap allocation.
 SpanCertificate certify_span(const PreparedModel& model, std::size_t patch, const Vec3& a, double s,
                              double t, double d, double r_max, double half_s, double half_t,
                              double floor, SurfaceScratch& scratch);

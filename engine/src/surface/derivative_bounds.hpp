@@ -276,4 +276,14 @@ template <int R, int C>
 double grid_convexity_radius(const double* n, int rows, int cols, double e_ss, double e_tt,
                              double e_st, double r_max);
 
+// The same for a grid `h` whose second differences move, for a query within r of the anchor, by
+// at most r lin_X + r^2 quad_X + fixed_X (X = ss, tt, st: bounds on the differences' own change,
+// before the derivatives' degree factors): the rational certificates' G = N_q - m D
+// (warm_certificate.cpp). 0 when the test fails at r = 0.
+struct Widening {
+  double lin_ss, lin_tt, lin_st, quad_ss, quad_tt, quad_st, fixed_ss, fixed_tt, fixed_st;
+};
+double grid_convexity_radius_widened(const double* h, int rows, int cols, const Widening& w,
+                                     double r_max);
+
 }  // namespace nurbsreg::engine

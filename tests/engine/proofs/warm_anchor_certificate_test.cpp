@@ -11,10 +11,10 @@
 // Models: a bicubic sheet with C0 creases (random knots of full multiplicity), a hairpin (two
 // layers 0.3 apart: two near-equal minima everywhere between them), the same fold inside one
 // degree-5 patch (the other layer is the anchor's own patch), two stacked sheets (the clearance
-// must see the other surface), and the rational sphere (no certificates). A ramp patch gives
-// queries inside a certificate's ball whose answer lies on the same patch outside the box N. Two
-// flat sheets with a hint on the farther one: the hinted patch, whose clipping the search skips,
-// must still bound the clearance.
+// must see the other surface), and the rational sphere (certified as G = N_q - m D). A ramp patch
+// gives queries inside a certificate's ball whose answer lies on the same patch outside the box N.
+// Two flat sheets with a hint on the farther one: the hinted patch, whose clipping the search
+// skips, must still bound the clearance.
 #include <gtest/gtest.h>
 #include <tbb/global_control.h>
 
@@ -464,20 +464,35 @@ TEST(WarmAnchorCertificate, CertificatesOfAnotherModelAreNotTrusted) {
     EXPECT_NEAR(warm.distance[i], cold.distance[i], 1e-12 * b.bounds().diagonal()) << i;
 }
 
-TEST(WarmAnchorCertificate, RationalSurfacesGetNoneAndStayExact) {
-  const PreparedModel pm{model_of({make_sphere(Vec3(1, 2, 3), 5.0)})};
-  const std::vector<Vec3> points = query_points(pm, 60, 4);
+// Rational patches (the sphere: every patch rational) get certificates for G = N_q - m D
+// (warm_certificate.cpp): every answer, certified or searched, is the closed form, for moves of
+// 0.5, 0.99 and 1.5 times each certificate's radius; and they prove answers (not vacuous).
+TEST(WarmAnchorCertificate, RationalSurfacesCertifiedAndExact) {
+  const Vec3 centre(1, 2, 3);
+  const double radius = 5.0;
+  const PreparedModel pm{model_of({make_sphere(centre, radius)})};
+  std::vector<Vec3> points = query_points(pm, 200, 4);
   Projector projector(pm);
   ProjectionOptions options;
   options.certify = true;
-  ProjectionResults results;
-  ProjectionCounters counters;
-  projector.project(PointView::of(points), options, results, {}, &counters);
-  EXPECT_EQ(counters.certificates_made, 0u);
+  options.certificate_radius = 0.2;
+  ProjectionResults made, warm;
+  ProjectionCounters made_counters, counters;
+  projector.project(PointView::of(points), options, made, {}, &made_counters);
+  EXPECT_GT(made_counters.certificates_made, points.size() / 4);
+  std::mt19937_64 rng(41);
+  std::vector<ProjectionHint> hints;
+  const double factors[3] = {0.5, 0.99, 1.5};
   for (std::size_t i = 0; i < points.size(); ++i) {
-    EXPECT_EQ(results.certificate[i].radius, 0.0);
-    EXPECT_NEAR(results.distance[i], std::abs((points[i] - Vec3(1, 2, 3)).norm() - 5.0), 1e-9);
+    EXPECT_NEAR(made.distance[i], std::abs((points[i] - centre).norm() - radius), 1e-9);
+    hints.push_back(made.hint(i));
+    const double r = made.certificate[i].radius;
+    points[i] += (r > 0.0 ? factors[i % 3] * r : 0.01) * random_direction(rng);
   }
+  projector.project(PointView::of(points), ProjectionOptions{}, warm, hints, &counters);
+  EXPECT_GT(counters.certified, points.size() / 8);
+  for (std::size_t i = 0; i < points.size(); ++i)
+    EXPECT_NEAR(warm.distance[i], std::abs((points[i] - centre).norm() - radius), 1e-9) << i;
 }
 
 TEST(WarmAnchorCertificate, MaxDistanceStillApplies) {

@@ -64,9 +64,9 @@ class PreparedModel {
     return r < 0 ? nullptr : &regions_[static_cast<std::size_t>(r)];
   }
 
-  // Can a WarmCertificate be made for a foot on surface s: is it untrimmed, with a polynomial
-  // patch (certify_patch proves convexity on polynomial patches only; a trimmed face's region
-  // is not part of the proof)? And on any surface of the model? A projector certifies only
+  // Can a WarmCertificate be made for a foot on surface s: has it a polynomial patch
+  // (certify_patch proves convexity on polynomial patches only; on a trimmed face only for a box
+  // the region proves inside it)? And on any surface of the model? A projector certifies only
   // where it can (ProjectionOptions::certify).
   bool surface_certifiable(int s) const {
     return surface_certifiable_[static_cast<std::size_t>(s)] != 0;

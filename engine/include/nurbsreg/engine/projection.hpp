@@ -54,8 +54,12 @@ enum class ProjectionStatus : std::uint8_t {
 // The projector trusts a certificate only for the PreparedModel that made it (`model`).
 // For a query q with |q - a| <= radius whose Newton minimum on N has distance d, everything else
 // is at least clearance - |q - a| away by the triangle inequality: d + |q - a| <= clearance
-// proves d is the model's distance without looking at anything else. Only untrimmed,
-// polynomial patches get one. radius == 0: none (patch == kTried: a certificate was sought at
+// proves d is the model's distance without looking at anything else. On a trimmed face N is a
+// box the face's region proves inside it (TrimRegion::classify), so N's points are face points
+// and the face's trim edges are items of the search. On a rational patch (N within the patch,
+// interior feet) convexity is proven for G = N_q - m D, the numerator less the query's value
+// times the denominator, for every m a proof can meet (proofs/warm_certificate.cpp).
+// radius == 0: none (patch == kTried: a certificate was sought at
 // `anchor` and could not be made; the projector does not retry within the radius cap of it).
 struct WarmCertificate {
   static constexpr std::int32_t kTried = -2;
