@@ -192,6 +192,9 @@ def main():
     ap.add_argument("--parts", default=",".join(PARTS))
     ap.add_argument("--conditions", default=",".join(CONDITIONS))
     ap.add_argument("--peers", default=",".join(PEERS))
+    ap.add_argument("--run-parts",
+                    help="run only these of --parts, drawing the others' poses all the same: "
+                         "rows of one sweep split over processes get the same scans")
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--timeout", type=float, default=120.0, help="seconds per run")
     ap.add_argument("--markdown", help="write the table here")
@@ -218,6 +221,11 @@ def main():
     print(header, flush=True)
     with tempfile.TemporaryDirectory() as tmp:
         for part in a.parts.split(","):
+            if a.run_parts and part not in a.run_parts.split(","):
+                for _ in range(len(a.conditions.split(",")) * a.trials):
+                    rng.uniform(-180, 180, 3)
+                    rng.normal(size=3)
+                continue
             model = os.path.join(REAL, PARTS[part])
             info = run([a.nurbsreg, "info", "--model", model, "--json"])
             box = json.loads(info.stdout)["bounding_box"]
@@ -234,6 +242,9 @@ def main():
                     rot = rng.uniform(-180, 180, 3)
                     tr = rng.normal(size=3) * diag
                     pose = " ".join(f"{x:.6f}" for x in (*rot, *tr))
+                    if "nurbsreg" not in peers and a.peer_trials is not None \
+                            and t >= a.peer_trials:
+                        continue  # the pose drawn all the same: the same scans as a full run
                     scan = os.path.join(tmp, f"scan{t}.pcd")
                     truth_path = os.path.join(tmp, f"truth{t}.txt")
                     run([a.nurbsreg, "-q", "synth", "--model", model, "--points", str(a.points),
