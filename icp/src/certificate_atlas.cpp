@@ -82,24 +82,23 @@ void CertificateAtlas::insert(const engine::ProjectionHint& hint) {
 }
 
 const engine::ProjectionHint* CertificateAtlas::find_in_cell(const engine::Vec3& p,
-                                                             const Cell& cell) const {
+                                                             const Cell& cell,
+                                                             double& slack) const {
   const std::uint64_t k = key(cell);
   const std::size_t mask = slots_.size() - 1;
   for (std::size_t i = mix(k) & mask; slots_[i].key != 0; i = (i + 1) & mask) {
     if (slots_[i].key != k) continue;
     const engine::ProjectionHint& h = hints_[slots_[i].hint];
-    return h.certificate.covers(p) ? &h : nullptr;
+    // WarmCertificate::covers and the slack from one distance (a root, computed once).
+    const double d = h.certificate.distance_to_anchor(p);
+    if (!(h.certificate.radius > 0.0f && d <= h.certificate.radius)) return nullptr;
+    slack = static_cast<double>(h.certificate.clearance) - d;
+    return &h;
   }
   return nullptr;
 }
 
 namespace {
-// What a covering certificate leaves for p's own distance: it proves p's answer when that
-// distance is at most clearance - |p - anchor|.
-double slack(const engine::ProjectionHint& h, const engine::Vec3& p) {
-  return static_cast<double>(h.certificate.clearance) - h.certificate.distance_to_anchor(p);
-}
-
 // The 26 neighbours of a cell, nearest first: the 6 faces, the 12 edges, the 8 corners (|dx| +
 // |dy| + |dz| = 1, 2, 3), each ring in (dx, dy, dz) order. A table: the lookup runs for most
 // points of a full pass, and looping over the 27 offsets per ring to pick a ring's ones cost more
@@ -139,15 +138,24 @@ const engine::ProjectionHint* CertificateAtlas::find(const engine::Vec3& p) cons
   // cell and its faces alone left half of a full scan's points without a certificate.
   const double enough = 0.5 / inverse_cell_;
   const Cell c = cell_of(p);
-  const engine::ProjectionHint* best = find_in_cell(p, c);
-  if (best != nullptr && slack(*best, p) >= enough) return best;
+  // What a covering certificate leaves for p's own distance (it proves p's answer when that
+  // distance is at most clearance - |p - anchor|), kept with the best hint so far instead of
+  // recomputed (a root) at every comparison: the same values, the same choice.
+  double best_slack = 0.0;
+  const engine::ProjectionHint* best = find_in_cell(p, c, best_slack);
+  if (best != nullptr && best_slack >= enough) return best;
   for (const Ring& ring : kRings) {
     for (int k = ring.begin; k < ring.end; ++k) {
       const Offset& o = kNeighbours[k];
-      const engine::ProjectionHint* h = find_in_cell(p, {c.x + o.dx, c.y + o.dy, c.z + o.dz});
-      if (h != nullptr && (best == nullptr || slack(*h, p) > slack(*best, p))) best = h;
+      double slack = 0.0;
+      const engine::ProjectionHint* h =
+          find_in_cell(p, {c.x + o.dx, c.y + o.dy, c.z + o.dz}, slack);
+      if (h != nullptr && (best == nullptr || slack > best_slack)) {
+        best = h;
+        best_slack = slack;
+      }
     }
-    if (best != nullptr && slack(*best, p) >= enough) return best;
+    if (best != nullptr && best_slack >= enough) return best;
   }
   return best;
 }

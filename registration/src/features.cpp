@@ -73,28 +73,45 @@ double between(double abs_cos) {
 // more than the fits). The sums are taken in the same order and with the same operations as a
 // per-neighbour rank update, so the estimate does not depend on how the neighbours are held.
 double quadric_residual_variance(std::span<const Vec3> offsets, double radius,
-                                 const Eigen::Matrix3d& axes, std::vector<Vec3>& local) {
+                                 const Eigen::Matrix3d& axes, std::vector<Vec3>& local,
+                                 std::vector<std::uint8_t>& kept) {
   using Vec6 = Eigen::Matrix<double, 6, 1>;
   const double inv = 1.0 / radius;  // unit-sized coordinates keep the normal equations balanced
   local.resize(offsets.size());
   for (std::size_t k = 0; k < offsets.size(); ++k)
     local[k] = axes.transpose() * (offsets[k] * inv);
+  kept.assign(offsets.size(), 1);  // the first fit takes every neighbour
   Vec6 coef = Vec6::Zero();
   double cut2 = std::numeric_limits<double>::infinity();  // squared residual bound (unit scale)
-  double variance = -1.0;
+  double variance = -1.0, unit_variance = 0.0;
   constexpr int kFits = 5;
   for (int fit = 0; fit < kFits; ++fit) {
+    if (fit > 0) {
+      // The neighbours this fit keeps. The same ones as the fit before: its sums would be the
+      // same operations on the same values in the same order, so its solution, cut and variance
+      // the same (at the second fit, the first's variance with the cut's correction), and every
+      // later fit's too: the fits have converged, and the rest would change nothing.
+      bool same = true;
+      for (std::size_t k = 0; k < local.size(); ++k) {
+        const Vec3& l = local[k];
+        const double x = l.y(), y = l.z(), h = l.x();
+        const Vec6 a(x * x, x * y, y * y, x, y, 1.0);
+        const double r = h - a.dot(coef);
+        const std::uint8_t in = r * r > cut2 ? 0 : 1;
+        same &= in == kept[k];
+        kept[k] = in;
+      }
+      if (same) return fit == 1 ? unit_variance * radius * radius / 0.91126 : variance;
+    }
     Eigen::Matrix<double, 6, 6> ata = Eigen::Matrix<double, 6, 6>::Zero();
     Vec6 atb = Vec6::Zero();
     double btb = 0.0;
     int count = 0;
-    for (const Vec3& l : local) {
+    for (std::size_t k = 0; k < local.size(); ++k) {
+      if (!kept[k]) continue;
+      const Vec3& l = local[k];
       const double x = l.y(), y = l.z(), h = l.x();
       const Vec6 a(x * x, x * y, y * y, x, y, 1.0);
-      if (fit > 0) {
-        const double r = h - a.dot(coef);
-        if (r * r > cut2) continue;
-      }
       // The lower triangle of a a^T (as selfadjointView<Lower>().rankUpdate(a)).
       for (int c = 0; c < 6; ++c) {
         for (int r = c; r < 6; ++r)
@@ -110,8 +127,7 @@ double quadric_residual_variance(std::span<const Vec3> offsets, double radius,
     const Vec6 next = ldlt.solve(atb);
     if (!next.allFinite()) return fit == 0 ? -1.0 : variance;
     coef = next;
-    const double unit_variance =
-        std::max(0.0, btb - coef.dot(atb)) / static_cast<double>(count - 6);
+    unit_variance = std::max(0.0, btb - coef.dot(atb)) / static_cast<double>(count - 6);
     cut2 = 6.25 * unit_variance;
     variance = unit_variance * radius * radius / (fit > 0 ? 0.91126 : 1.0);
   }
@@ -219,6 +235,7 @@ double estimate_noise(std::span<const Vec3> scan, double voxel, std::uint64_t se
   // Per thread: the probe's neighbourhood (grown to the largest one, then reused).
   struct Neighbourhood {
     std::vector<Vec3> offsets, local;
+    std::vector<std::uint8_t> kept;
   };
   tbb::enumerable_thread_specific<Neighbourhood> scratch;
   tbb::parallel_for(std::size_t{0}, probes, [&](std::size_t k) {
@@ -234,7 +251,8 @@ double estimate_noise(std::span<const Vec3> scan, double voxel, std::uint64_t se
     const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(m.covariance());
     const Vec3 l = eig.eigenvalues();
     if (l(0) > 0.25 * l(1)) return;  // not a surface: an outlier blob or an edge
-    variances[k] = quadric_residual_variance(near.offsets, radius, eig.eigenvectors(), near.local);
+    variances[k] =
+        quadric_residual_variance(near.offsets, radius, eig.eigenvectors(), near.local, near.kept);
   });
   std::vector<double> valid;
   for (double v : variances) {

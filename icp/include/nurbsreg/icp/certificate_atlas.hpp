@@ -38,7 +38,10 @@ class CertificateAtlas {
   };
   Cell cell_of(const engine::Vec3& p) const;
   static std::uint64_t key(const Cell& c);
-  const engine::ProjectionHint* find_in_cell(const engine::Vec3& p, const Cell& cell) const;
+  // The cell's hint if its certificate covers p, with its slack for p (clearance - |p - anchor|,
+  // from the same distance the cover test used), else null.
+  const engine::ProjectionHint* find_in_cell(const engine::Vec3& p, const Cell& cell,
+                                             double& slack) const;
   void grow();
   struct Slot {
     std::uint64_t key = 0;  // 0: empty (keys are never 0, see key())
