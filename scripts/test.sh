@@ -139,32 +139,47 @@ stage_asan() {
   return $status
 }
 
+# One harness for NURBSREG_FUZZ_SECONDS from its seed corpus; prints its executions and coverage.
+fuzz_harness() {  # corpus-dir
+  local name work log
+  name="$(basename "$1")"
+  work="build-asan/fuzz-work/$name"
+  log="build-asan/fuzz-work/$name.log"
+  rm -rf "$work" && mkdir -p "$work"
+  # New inputs go to the scratch directory (first), the committed seeds are only read.
+  if ! LSAN_OPTIONS="suppressions=$supp/lsan.supp:print_suppressions=0" \
+    ASAN_OPTIONS="detect_leaks=1:suppressions=$supp/asan.supp" \
+    "build-asan/fuzz/$name" -max_total_time="$fuzz_seconds" -timeout=25 -rss_limit_mb=2048 \
+    -print_final_stats=1 -artifact_prefix="build-asan/fuzz-work/$name-" "$work" "$1" \
+    >"$log" 2>&1; then
+    # One write, so that a harness running beside it cannot split the report.
+    { tail -40 "$log"; echo "test.sh: fuzz harness $name found a failure (input saved as build-asan/fuzz-work/$name-*)"; } | cat >&2
+    note "fuzz $name: FAILED"
+    return 1
+  fi
+  local runs cov
+  runs=$(grep -o 'stat::number_of_executed_units: [0-9]*' "$log" | grep -o '[0-9]*$')
+  cov=$(grep -o 'cov: [0-9]* ft: [0-9]*' "$log" | tail -1)
+  echo "== test.sh: fuzz $name: $runs runs in ${fuzz_seconds} s, $cov" >&2
+  note "fuzz $name: $runs runs in ${fuzz_seconds} s, $cov"
+}
+
 stage_fuzz() {
   sanitizer_build build-asan address,undefined -DNURBSREG_FUZZ=ON -- nurbsreg_fuzzers || return 1
   mkdir -p build-asan/fuzz-work
-  local harness name work log status=0
+  # The harnesses are single-threaded: one per core at a time (a harness's time is its own
+  # -max_total_time, so they finish in the order they started).
+  local harness status=0 running=()
   for harness in tests/fuzz/corpus/*/; do
-    name="$(basename "$harness")"
-    work="build-asan/fuzz-work/$name"
-    log="build-asan/fuzz-work/$name.log"
-    rm -rf "$work" && mkdir -p "$work"
-    # New inputs go to the scratch directory (first), the committed seeds are only read.
-    if ! LSAN_OPTIONS="suppressions=$supp/lsan.supp:print_suppressions=0" \
-      ASAN_OPTIONS="detect_leaks=1:suppressions=$supp/asan.supp" \
-      "build-asan/fuzz/$name" -max_total_time="$fuzz_seconds" -timeout=25 -rss_limit_mb=2048 \
-      -print_final_stats=1 -artifact_prefix="build-asan/fuzz-work/$name-" "$work" "$harness" \
-      >"$log" 2>&1; then
-      tail -40 "$log" >&2
-      echo "test.sh: fuzz harness $name found a failure (input saved as build-asan/fuzz-work/$name-*)" >&2
-      note "fuzz $name: FAILED"
-      status=1
-      continue
+    fuzz_harness "$harness" &
+    running+=($!)
+    if [ ${#running[@]} -ge "$jobs" ]; then
+      wait "${running[0]}" || status=1
+      running=("${running[@]:1}")
     fi
-    local runs cov
-    runs=$(grep -o 'stat::number_of_executed_units: [0-9]*' "$log" | grep -o '[0-9]*$')
-    cov=$(grep -o 'cov: [0-9]* ft: [0-9]*' "$log" | tail -1)
-    echo "== test.sh: fuzz $name: $runs runs in ${fuzz_seconds} s, $cov" >&2
-    note "fuzz $name: $runs runs in ${fuzz_seconds} s, $cov"
+  done
+  for pid in "${running[@]}"; do
+    wait "$pid" || status=1
   done
   return $status
 }

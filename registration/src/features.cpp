@@ -40,13 +40,24 @@ struct Moments3 {
 // jump between two descriptors.
 void add_to_bins(float* h, int block, double angle_fraction) {
   const double x = std::sqrt(std::clamp(angle_fraction, 0.0, 1.0)) * kBinsPerFeature - 0.5;
-  const int lo = static_cast<int>(std::floor(x));
+  // x lies in [-0.5, kBinsPerFeature - 0.5]: truncation is the floor there except below 0 (no
+  // call to floor in the coarse stage's innermost loop). An end bin takes both weights, the
+  // lower one's first: float sums depend on their order, and the descriptors on these.
+  const int lo = x < 0.0 ? -1 : static_cast<int>(x);
   const double t = x - lo;
-  if (lo >= 0) h[block * kBinsPerFeature + lo] += static_cast<float>(1.0 - t);
-  if (lo + 1 < kBinsPerFeature) h[block * kBinsPerFeature + lo + 1] += static_cast<float>(t);
-  if (lo < 0) h[block * kBinsPerFeature] += static_cast<float>(1.0 - t);
-  if (lo + 1 >= kBinsPerFeature)
-    h[block * kBinsPerFeature + kBinsPerFeature - 1] += static_cast<float>(t);
+  const auto up = static_cast<float>(t);
+  const auto down = static_cast<float>(1.0 - t);
+  float* b = h + block * kBinsPerFeature;
+  if (lo < 0) {
+    b[0] += up;
+    b[0] += down;
+  } else if (lo + 1 >= kBinsPerFeature) {
+    b[kBinsPerFeature - 1] += down;
+    b[kBinsPerFeature - 1] += up;
+  } else {
+    b[lo] += down;
+    b[lo + 1] += up;
+  }
 }
 
 // |cos| -> the angle of a direction from a plane (asin) or between two lines (acos), as a
