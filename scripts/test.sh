@@ -169,7 +169,7 @@ stage_fuzz() {
   mkdir -p build-asan/fuzz-work
   # The harnesses are single-threaded: one per core at a time (a harness's time is its own
   # -max_total_time, so they finish in the order they started).
-  local harness status=0 running=()
+  local harness pid status=0 running=()
   for harness in tests/fuzz/corpus/*/; do
     fuzz_harness "$harness" &
     running+=($!)

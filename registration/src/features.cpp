@@ -83,6 +83,10 @@ double between(double abs_cos) {
 // and the PCA before them read the same neighbourhood, which walking the grid again for each cost
 // more than the fits). The sums are taken in the same order and with the same operations as a
 // per-neighbour rank update, so the estimate does not depend on how the neighbours are held.
+// Gaussian noise keeps this share of its variance inside the 2.5-sigma cut; dividing by it gives
+// back what the cut took.
+constexpr double kVarianceKeptByTheCut = 0.91126;
+
 double quadric_residual_variance(std::span<const Vec3> offsets, double radius,
                                  const Eigen::Matrix3d& axes, std::vector<Vec3>& local,
                                  std::vector<std::uint8_t>& kept) {
@@ -112,7 +116,8 @@ double quadric_residual_variance(std::span<const Vec3> offsets, double radius,
         same &= in == kept[k];
         kept[k] = in;
       }
-      if (same) return fit == 1 ? unit_variance * radius * radius / 0.91126 : variance;
+      if (same)
+        return fit == 1 ? unit_variance * radius * radius / kVarianceKeptByTheCut : variance;
     }
     Eigen::Matrix<double, 6, 6> ata = Eigen::Matrix<double, 6, 6>::Zero();
     Vec6 atb = Vec6::Zero();
@@ -140,7 +145,7 @@ double quadric_residual_variance(std::span<const Vec3> offsets, double radius,
     coef = next;
     unit_variance = std::max(0.0, btb - coef.dot(atb)) / static_cast<double>(count - 6);
     cut2 = 6.25 * unit_variance;
-    variance = unit_variance * radius * radius / (fit > 0 ? 0.91126 : 1.0);
+    variance = unit_variance * radius * radius / (fit > 0 ? kVarianceKeptByTheCut : 1.0);
   }
   return variance;
 }

@@ -3,6 +3,7 @@
 #include <spdlog/fmt/fmt.h>
 
 #include <cmath>
+#include <string>
 #include <unordered_set>
 
 namespace nurbsreg::registration::detail {
@@ -69,11 +70,18 @@ FitVerdict judge_fit(std::span<const engine::Vec3> aligned, std::span<const doub
   v.rms_ratio = noise > 0.0 ? v.rms / noise : 0.0;
   v.coverage = coverage_of(aligned, distances, v.tolerance, features);
   if (v.inlier_fraction < o.min_inlier_fraction) {
+    // Say where the tolerance came from: "3 x the scan's noise 0" would read as a bug.
+    const std::string basis =
+        v.tolerance > floor
+            ? fmt::format("{:g} x the scan's noise {:.3g}", o.tolerance_sigmas, noise)
+        : noise > 0.0 ? fmt::format("the floor of 1e-5 x the scan's diagonal; noise {:.3g}", noise)
+                      : std::string(
+                            "a twentieth of the model's sample spacing: the scan's noise "
+                            "could not be estimated");
     v.reason = fmt::format(
-        "poor fit: {:.1f}% of the points lie within {:.3g} of the model ({:g} x the scan's noise "
-        "{:.3g}), fewer than {:.0f}%",
-        100.0 * v.inlier_fraction, v.tolerance, o.tolerance_sigmas, noise,
-        100.0 * o.min_inlier_fraction);
+        "poor fit: {:.1f}% of the points lie within {:.3g} of the model ({}), "
+        "fewer than {:.0f}%",
+        100.0 * v.inlier_fraction, v.tolerance, basis, 100.0 * o.min_inlier_fraction);
   } else if (v.coverage < o.min_coverage) {
     v.reason = fmt::format(
         "poor fit: the inliers cover {:.1f}% of the model's surface, less than {:.0f}% (a small "

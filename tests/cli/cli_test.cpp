@@ -314,6 +314,23 @@ TEST(Cli, APoorFitFailsUnlessAccepted) {
   EXPECT_EQ(report["fit"].get<std::string>(), "poor");
 }
 
+// Noise far beyond any surface's (3 mm on a panel sampled at ~1.4 mm): no neighbourhood reads as
+// a surface, the noise estimate is 0, and the poor-fit line says the tolerance came from the
+// model's sample spacing instead of printing "3 x the scan's noise 0".
+TEST(Cli, APoorFitSaysWhenTheNoiseCouldNotBeEstimated) {
+  ScratchDir dir("align_noise_unknown");
+  const std::string scan = synth_panel_scan(dir, "noisy.pcd", "--points 5000 --seed 1 --noise 3");
+  const CommandResult poor =
+      run_nurbsreg("-q align --no-global --model " + kPanel + " --scan " + scan, dir.path());
+  EXPECT_EQ(poor.status, 1) << poor.err;
+  EXPECT_EQ(count_lines(poor.err), 1) << poor.err;
+  EXPECT_NE(poor.err.find("(a twentieth of the model's sample spacing: the scan's noise could "
+                          "not be estimated)"),
+            std::string::npos)
+      << poor.err;
+  EXPECT_EQ(poor.err.find("noise 0)"), std::string::npos) << poor.err;
+}
+
 // A synthetic panel scan with every coordinate multiplied by `scale` (another unit), as XYZ.
 std::string scaled_panel_scan(const ScratchDir& dir, const std::string& name, double scale) {
   const io::PointCloud cloud =
