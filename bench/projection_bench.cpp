@@ -26,6 +26,7 @@
 #include "nurbsreg/engine/sampling.hpp"
 #include "nurbsreg/io/model_json.hpp"
 #include "support/polygon_loop.hpp"
+#include "support/source_paths.hpp"
 
 namespace {
 
@@ -69,7 +70,7 @@ Fixture& fixture(const std::string& name) {
                        name.compare(name.size() - suffix.size(), suffix.size(), suffix) == 0;
   const std::string file = trimmed ? name.substr(0, name.size() - suffix.size()) : name;
   Model model =
-      nurbsreg::io::read_model_json(std::string(NURBSREG_EXAMPLES_DIR) + "/" + file + ".json");
+      nurbsreg::io::read_model_json(nurbsreg::test::examples_dir() + "/" + file + ".json");
   if (trimmed) trim_every_surface(model);
   f.model = std::make_unique<PreparedModel>(std::move(model));
   std::mt19937_64 rng(20261122);

@@ -24,6 +24,10 @@ set -euo pipefail
 self="$(cd "$(dirname "$0")" && pwd)/$(basename "$0")"
 cd "$(dirname "$0")/.."
 
+# ccache (when present) rewrites this checkout's absolute paths as relative ones and leaves the
+# working directory out of its hashes, so a clean clone elsewhere (CI's) reuses the objects
+# another checkout of the same sources compiled on this machine.
+export CCACHE_BASEDIR="$PWD" CCACHE_NOHASHDIR=1
 jobs="${NURBSREG_JOBS:-$(nproc)}"
 sanitizers="${NURBSREG_SANITIZERS:-0}"
 fuzz_seconds="${NURBSREG_FUZZ_SECONDS:-30}"

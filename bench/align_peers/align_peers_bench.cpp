@@ -58,6 +58,7 @@
 #include "nurbsreg/icp/icp.hpp"
 #include "nurbsreg/icp/model_finder.hpp"
 #include "nurbsreg/io/model_file.hpp"
+#include "support/source_paths.hpp"
 
 namespace {
 
@@ -67,7 +68,7 @@ using nurbsreg::engine::Vec3;
 enum class Variants { unset, all, default_schedule };
 
 struct Settings {
-  std::string model = NURBSREG_EXAMPLES_DIR "/panel.json";
+  std::string model = nurbsreg::test::examples_dir() + "/panel.json";
   std::size_t points = 1000000;
   double noise = 0.01;  // mm, along the normal
   std::size_t dense = 1000000;

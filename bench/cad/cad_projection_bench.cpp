@@ -42,6 +42,7 @@
 #include "nurbsreg/engine/projection.hpp"
 #include "nurbsreg/io/model_file.hpp"
 #include "support/cad_reference.hpp"
+#include "support/source_paths.hpp"
 #include "support/trimmed_face_check.hpp"
 
 using nurbsreg::engine::Vec3;
@@ -66,7 +67,7 @@ struct Options {
   double tolerance = 1e-9;
   int repeat = 3;
   std::uint64_t seed = 20261122;
-  std::string data = NURBSREG_SHARED_DIR "/data/real";
+  std::string data = nurbsreg::test::shared_dir() + "/data/real";
 };
 
 double now() {

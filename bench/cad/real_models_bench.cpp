@@ -39,6 +39,7 @@
 #include "nurbsreg/icp/model_finder.hpp"
 #include "nurbsreg/io/model_file.hpp"
 #include "support/cad_reference.hpp"
+#include "support/source_paths.hpp"
 
 namespace engine = nurbsreg::engine;
 namespace io = nurbsreg::io;
@@ -140,8 +141,8 @@ struct Options {
   int threads = 2;
   int repeat = 2;
   bool skip_align = false;
-  std::string data = NURBSREG_SHARED_DIR "/data/real";
-  std::string examples = NURBSREG_EXAMPLES_DIR;
+  std::string data = nurbsreg::test::shared_dir() + "/data/real";
+  std::string examples = nurbsreg::test::examples_dir();
 };
 
 void project_timed(tbb::task_arena& arena, const engine::PreparedModel& prepared,

@@ -20,13 +20,14 @@
 #include "nurbsreg/io/alignment_report.hpp"
 #include "nurbsreg/io/pose.hpp"
 #include "support/run_command.hpp"
+#include "support/source_paths.hpp"
 
 namespace nurbsreg::test {
 namespace {
 
 namespace fs = std::filesystem;
 
-const std::string kPanel = std::string(NURBSREG_EXAMPLES_DIR) + "/panel.json";
+const std::string kPanel = nurbsreg::test::examples_dir() + "/panel.json";
 
 constexpr int kGoodFrames = 5;
 const std::vector<std::string> kGood = {"f0", "f1", "f2", "f3", "f4"};
@@ -272,7 +273,7 @@ TEST_F(Batch, SigtermLeavesNoPartialOutputAndResumeCompletes) {
   const std::string part = path("term_part");
   ASSERT_EQ(run("batch --model " + kPanel + " --scans " + scans() + " --out " + full).status, 4);
 
-  const std::string binary = NURBSREG_BINARY;
+  const std::string binary = nurbsreg::test::nurbsreg_binary();
   std::vector<std::string> args = {binary,  "-q",    "batch", "--model",   kPanel, "--scans",
                                    scans(), "--out", part,    "--threads", "1"};
   std::vector<char*> argv;
@@ -367,7 +368,7 @@ TEST_F(Batch, SigkillLeavesOnlyCompleteFilesAndResumeCompletes) {
   const auto start = std::chrono::steady_clock::now();
   ASSERT_EQ(run("batch --model " + kPanel + " --scans " + scans() + " --out " + full).status, 4);
   const auto full_time = std::chrono::steady_clock::now() - start;
-  const std::string binary = NURBSREG_BINARY;
+  const std::string binary = nurbsreg::test::nurbsreg_binary();
   int killed_mid_run = 0;
   for (const double fraction : {0.3, 0.7}) {
     const std::string part = path("kill_part_" + std::to_string(static_cast<int>(fraction * 100)));

@@ -9,11 +9,12 @@
 #include <sstream>
 
 #include "support/run_command.hpp"
+#include "support/source_paths.hpp"
 
 namespace nurbsreg::test {
 namespace {
 
-const std::string kReal = std::string(NURBSREG_SHARED_DIR) + "/data/real/";
+const std::string kReal = nurbsreg::test::shared_dir() + "/data/real/";
 
 TEST(CliCad, InfoListsTheFacesOfAStepFile) {
   ScratchDir dir("cad_info");

@@ -14,12 +14,13 @@
 #include "nurbsreg/io/point_table.hpp"
 #include "nurbsreg/io/pose.hpp"
 #include "support/run_command.hpp"
+#include "support/source_paths.hpp"
 
 namespace nurbsreg::test {
 namespace {
 
-const std::string kPanel = std::string(NURBSREG_EXAMPLES_DIR) + "/panel.json";
-const std::string kSphere = std::string(NURBSREG_EXAMPLES_DIR) + "/sphere.json";
+const std::string kPanel = nurbsreg::test::examples_dir() + "/panel.json";
+const std::string kSphere = nurbsreg::test::examples_dir() + "/sphere.json";
 
 int count_lines(const std::string& text) {
   return static_cast<int>(std::count(text.begin(), text.end(), '\n'));

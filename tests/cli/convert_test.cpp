@@ -11,11 +11,12 @@
 #include <nlohmann/json.hpp>
 
 #include "support/run_command.hpp"
+#include "support/source_paths.hpp"
 
 namespace nurbsreg::test {
 namespace {
 
-const std::string kScrew = std::string(NURBSREG_SHARED_DIR) + "/data/real/occt/screw.step";
+const std::string kScrew = nurbsreg::test::shared_dir() + "/data/real/occt/screw.step";
 
 TEST(CliConvert, StepToJsonLoadsAsTheSameModel) {
   ScratchDir dir("convert");
@@ -41,7 +42,7 @@ TEST(CliConvert, SecondLoadComesFromTheCache) {
   ScratchDir dir("cache_cli");
   const std::string env = "NURBSREG_CACHE_DIR=" + (dir / "cache") + " ";
   // run_nurbsreg starts with the binary: the variables go in front of it here.
-  const std::string bin = NURBSREG_BINARY;
+  const std::string bin = nurbsreg::test::nurbsreg_binary();
   const auto sh = [&](const std::string& prefix, const std::string& args) {
     const std::string out = dir / "out.txt", err = dir / "err.txt";
     const int status =

@@ -11,6 +11,7 @@
 
 #include "nurbsreg/engine/curve_modification.hpp"
 #include "nurbsreg/io/model_json.hpp"
+#include "support/source_paths.hpp"
 
 namespace nurbsreg {
 namespace {
@@ -47,7 +48,7 @@ class ModifyCommand : public ::testing::Test {
   }
   RunResult run(const std::string& arguments) {
     const std::string err = path("stderr.txt");
-    const std::string command = std::string(NURBSREG_BINARY) + " modify " + arguments + " > " +
+    const std::string command = nurbsreg::test::nurbsreg_binary() + " modify " + arguments + " > " +
                                 path("stdout.txt") + " 2> " + err;
     const int raw = std::system(command.c_str());
     RunResult r;

@@ -12,6 +12,7 @@
 #include "nurbsreg/icp/certificate_atlas.hpp"
 #include "nurbsreg/icp/model_finder.hpp"
 #include "nurbsreg/io/model_json.hpp"
+#include "support/source_paths.hpp"
 
 namespace nurbsreg::icp {
 namespace {
@@ -102,7 +103,7 @@ TEST(CertificateAtlas, GrowsAndFindsEveryAnchor) {
 
 const engine::PreparedModel& panel() {
   static const engine::PreparedModel model(
-      io::read_model_json(NURBSREG_EXAMPLES_DIR "/panel.json"));
+      io::read_model_json(nurbsreg::test::examples_dir() + "/panel.json"));
   return model;
 }
 

@@ -15,6 +15,7 @@
 
 #include "nurbsreg/io/point_cloud.hpp"
 #include "support/run_command.hpp"
+#include "support/source_paths.hpp"
 
 namespace nurbsreg::test {
 namespace {
@@ -168,7 +169,7 @@ TEST(InspectCli, AsymmetricBandEdges) {
 
 TEST(InspectCli, AlignsFirstWithoutAPose) {
   ScratchDir dir("inspect-cli-align");
-  const std::string panel = std::string(NURBSREG_EXAMPLES_DIR) + "/panel.json";
+  const std::string panel = nurbsreg::test::examples_dir() + "/panel.json";
   const std::string scan = dir / "scan.pcd";
   ASSERT_EQ(run_nurbsreg("-q synth --model " + panel +
                              " --points 3000 --noise 0.01 --pose \"0.01 -0.01 0.02 0.05 -0.03 "
@@ -197,7 +198,7 @@ TEST(InspectCli, AlignsFirstWithoutAPose) {
 // A poor fit accepted with --accept-poor: the page says so above every number, not only the JSON.
 TEST(InspectCli, AcceptedPoorFitIsShownOnThePage) {
   ScratchDir dir("inspect-cli-poor");
-  const std::string panel = std::string(NURBSREG_EXAMPLES_DIR) + "/panel.json";
+  const std::string panel = nurbsreg::test::examples_dir() + "/panel.json";
   const std::string scan = dir / "scan.pcd";
   ASSERT_EQ(run_nurbsreg("-q synth --model " + panel +
                              " --points 3000 --noise 0.01 --outliers 0.2 --seed 5 --out " + scan,

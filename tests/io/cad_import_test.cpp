@@ -35,12 +35,13 @@
 #include "nurbsreg/io/errors.hpp"
 #include "nurbsreg/io/model_file.hpp"
 #include "nurbsreg/io/model_json.hpp"
+#include "support/source_paths.hpp"
 #include "support/test_scale.hpp"
 
 namespace nurbsreg::io {
 namespace {
 
-const std::string kReal = std::string(NURBSREG_SHARED_DIR) + "/data/real/";
+const std::string kReal = nurbsreg::test::shared_dir() + "/data/real/";
 
 // One file, loaded once per test process: our model plus OCCT's own reading of the file.
 struct Loaded {

@@ -35,6 +35,7 @@
 #include "nurbsreg/engine/projection.hpp"
 #include "nurbsreg/io/model_file.hpp"
 #include "support/cad_reference.hpp"
+#include "support/source_paths.hpp"
 #include "support/trimmed_face_check.hpp"
 
 namespace nurbsreg::io {
@@ -73,7 +74,7 @@ CadData& data_for(const CadCase& c) {
   if (slot) return *slot;
   const auto start = std::chrono::steady_clock::now();
   auto d = std::make_unique<CadData>();
-  const std::string path = std::string(NURBSREG_SHARED_DIR) + "/data/real/" + c.file;
+  const std::string path = nurbsreg::test::shared_dir() + "/data/real/" + c.file;
   d->model = read_model_file(path);
   d->prepared = std::make_unique<engine::PreparedModel>(d->model);
   d->shape = test::read_cad_shape(path);

@@ -27,6 +27,7 @@
 #include "nurbsreg/engine/projection.hpp"
 #include "nurbsreg/engine/sampling.hpp"
 #include "nurbsreg/io/model_file.hpp"
+#include "support/source_paths.hpp"
 
 namespace nurbsreg::io {
 namespace {
@@ -131,7 +132,7 @@ class CadWarmCertificate : public testing::TestWithParam<WarmCase> {};
 
 TEST_P(CadWarmCertificate, CertifiedAnswersEqualColdOnesNearTrimLoopsAndCloseSheets) {
   const WarmCase& c = GetParam();
-  const std::string path = std::string(NURBSREG_SHARED_DIR) + "/data/real/" + c.file;
+  const std::string path = nurbsreg::test::shared_dir() + "/data/real/" + c.file;
   const engine::PreparedModel pm(read_model_file(path));
   const double diagonal = pm.geometry_bounds().box.diagonal();
   const double tol = 1e-9 * diagonal;

@@ -11,6 +11,7 @@
 #include "nurbsreg/engine/decompose.hpp"
 #include "nurbsreg/engine/shapes.hpp"
 #include "nurbsreg/io/model_json.hpp"
+#include "support/source_paths.hpp"
 
 namespace nurbsreg::io {
 namespace {
@@ -20,7 +21,7 @@ using engine::NurbsSurface;
 using engine::Vec3;
 
 std::string example(const std::string& name) {
-  return std::string(NURBSREG_EXAMPLES_DIR) + "/" + name;
+  return nurbsreg::test::examples_dir() + "/" + name;
 }
 
 Model load(const std::string& name) {

@@ -18,14 +18,14 @@
 #include "nurbsreg/io/point_cloud.hpp"
 #include "nurbsreg/io/point_table.hpp"
 #include "nurbsreg/io/pose.hpp"
+#include "support/source_paths.hpp"
 
 namespace nurbsreg::io {
 namespace {
 
 namespace fs = std::filesystem;
 
-const std::string kFindings =
-    std::string(NURBSREG_EXAMPLES_DIR) + "/../tests/data/fuzz-regressions/";
+const std::string kFindings = nurbsreg::test::examples_dir() + "/../tests/data/fuzz-regressions/";
 
 // The message of the InputError that `read` throws ("" and a test failure when none).
 template <class Read>
@@ -200,7 +200,7 @@ TEST(FuzzRegression, CadImportTimeoutAndMemoryLimitsAreReported) {
   // A wall-clock limit of 1 s is too short for no file here, so take the NIST part's STEP
   // import (seconds) to check that the limit stops it with the documented message.
   const std::string nist =
-      std::string(NURBSREG_SHARED_DIR) + "/data/real/nist/nist_ctc_02_asme1_ap242-1.stp";
+      nurbsreg::test::shared_dir() + "/data/real/nist/nist_ctc_02_asme1_ap242-1.stp";
   const ScopedEnv timeout("NURBSREG_CAD_TIMEOUT", "1");
   // From the model cache the import would not run at all.
   const ScopedEnv no_cache("NURBSREG_NO_CACHE", "1");

@@ -18,6 +18,7 @@
 #include "nurbsreg/engine/prepared_model.hpp"
 #include "nurbsreg/io/model_file.hpp"
 #include "nurbsreg/io/model_summary.hpp"
+#include "support/source_paths.hpp"
 
 namespace nurbsreg {
 namespace {
@@ -139,18 +140,18 @@ TEST_P(GeometryBounds, HoldsDenseSamplesAndIsTight) {
   }
 }
 
-const std::string kReal = std::string(NURBSREG_SHARED_DIR) + "/data/real/";
+const std::string kReal = nurbsreg::test::shared_dir() + "/data/real/";
 INSTANTIATE_TEST_SUITE_P(
     RealParts, GeometryBounds,
     ::testing::Values(Case{kReal + "occt/linkrods.step", 6.0},
                       Case{kReal + "occt/bearing.iges", 1e9}, Case{kReal + "occt/screw.step", 1e9},
                       Case{kReal + "dealii/wigley.iges", 1e9},
-                      Case{std::string(NURBSREG_EXAMPLES_DIR) + "/torus.json", 1e9}));
+                      Case{nurbsreg::test::examples_dir() + "/torus.json", 1e9}));
 
 // The exact sphere: its box is [-r, r]^3 around its centre, and the bound says it is exact.
 TEST(GeometryBounds, SphereIsExact) {
   const engine::PreparedModel pm(
-      io::read_model_file(std::string(NURBSREG_EXAMPLES_DIR) + "/sphere.json"));
+      io::read_model_file(nurbsreg::test::examples_dir() + "/sphere.json"));
   const engine::ModelBounds& b = pm.geometry_bounds();
   EXPECT_TRUE(b.exact) << b.excess;
   const Vec3 extent = b.box.hi - b.box.lo;

@@ -15,6 +15,7 @@
 #include "nurbsreg/io/model_cache.hpp"
 #include "nurbsreg/io/model_file.hpp"
 #include "nurbsreg/io/model_json.hpp"
+#include "support/source_paths.hpp"
 
 namespace nurbsreg::io {
 namespace {
@@ -24,7 +25,7 @@ namespace fs = std::filesystem;
 // A real converted part (trim loops, 3-D edges, reversed faces), converted once.
 const engine::Model& screw() {
   static const engine::Model m =
-      read_cad_file(std::string(NURBSREG_SHARED_DIR) + "/data/real/occt/screw.step");
+      read_cad_file(nurbsreg::test::shared_dir() + "/data/real/occt/screw.step");
   return m;
 }
 

@@ -12,6 +12,7 @@
 #include "nurbsreg/io/model_json.hpp"
 #include "support/model_parse_error.hpp"
 #include "support/random_entities.hpp"
+#include "support/source_paths.hpp"
 
 namespace nurbsreg::io {
 namespace {
@@ -52,7 +53,7 @@ json to_model_document(const json& c) {
 
 TEST(ModelJson, ReadsPublishedCasesWithTheirExpectedPoints) {
   const std::string path =
-      std::string(NURBSREG_SHARED_DIR) + "/data/real/numeric/nurbs_test_cases.json";
+      nurbsreg::test::shared_dir() + "/data/real/numeric/nurbs_test_cases.json";
   std::ifstream in(path);
   ASSERT_TRUE(in) << "missing shared data: " << path;
   const json cases = json::parse(in)["cases"];

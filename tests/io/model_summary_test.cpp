@@ -11,6 +11,7 @@
 #include "nurbsreg/io/cad_import.hpp"
 #include "nurbsreg/io/model_summary.hpp"
 #include "support/random_entities.hpp"
+#include "support/source_paths.hpp"
 
 namespace nurbsreg::io {
 namespace {
@@ -112,7 +113,7 @@ TEST(ModelSummary, TextAndJsonNameEverything) {
 
 // A CAD model: every face listed with its trimming and orientation, skipped faces with reasons.
 TEST(ModelSummary, ListsTrimmingOrientationAndSkippedFaces) {
-  engine::Model m = read_cad_file(std::string(NURBSREG_SHARED_DIR) + "/data/real/occt/screw.step");
+  engine::Model m = read_cad_file(nurbsreg::test::shared_dir() + "/data/real/occt/screw.step");
   m.skipped_faces.push_back({10, "a reason"});  // the file has none: add one to see it listed
   const ModelSummary s = summarize_model(m);
   ASSERT_EQ(s.surfaces.size(), m.surfaces.size());

@@ -19,6 +19,7 @@
 #include "nurbsreg/io/errors.hpp"
 #include "nurbsreg/io/point_cloud.hpp"
 #include "nurbsreg/io/point_table.hpp"
+#include "support/source_paths.hpp"
 
 namespace nurbsreg::io {
 namespace {
@@ -26,8 +27,8 @@ namespace {
 namespace fs = std::filesystem;
 using engine::Vec3;
 
-const std::string kPcl = std::string(NURBSREG_SHARED_DIR) + "/data/real/pcl/";
-const std::string kBunny = std::string(NURBSREG_SHARED_DIR) + "/data/real/stanford-bunny-scans/";
+const std::string kPcl = nurbsreg::test::shared_dir() + "/data/real/pcl/";
+const std::string kBunny = nurbsreg::test::shared_dir() + "/data/real/stanford-bunny-scans/";
 
 class TempDir {
  public:

@@ -12,6 +12,7 @@
 #include "nurbsreg/io/errors.hpp"
 #include "nurbsreg/io/pose.hpp"
 #include "support/random_entities.hpp"
+#include "support/source_paths.hpp"
 
 namespace nurbsreg::io {
 namespace {
@@ -64,7 +65,7 @@ TEST(Pose, WriteThenReadIsBitExact) {
 // (Shoemake 1985), independent of Eigen's Quaternion.
 TEST(Pose, ReadsRoundedRealGroundTruthAsAnExactRotation) {
   const std::string conf =
-      std::string(NURBSREG_SHARED_DIR) + "/data/real/stanford-bunny-scans/bun.conf";
+      nurbsreg::test::shared_dir() + "/data/real/stanford-bunny-scans/bun.conf";
   std::ifstream in(conf);
   ASSERT_TRUE(in) << "missing shared data: " << conf;
   std::string line;

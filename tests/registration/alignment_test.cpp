@@ -13,6 +13,7 @@
 #include "nurbsreg/engine/synthetic_scan.hpp"
 #include "nurbsreg/io/model_json.hpp"
 #include "nurbsreg/registration/alignment.hpp"
+#include "support/source_paths.hpp"
 
 namespace nurbsreg::registration {
 namespace {
@@ -22,7 +23,7 @@ using engine::Vec3;
 
 const engine::PreparedModel& panel() {
   static const engine::PreparedModel model(
-      io::read_model_json(NURBSREG_EXAMPLES_DIR "/panel.json"));
+      io::read_model_json(nurbsreg::test::examples_dir() + "/panel.json"));
   return model;
 }
 

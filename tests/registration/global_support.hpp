@@ -16,11 +16,12 @@
 #include "nurbsreg/io/model_file.hpp"
 #include "nurbsreg/registration/alignment.hpp"
 #include "nurbsreg/registration/model_features.hpp"
+#include "support/source_paths.hpp"
 
 namespace nurbsreg::registration::testing {
 
-inline const std::string kReal = NURBSREG_SHARED_DIR "/data/real/";
-inline const std::string kPanel = NURBSREG_EXAMPLES_DIR "/panel.json";
+inline const std::string kReal = nurbsreg::test::shared_dir() + "/data/real/";
+inline const std::string kPanel = nurbsreg::test::examples_dir() + "/panel.json";
 
 struct Part {
   std::unique_ptr<engine::PreparedModel> model;

@@ -11,14 +11,15 @@
 #include "nurbsreg/io/errors.hpp"
 #include "nurbsreg/io/point_cloud_memory.hpp"
 #include "support/run_command.hpp"
+#include "support/source_paths.hpp"
 
 namespace nurbsreg::fuzz::request {
 namespace {
 
 namespace fs = std::filesystem;
 
-const fs::path kCorpus =
-    fs::path(NURBSREG_EXAMPLES_DIR).parent_path() / "tests" / "fuzz" / "corpus" / "fuzz_request";
+const fs::path kCorpus = fs::path(nurbsreg::test::examples_dir()).parent_path() / "tests" / "fuzz" /
+                         "corpus" / "fuzz_request";
 
 TEST(RequestCorpus, EverySeedPassesTheHarnessChecks) {
   std::size_t files = 0;

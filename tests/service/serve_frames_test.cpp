@@ -16,12 +16,13 @@
 
 // After Eigen (see serve_test.cpp): glibc's <resolv.h> defines a macro `_res`.
 #include "support/loopback_client.hpp"
+#include "support/source_paths.hpp"
 
 namespace nurbsreg::test {
 namespace {
 
 using Json = nlohmann::json;
-const std::string kPanel = std::string(NURBSREG_EXAMPLES_DIR) + "/panel.json";
+const std::string kPanel = nurbsreg::test::examples_dir() + "/panel.json";
 constexpr const char* kPcd = "application/octet-stream";
 constexpr const char* kFloat32 = "application/x-nurbsreg-xyz-float32";
 const std::string kIdentity = "1,0,0,0,0,1,0,0,0,0,1,0,0,0,0,1";

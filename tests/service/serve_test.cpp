@@ -18,13 +18,14 @@
 // After Eigen: glibc's <resolv.h>, which httplib includes, defines a macro `_res` that Eigen
 // uses as a parameter name.
 #include "support/loopback_client.hpp"
+#include "support/source_paths.hpp"
 
 namespace nurbsreg::test {
 namespace {
 
 using Json = nlohmann::json;
-const std::string kPanel = std::string(NURBSREG_EXAMPLES_DIR) + "/panel.json";
-const std::string kSphere = std::string(NURBSREG_EXAMPLES_DIR) + "/sphere.json";
+const std::string kPanel = nurbsreg::test::examples_dir() + "/panel.json";
+const std::string kSphere = nurbsreg::test::examples_dir() + "/sphere.json";
 constexpr const char* kPcd = "application/octet-stream";
 
 class Serve : public ::testing::Test {

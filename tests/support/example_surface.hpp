@@ -10,11 +10,12 @@
 #include <vector>
 
 #include "nurbsreg/engine/nurbs_surface.hpp"
+#include "support/source_paths.hpp"
 
 namespace nurbsreg::test {
 
 inline engine::NurbsSurface read_example_surface(const std::string& file) {
-  std::ifstream in(std::string(NURBSREG_EXAMPLES_DIR) + "/" + file);
+  std::ifstream in(nurbsreg::test::examples_dir() + "/" + file);
   EXPECT_TRUE(in.good()) << "examples/" << file;
   const nlohmann::json j = nlohmann::json::parse(in).at("surfaces").at(0);
   engine::NurbsSurface s;

@@ -9,6 +9,7 @@
 #include <fstream>
 #include <sstream>
 #include <string>
+#include "support/source_paths.hpp"
 
 namespace nurbsreg::test {
 
@@ -30,7 +31,7 @@ inline CommandResult run_nurbsreg(const std::string& args, const std::filesystem
   const auto out = scratch / "stdout.txt";
   const auto err = scratch / "stderr.txt";
   const std::string command =
-      std::string(NURBSREG_BINARY) + " " + args + " >" + out.string() + " 2>" + err.string();
+      nurbsreg::test::nurbsreg_binary() + " " + args + " >" + out.string() + " 2>" + err.string();
   const int raw = std::system(command.c_str());
   CommandResult r;
   r.status = WIFEXITED(raw) ? WEXITSTATUS(raw) : -1;

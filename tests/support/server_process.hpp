@@ -14,6 +14,7 @@
 #include <string>
 #include <thread>
 #include <vector>
+#include "support/source_paths.hpp"
 
 namespace nurbsreg::test {
 
@@ -29,7 +30,7 @@ class ServerProcess {
       ::close(out[0]);
       ::close(out[1]);
       const std::string command =
-          "exec " + std::string(NURBSREG_BINARY) + " serve " + args + " --port 0 2>" + log;
+          "exec " + nurbsreg::test::nurbsreg_binary() + " serve " + args + " --port 0 2>" + log;
       ::execl("/bin/sh", "sh", "-c", command.c_str(), static_cast<char*>(nullptr));
       ::_exit(127);
     }

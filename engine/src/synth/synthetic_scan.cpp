@@ -51,8 +51,12 @@ SyntheticScan make_synthetic_scan(const Model& model, const SyntheticScanOptions
     const Vec3 dir = options.view_direction.normalized();
     std::vector<std::size_t> order(samples.size());
     std::iota(order.begin(), order.end(), 0);
-    std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
-      return samples[a].point.dot(dir) > samples[b].point.dot(dir);
+    // Farthest along the view first, ties in sampling order: a stable sort's order, without
+    // its temporary buffer (whose release clang's ASan build reports as a new/free mismatch,
+    // libstdc++'s inline code against the sanitizer's allocator).
+    std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
+      const double da = samples[a].point.dot(dir), db = samples[b].point.dot(dir);
+      return da > db || (da == db && a < b);
     });
     order.resize(std::min(wanted, order.size()));
     std::sort(order.begin(), order.end());  // keep the sampler's order: deterministic

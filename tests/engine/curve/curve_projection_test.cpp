@@ -18,6 +18,7 @@
 #include "nurbsreg/engine/shapes.hpp"
 #include "support/curve_reference.hpp"
 #include "support/random_entities.hpp"
+#include "support/source_paths.hpp"
 
 namespace nurbsreg::engine {
 namespace {
@@ -468,8 +469,9 @@ TEST(CurveProjection, DegenerateControlPolygons) {
 // Published closest-point cases (shared/data/real/numeric/nurbs_test_cases.json).
 
 nlohmann::json load_cases() {
-  std::ifstream in(std::string(NURBSREG_SHARED_DIR) + "/data/real/numeric/nurbs_test_cases.json");
-  EXPECT_TRUE(in.good()) << "cannot open nurbs_test_cases.json under " << NURBSREG_SHARED_DIR;
+  std::ifstream in(nurbsreg::test::shared_dir() + "/data/real/numeric/nurbs_test_cases.json");
+  EXPECT_TRUE(in.good()) << "cannot open nurbs_test_cases.json under "
+                         << nurbsreg::test::shared_dir();
   nlohmann::json cases;
   if (in.good()) in >> cases;
   return cases;

@@ -18,13 +18,14 @@
 #include "nurbsreg/engine/nurbs_curve.hpp"
 #include "nurbsreg/engine/nurbs_surface.hpp"
 #include "support/random_entities.hpp"
+#include "support/source_paths.hpp"
 
 namespace nurbsreg::engine {
 namespace {
 
 using nlohmann::json;
 
-const std::string kNumericDir = std::string(NURBSREG_SHARED_DIR) + "/data/real/numeric";
+const std::string kNumericDir = nurbsreg::test::shared_dir() + "/data/real/numeric";
 
 json load_json(const std::string& path) {
   std::ifstream in(path);
