@@ -28,6 +28,14 @@ void ProjectionResults::resize(std::size_t n, bool feet, bool certificates) {
 
 void ProjectionResults::copy_from(const ProjectionResults& part, std::size_t offset) {
   auto put = [offset](auto& to, const auto& from) {
+    // A field the frame does not fill (normals, certificates) is empty in both: no offset into
+    // an empty vector's null data (undefined behaviour, which UBSan stops on).
+    if (from.empty()) return;
+    if (offset + from.size() > to.size()) {
+      throw std::logic_error("ProjectionResults::copy_from: " + std::to_string(from.size()) +
+                             " results at " + std::to_string(offset) + " into " +
+                             std::to_string(to.size()));
+    }
     std::copy(from.begin(), from.end(), to.begin() + static_cast<std::ptrdiff_t>(offset));
   };
   put(foot, part.foot);
