@@ -163,126 +163,140 @@ double model_size(const PreparedModel& pm) {
   return pm.bounds().diagonal();
 }
 
-TEST(ReachBounds, NoModelSampleInsideAnyTangentBall) {
-  const std::vector<Model> models = test_models();
-  for (std::size_t mi = 0; mi < models.size(); ++mi) {
-    const PreparedModel pm(models[mi]);
-    pm.prepare_reach_bounds();
-    // Under sanitizers (test_scale.hpp) a coarser grid: the check costs cases x samples.
-    const std::vector<Vec3> samples = model_samples(pm.model(), test::test_size(120, 40));
-    const std::vector<BallCase> cases = ball_cases(pm);
-    const double size = model_size(pm);
-    std::size_t checked = 0, large = 0;
-    for (const BallCase& c : cases) {
-      if (!(c.rho > 0.0)) continue;
-      ++checked;
-      if (c.rho > 0.05 * size) ++large;
-      for (const Vec3& x : samples) {
-        const Vec3 w = x - c.foot;
-        // Inside the open ball: |x - (f + rho v)| < rho.
-        ASSERT_GE(w.squaredNorm() - 2.0 * c.rho * c.direction.dot(w), -1e-12 * size * size)
-            << pm.model().surfaces[0].name << ": patch " << c.patch << " (" << c.s << ", " << c.t
-            << "), rho " << c.rho << ", sample at " << (x - (c.foot + c.rho * c.direction)).norm()
-            << " from the ball's centre";
-      }
+// The claims: no model sample inside any (foot, direction) ball of the model's bounds.
+void check_claims(const PreparedModel& pm) {
+  // Under sanitizers (test_scale.hpp) a coarser grid: the check costs cases x samples.
+  const std::vector<Vec3> samples = model_samples(pm.model(), test::test_size(120, 40));
+  const std::vector<BallCase> cases = ball_cases(pm);
+  const double size = model_size(pm);
+  std::size_t checked = 0, large = 0;
+  for (const BallCase& c : cases) {
+    if (!(c.rho > 0.0)) continue;
+    ++checked;
+    if (c.rho > 0.05 * size) ++large;
+    for (const Vec3& x : samples) {
+      const Vec3 w = x - c.foot;
+      // Inside the open ball: |x - (f + rho v)| < rho.
+      ASSERT_GE(w.squaredNorm() - 2.0 * c.rho * c.direction.dot(w), -1e-12 * size * size)
+          << pm.model().surfaces[0].name << ": patch " << c.patch << " (" << c.s << ", " << c.t
+          << "), rho " << c.rho << ", sample at " << (x - (c.foot + c.rho * c.direction)).norm()
+          << " from the ball's centre";
     }
-    std::printf(
-        "[ report ] %s: %zu of %zu (foot, direction) balls with rho > 0, %zu above 5%% of "
-        "the model's size\n",
-        pm.model().surfaces[0].name.c_str(), checked, cases.size(), large);
-    if (pm.model().surfaces[0].name == "wavy sheet") {
-      EXPECT_GT(large, cases.size() / 10) << "the bounds prove little on a smooth sheet";
-    }
+  }
+  std::printf(
+      "[ report ] %s: %zu of %zu (foot, direction) balls with rho > 0, %zu above 5%% of "
+      "the model's size\n",
+      pm.model().surfaces[0].name.c_str(), checked, cases.size(), large);
+  if (pm.model().surfaces[0].name == "wavy sheet") {
+    EXPECT_GT(large, cases.size() / 10) << "the bounds prove little on a smooth sheet";
   }
 }
 
-TEST(ReachBounds, ProvenAnswersMatchBruteForce) {
+// Totals of check_answers over the models.
+struct AnswerTotals {
+  std::uint64_t proven = 0;
+  std::uint64_t edge_points = 0, edge_proven = 0;
+};
+
+// The answers: points just inside the balls, near and far points get the brute-force distance
+// cold and with bare hints.
+void check_answers(const PreparedModel& pm, std::size_t stride, std::mt19937_64& rng,
+                   AnswerTotals& totals) {
+  const double size = model_size(pm);
+  std::vector<test::SurfaceReference> references;
+  for (const NurbsSurface& s : pm.model().surfaces)
+    references.emplace_back(s);
+  // Points just inside the balls (every 17th case), near points and far points.
+  std::vector<Vec3> points;
+  const std::vector<BallCase> cases = ball_cases(pm);
+  for (std::size_t k = 0; k < cases.size(); k += 17 * stride) {
+    if (cases[k].rho > 0.0)
+      points.push_back(cases[k].foot +
+                       std::min(0.98 * cases[k].rho, 2.0 * size) * cases[k].direction);
+  }
+  const Vec3 lo = pm.bounds().lo, hi = pm.bounds().hi, extent = hi - lo;
+  for (std::size_t k = 0; k < 300 / stride; ++k)
+    points.push_back(test::uniform_point(rng, lo - 0.25 * extent, hi + 0.25 * extent));
+  Projector projector(pm);
+  ProjectionOptions options;
+  ProjectionResults cold, warm;
+  ProjectionCounters cold_counters, warm_counters;
+  projector.project(PointView::of(points), options, cold, {}, &cold_counters);
+  // Bare hints: the cold feet, no certificates.
+  std::vector<ProjectionHint> hints(points.size());
+  for (std::size_t i = 0; i < points.size(); ++i)
+    hints[i] = ProjectionHint(cold.entity[i], cold.u[i], cold.v[i]);
+  projector.project(PointView::of(points), options, warm, hints, &warm_counters);
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    double best = std::numeric_limits<double>::infinity();
+    for (const test::SurfaceReference& r : references)
+      best = std::min(best, r.closest(points[i]).distance_sq);
+    const double expected = std::sqrt(best);
+    // A wrong proof accepts a local minimum: a distance above the reference's. (Below it
+    // the reference's sampling missed the minimum, near a C0 crease its Newton can stall: the
+    // engine's foot is then checked to be a surface point at the distance it reports.)
+    for (const ProjectionResults* r : {&cold, &warm}) {
+      const char* which = r == &cold ? "cold" : "warm";
+      const NurbsSurface& s = pm.model().surfaces[static_cast<std::size_t>(r->entity[i])];
+      ASSERT_LE(r->distance[i], expected + 1e-9 * size)
+          << s.name << ": point " << i << " " << which << ", foot (" << r->u[i] << ", " << r->v[i]
+          << ")";
+      ASSERT_LE((s.evaluate(r->u[i], r->v[i]) - r->foot[i]).norm(), 1e-9 * size);
+      ASSERT_NEAR((r->foot[i] - points[i]).norm(), r->distance[i], 1e-9 * size);
+    }
+    ASSERT_NEAR(warm.distance[i], cold.distance[i], 1e-9 * size) << "point " << i;
+  }
+  std::printf("[ report ] %s: %zu points, reach-proven %llu cold, %llu warm\n",
+              pm.model().surfaces[0].name.c_str(), points.size(),
+              static_cast<unsigned long long>(cold_counters.reach_proven),
+              static_cast<unsigned long long>(warm_counters.reach_proven));
+  totals.proven += cold_counters.reach_proven + warm_counters.reach_proven;
+
+  // Points just inside the balls of edge and corner feet: their own sector's bound proves them
+  // (unless the foot sits on a cell's border and the lookup picks the neighbouring cell).
+  std::vector<Vec3> edge_points;
+  for (std::size_t k = 0; k < cases.size(); k += 5) {
+    if (cases[k].edge && cases[k].rho > 0.0)
+      edge_points.push_back(cases[k].foot +
+                            std::min(0.98 * cases[k].rho, 2.0 * size) * cases[k].direction);
+  }
+  ProjectionResults edge_cold, edge_warm;
+  projector.project(PointView::of(edge_points), options, edge_cold);
+  std::vector<ProjectionHint> edge_hints(edge_points.size());
+  for (std::size_t i = 0; i < edge_points.size(); ++i)
+    edge_hints[i] = ProjectionHint(edge_cold.entity[i], edge_cold.u[i], edge_cold.v[i]);
+  ProjectionCounters edge_counters;
+  projector.project(PointView::of(edge_points), options, edge_warm, edge_hints, &edge_counters);
+  for (std::size_t i = 0; i < edge_points.size(); ++i)
+    ASSERT_NEAR(edge_warm.distance[i], edge_cold.distance[i], 1e-9 * size) << "edge point " << i;
+  totals.edge_points += edge_points.size();
+  totals.edge_proven += edge_counters.reach_proven;
+}
+
+// One test for the claims and the answers: preparing the bounds is most of its time, and each
+// model is prepared once for both.
+TEST(ReachBounds, ClaimsAndProvenAnswersOnEveryModel) {
   const std::vector<Model> models = test_models();
   std::mt19937_64 rng(7);
-  std::uint64_t proven_total = 0;
-  std::uint64_t edge_points_total = 0, edge_proven_total = 0;
+  AnswerTotals totals;
   // Under sanitizers (test_scale.hpp) a quarter of the points that get a brute-force reference.
   const std::size_t stride = test::test_size<std::size_t>(1, 4);
   for (std::size_t mi = 0; mi < models.size(); ++mi) {
     const PreparedModel pm(models[mi]);
     pm.prepare_reach_bounds();
-    const double size = model_size(pm);
-    std::vector<test::SurfaceReference> references;
-    for (const NurbsSurface& s : pm.model().surfaces)
-      references.emplace_back(s);
-    // Points just inside the balls (every 17th case), near points and far points.
-    std::vector<Vec3> points;
-    const std::vector<BallCase> cases = ball_cases(pm);
-    for (std::size_t k = 0; k < cases.size(); k += 17 * stride) {
-      if (cases[k].rho > 0.0)
-        points.push_back(cases[k].foot +
-                         std::min(0.98 * cases[k].rho, 2.0 * size) * cases[k].direction);
-    }
-    const Vec3 lo = pm.bounds().lo, hi = pm.bounds().hi, extent = hi - lo;
-    for (std::size_t k = 0; k < 300 / stride; ++k)
-      points.push_back(test::uniform_point(rng, lo - 0.25 * extent, hi + 0.25 * extent));
-    Projector projector(pm);
-    ProjectionOptions options;
-    ProjectionResults cold, warm;
-    ProjectionCounters cold_counters, warm_counters;
-    projector.project(PointView::of(points), options, cold, {}, &cold_counters);
-    // Bare hints: the cold feet, no certificates.
-    std::vector<ProjectionHint> hints(points.size());
-    for (std::size_t i = 0; i < points.size(); ++i)
-      hints[i] = ProjectionHint(cold.entity[i], cold.u[i], cold.v[i]);
-    projector.project(PointView::of(points), options, warm, hints, &warm_counters);
-    for (std::size_t i = 0; i < points.size(); ++i) {
-      double best = std::numeric_limits<double>::infinity();
-      for (const test::SurfaceReference& r : references)
-        best = std::min(best, r.closest(points[i]).distance_sq);
-      const double expected = std::sqrt(best);
-      // A wrong proof accepts a local minimum: a distance above the reference's. (Below it
-      // the reference's sampling missed the minimum, near a C0 crease its Newton can stall: the
-      // engine's foot is then checked to be a surface point at the distance it reports.)
-      for (const ProjectionResults* r : {&cold, &warm}) {
-        const char* which = r == &cold ? "cold" : "warm";
-        const NurbsSurface& s = pm.model().surfaces[static_cast<std::size_t>(r->entity[i])];
-        ASSERT_LE(r->distance[i], expected + 1e-9 * size)
-            << s.name << ": point " << i << " " << which << ", foot (" << r->u[i] << ", " << r->v[i]
-            << ")";
-        ASSERT_LE((s.evaluate(r->u[i], r->v[i]) - r->foot[i]).norm(), 1e-9 * size);
-        ASSERT_NEAR((r->foot[i] - points[i]).norm(), r->distance[i], 1e-9 * size);
-      }
-      ASSERT_NEAR(warm.distance[i], cold.distance[i], 1e-9 * size) << "point " << i;
-    }
-    std::printf("[ report ] %s: %zu points, reach-proven %llu cold, %llu warm\n",
-                pm.model().surfaces[0].name.c_str(), points.size(),
-                static_cast<unsigned long long>(cold_counters.reach_proven),
-                static_cast<unsigned long long>(warm_counters.reach_proven));
-    proven_total += cold_counters.reach_proven + warm_counters.reach_proven;
-
-    // Points just inside the balls of edge and corner feet: their own sector's bound proves them
-    // (unless the foot sits on a cell's border and the lookup picks the neighbouring cell).
-    std::vector<Vec3> edge_points;
-    for (std::size_t k = 0; k < cases.size(); k += 5) {
-      if (cases[k].edge && cases[k].rho > 0.0)
-        edge_points.push_back(cases[k].foot +
-                              std::min(0.98 * cases[k].rho, 2.0 * size) * cases[k].direction);
-    }
-    ProjectionResults edge_cold, edge_warm;
-    projector.project(PointView::of(edge_points), options, edge_cold);
-    std::vector<ProjectionHint> edge_hints(edge_points.size());
-    for (std::size_t i = 0; i < edge_points.size(); ++i)
-      edge_hints[i] = ProjectionHint(edge_cold.entity[i], edge_cold.u[i], edge_cold.v[i]);
-    ProjectionCounters edge_counters;
-    projector.project(PointView::of(edge_points), options, edge_warm, edge_hints, &edge_counters);
-    for (std::size_t i = 0; i < edge_points.size(); ++i)
-      ASSERT_NEAR(edge_warm.distance[i], edge_cold.distance[i], 1e-9 * size) << "edge point " << i;
-    edge_points_total += edge_points.size();
-    edge_proven_total += edge_counters.reach_proven;
+    SCOPED_TRACE(pm.model().surfaces[0].name);
+    check_claims(pm);
+    if (HasFatalFailure()) return;
+    check_answers(pm, stride, rng, totals);
+    if (HasFatalFailure()) return;
   }
-  EXPECT_GT(proven_total * stride, 1000u) << "the reach path was hardly taken";
+  EXPECT_GT(totals.proven * stride, 1000u) << "the reach path was hardly taken";
   std::printf("[ report ] edge and corner feet: %llu of %llu points proven with bare hints\n",
-              static_cast<unsigned long long>(edge_proven_total),
-              static_cast<unsigned long long>(edge_points_total));
+              static_cast<unsigned long long>(totals.edge_proven),
+              static_cast<unsigned long long>(totals.edge_points));
   // 77% at this writing; a lookup that always took the last sector (the directions nearest -n)
   // proved 63%.
-  EXPECT_GT(edge_proven_total * 10, edge_points_total * 7)
+  EXPECT_GT(totals.edge_proven * 10, totals.edge_points * 7)
       << "the boundary sectors' bounds are hardly used (the wrong sector looked up?)";
 }
 
