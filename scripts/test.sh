@@ -11,9 +11,9 @@
 #   4. tsan      the tests of our own threads (the service's admission and workers, concurrent
 #                clients of `nurbsreg serve`) under ThreadSanitizer (build-tsan/, only the
 #                binaries they need).
-# NURBSREG_SANITIZERS=1 runs stages 2-4 too (default 0 until the tsan stage's
-# two SIGTERM tests pass: README). NURBSREG_STAGES="asan tsan" (any of release asan fuzz tsan) runs only those, e.g. to
-# repeat a failed stage. A failed stage does not stop the later ones (one CI run shows every
+# NURBSREG_SANITIZERS=1 runs stages 2-4 too (default 0 until the tsan stage's two SIGTERM tests
+# pass: README). NURBSREG_STAGES="asan tsan" (any of release asan fuzz tsan) runs only those,
+# e.g. to repeat a failed stage. A failed stage does not stop the later ones (one CI run shows every
 # stage's failures); the exit status is then 1 and the summary names the failed stages.
 #
 # Every stage has a wall-clock budget (seconds; NURBSREG_BUDGET_RELEASE, _ASAN, _FUZZ, _TSAN;
