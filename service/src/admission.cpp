@@ -5,8 +5,9 @@ namespace {
 thread_local bool t_overflowing = false;
 }
 
-BoundedTaskQueue::BoundedTaskQueue(std::size_t workers, std::size_t max_waiting, Counters& counters)
-    : max_waiting_(max_waiting), counters_(counters) {
+BoundedTaskQueue::BoundedTaskQueue(std::size_t workers, std::size_t max_waiting, Counters& counters,
+                                   std::function<void()> before_join)
+    : max_waiting_(max_waiting), counters_(counters), before_join_(std::move(before_join)) {
   threads_.reserve(workers);
   for (std::size_t i = 0; i < workers; ++i)
     threads_.emplace_back([this] { work(); });
@@ -53,6 +54,7 @@ void BoundedTaskQueue::work() {
 }
 
 void BoundedTaskQueue::shutdown() {
+  if (before_join_) std::exchange(before_join_, {})();
   {
     std::lock_guard lock(mutex_);
     shutdown_ = true;

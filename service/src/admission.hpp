@@ -6,7 +6,8 @@
 // thread with `overflowing()` true, so every request on it is answered 503 at once (the
 // response says Connection: close); the accept loop is held up for that one short answer only.
 // httplib's own ThreadPool queues without bound, which lets a crowd of clients hold memory and
-// wait forever.
+// wait forever. httplib calls shutdown() on the accepting thread once its accept loop has ended:
+// `before_join` runs there, when no connection can be added any more.
 //
 // InflightGate: at most `limit` frames computed at once; try_enter() never waits.
 
@@ -32,11 +33,13 @@ class BoundedTaskQueue final : public httplib::TaskQueue {
     std::atomic<std::size_t> waiting{0};
     std::atomic<std::size_t> overflowed{0};
   };
-  BoundedTaskQueue(std::size_t workers, std::size_t max_waiting, Counters& counters);
+  BoundedTaskQueue(std::size_t workers, std::size_t max_waiting, Counters& counters,
+                   std::function<void()> before_join = {});
   ~BoundedTaskQueue() override;
 
   void enqueue(std::function<void()> fn) override;
-  // Lets the workers finish every connection handed over, then joins them.
+  // Runs `before_join` (once), lets the workers finish every connection handed over, then joins
+  // them.
   void shutdown() override;
 
   // True on a thread serving an overflow connection.
@@ -47,6 +50,7 @@ class BoundedTaskQueue final : public httplib::TaskQueue {
 
   std::size_t max_waiting_;
   Counters& counters_;
+  std::function<void()> before_join_;
   std::mutex mutex_;
   std::condition_variable wake_;
   std::deque<std::function<void()>> jobs_;

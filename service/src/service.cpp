@@ -194,6 +194,7 @@ struct Service::Impl {
   std::atomic<bool> running{false};
 
   void set_up_routes();
+  void close_idle_connections();
   bool authorised(const httplib::Request& req) const;
   void check_common(const httplib::Request& req, Endpoint endpoint) const;
   std::shared_ptr<detail::ServedModel> model_of(const httplib::Request& req) const;
@@ -667,6 +668,12 @@ void Service::Impl::load_model(const httplib::Request& req, httplib::Response& r
   res.set_header("Content-Type", "application/json");
 }
 
+void Service::Impl::close_idle_connections() {
+  if (port <= 0) return;
+  const std::size_t closed = connections.close_idle(port);
+  if (closed > 0) spdlog::info("closed {} idle connection(s)", closed);
+}
+
 void Service::Impl::set_up_routes() {
   httplib::Server& s = server;
   s.set_keep_alive_max_count(static_cast<std::size_t>(options.keep_alive_requests));
@@ -684,8 +691,12 @@ void Service::Impl::set_up_routes() {
   const int threads = options.connections;
   const std::size_t waiting =
       options.max_queue > 0 ? options.max_queue : static_cast<std::size_t>(threads);
+  // The idle connections are closed when the accept loop has ended (the queue's shutdown, on
+  // the accepting thread): every connection is accepted by then, so none is missed, and the
+  // scan of this process's sockets follows their accept() on one thread.
   s.new_task_queue = [this, threads, waiting] {
-    return new detail::BoundedTaskQueue(static_cast<std::size_t>(threads), waiting, queue_counters);
+    return new detail::BoundedTaskQueue(static_cast<std::size_t>(threads), waiting, queue_counters,
+                                        [this] { close_idle_connections(); });
   };
 
   // No Expect: 100-continue hook: a request refused from its headers alone still has its body
@@ -811,12 +822,9 @@ void Service::run() {
 
 void Service::stop() {
   impl_->stopping = true;
+  // Ends the accept loop; the idle keep-alive connections, which would hold run() up to
+  // --keep-alive, are then closed by the task queue's shutdown (close_idle_connections).
   impl_->server.stop();
-  // No new connections from here; the idle keep-alive ones would hold run() up to --keep-alive.
-  if (impl_->port > 0) {
-    const std::size_t closed = impl_->connections.close_idle(impl_->port);
-    if (closed > 0) spdlog::info("closed {} idle connection(s)", closed);
-  }
 }
 
 }  // namespace nurbsreg::service
