@@ -1,27 +1,41 @@
 #pragma once
 // Starts the real `nurbsreg serve` for end-to-end tests: on an ephemeral loopback port (read
 // from the "listening on ADDR:PORT" line it prints), killed when the object goes away whatever
-// the test did, so no test leaves a server behind.
+// the test did, so no test leaves a server behind. When the test has failed by then, the
+// server's log goes to stderr (a sanitizer report or the server's own error is there, and the
+// test's scratch directory is removed).
 
 #include <poll.h>
 #include <signal.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <gtest/gtest.h>
+
 #include <chrono>
 #include <cstdlib>
+#include <fstream>
+#include <iostream>
+#include <iterator>
 #include <sstream>
 #include <string>
 #include <thread>
 #include <vector>
 #include "support/source_paths.hpp"
+#include "support/test_scale.hpp"
 
 namespace nurbsreg::test {
 
 class ServerProcess {
  public:
-  // `args` after `serve` (e.g. "--model m.json"); `--port 0` is added. `log` receives stderr.
+  // `args` after `serve` (e.g. "--model m.json"); `--port 0` is added, and in the sanitizer
+  // builds `--time-limit 600` unless `args` sets one: they compute a frame several times slower
+  // than Release, past the 30 s default on a busy machine, and a 504 there says nothing of what
+  // the test checks. `log` receives stderr.
   ServerProcess(const std::string& args, const std::string& log) {
+    log_ = log;
+    const std::string limit =
+        kReducedTests && args.find("--time-limit") == std::string::npos ? " --time-limit 600" : "";
     int out[2];
     if (::pipe(out) != 0) return;
     pid_ = ::fork();
@@ -29,15 +43,17 @@ class ServerProcess {
       ::dup2(out[1], STDOUT_FILENO);
       ::close(out[0]);
       ::close(out[1]);
-      const std::string command =
-          "exec " + nurbsreg::test::nurbsreg_binary() + " serve " + args + " --port 0 2>" + log;
+      const std::string command = "exec " + nurbsreg::test::nurbsreg_binary() + " serve " + args +
+                                  limit + " --port 0 2>" + log;
       ::execl("/bin/sh", "sh", "-c", command.c_str(), static_cast<char*>(nullptr));
       ::_exit(127);
     }
     ::close(out[1]);
-    // The first stdout line, within 60 s (model preparation of the small examples takes ms).
+    // The first stdout line, within 60 s (model preparation of the small examples takes ms; the
+    // sanitizer builds on a busy machine, up to minutes).
     std::string line;
-    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
+    const auto deadline =
+        std::chrono::steady_clock::now() + std::chrono::seconds(kReducedTests ? 300 : 60);
     while (line.find('\n') == std::string::npos && std::chrono::steady_clock::now() < deadline) {
       pollfd p{out[0], POLLIN, 0};
       if (::poll(&p, 1, 200) <= 0) continue;
@@ -55,6 +71,11 @@ class ServerProcess {
     if (pid_ > 0 && !exited_) {
       ::kill(pid_, SIGKILL);
       ::waitpid(pid_, nullptr, 0);
+    }
+    if (::testing::Test::HasFailure()) {
+      std::ifstream in(log_);
+      const std::string text{std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+      std::cerr << "--- nurbsreg serve's log (" << log_ << "):\n" << text << "\n---\n";
     }
   }
   ServerProcess(const ServerProcess&) = delete;
@@ -79,6 +100,7 @@ class ServerProcess {
   }
 
  private:
+  std::string log_;
   pid_t pid_ = -1;
   int port_ = 0;
   bool exited_ = false;
