@@ -466,7 +466,7 @@ void Service::Impl::align(const httplib::Request& req, httplib::Response& res,
 
   // The session's aligner and previous pose, or a pooled aligner.
   std::shared_ptr<detail::Session> session;
-  std::unique_lock<std::timed_mutex> session_lock;
+  std::unique_lock<detail::FrameLock> session_lock;
   struct SessionUse {
     detail::SessionStore& store;
     std::shared_ptr<detail::Session>& session;

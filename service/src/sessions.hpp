@@ -6,8 +6,8 @@
 // Bounded: at most `max_sessions` live at once; one idle longer than `idle_seconds` expires
 // (checked whenever a session is opened). When the table is full, the least recently used idle
 // session gives way; when every session is in use, opening a new one fails (503).
-// Frames of one session run one at a time (Session::busy); the store's mutex guards the table
-// and the bookkeeping fields, never a frame's computation.
+// Frames of one session run one at a time (Session::busy, a FrameLock); the store's mutex guards
+// the table and the bookkeeping fields, never a frame's computation.
 
 #include <Eigen/Geometry>
 #include <chrono>
@@ -19,6 +19,7 @@
 #include <optional>
 #include <string>
 
+#include "frame_lock.hpp"
 #include "models.hpp"
 #include "nurbsreg/service/request_options.hpp"
 
@@ -27,7 +28,7 @@ namespace nurbsreg::service::detail {
 struct Session {
   std::string id;
   std::shared_ptr<ServedModel> model;
-  std::timed_mutex busy;  // held for a frame
+  FrameLock busy;  // held for a frame
   // Guarded by `busy`:
   std::unique_ptr<registration::Aligner> aligner;
   IcpOverrides overrides;

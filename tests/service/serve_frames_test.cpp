@@ -13,6 +13,7 @@
 #include "nurbsreg/io/point_table.hpp"
 #include "support/run_command.hpp"
 #include "support/server_process.hpp"
+#include "support/test_scale.hpp"
 
 // After Eigen (see serve_test.cpp): glibc's <resolv.h> defines a macro `_res`.
 #include "support/loopback_client.hpp"
@@ -155,7 +156,10 @@ TEST_F(ServeFrames, SignedDistancesEqualTheClis) {
 }
 
 TEST_F(ServeFrames, TimeLimitStopsTheWorkWith504AndTheServiceStaysUp) {
-  ServerProcess server("--model " + kPanel + " --time-limit 30", path("log_limit.txt"));
+  // The server's limit, above the full frames' time (the sanitizer builds' too).
+  const int limit = test_size(30, 600);
+  ServerProcess server("--model " + kPanel + " --time-limit " + std::to_string(limit),
+                       path("log_limit.txt"));
   ASSERT_GT(server.port(), 0);
   auto c = client(server.port());
   const std::string big = bytes("big.pcd");
@@ -196,7 +200,8 @@ TEST_F(ServeFrames, TimeLimitStopsTheWorkWith504AndTheServiceStaysUp) {
             0.5 * Json::parse(full_global->body).at("seconds").get<double>());
 
   // A frame may tighten the server's limit, not loosen it.
-  const auto looser = c->Post("/v1/align?model=panel&time_limit=31", big, kPcd);
+  const auto looser =
+      c->Post(("/v1/align?model=panel&time_limit=" + std::to_string(limit + 1)).c_str(), big, kPcd);
   ASSERT_TRUE(looser);
   EXPECT_EQ(looser->status, 400);
   EXPECT_NE(looser->body.find("--time-limit"), std::string::npos) << looser->body;

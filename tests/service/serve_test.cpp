@@ -19,6 +19,7 @@
 // uses as a parameter name.
 #include "support/loopback_client.hpp"
 #include "support/source_paths.hpp"
+#include "support/test_scale.hpp"
 
 namespace nurbsreg::test {
 namespace {
@@ -144,11 +145,11 @@ TEST_F(Serve, CurlAsInTheReadme) {
   const std::string url = "http://127.0.0.1:" + std::to_string(server.port());
   // Expect: 100-continue, as curl sends by itself for bodies over 1 MB.
   const std::string out = path("curl_answer.json");
-  const std::string command = "curl -s --max-time 120 -o " + out + " -w '%{http_code}' " +
-                              "-H 'Expect: 100-continue' -X POST --data-binary @" +
-                              path("big.pcd") + " -H 'Content-Type: application/octet-stream' '" +
-                              url + "/v1/align?model=panel&session=cam1' > " +
-                              path("curl_status.txt");
+  const std::string command =
+      "curl -s --max-time " + std::to_string(test_size(120, 900)) + " -o " + out +
+      " -w '%{http_code}' " + "-H 'Expect: 100-continue' -X POST --data-binary @" +
+      path("big.pcd") + " -H 'Content-Type: application/octet-stream' '" + url +
+      "/v1/align?model=panel&session=cam1' > " + path("curl_status.txt");
   ASSERT_EQ(std::system(command.c_str()), 0);
   EXPECT_EQ(read_text(path("curl_status.txt")), "200");
   const Json answer = Json::parse(read_text(out));
@@ -424,7 +425,7 @@ TEST_F(Serve, SigtermAnswersTheRequestsInFlightAndExitsZero) {
     std::this_thread::sleep_for(std::chrono::milliseconds(5));
   }
   c.reset();
-  const int exit_status = server.terminate(120);
+  const int exit_status = server.terminate(test_size(120, 900));
   for (std::thread& t : clients)
     t.join();
   EXPECT_EQ(exit_status, 0) << read_text(path("log_term.txt"));
@@ -459,13 +460,14 @@ TEST_F(Serve, SigtermClosesIdleKeepAliveConnectionsAtOnce) {
     std::this_thread::sleep_for(std::chrono::milliseconds(5));
   }
   const auto start = std::chrono::steady_clock::now();
-  const int exit_status = server.terminate(300);
+  const double bound = test_size(120.0, 500.0);  // below --keep-alive
+  const int exit_status = server.terminate(bound);
   const double seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   busy.join();
   EXPECT_EQ(exit_status, 0) << read_text(path("log_idle.txt"));
   EXPECT_EQ(status, 200);  // the frame in flight is answered
-  EXPECT_LT(seconds, 300.0);
+  EXPECT_LT(seconds, bound);
   // The idle connections were closed: a request on one finds no server.
   const auto after = idle.front()->Get("/healthz");
   EXPECT_FALSE(after);
