@@ -2,7 +2,7 @@
 // atlas certificate did not prove its answer borrows no more and keeps its own previous answer as
 // its hint; every other point without a covering certificate of its own still looks the atlas up.
 // The oracle replays that rule outside the finder (its own CertificateAtlas filled from the
-// certifying query's answers, the hints it implies, a plain Projector with them) over a
+// certifying queries' answers, the hints it implies, a plain Projector with them) over a
 // coarse-to-fine-like sequence on two close sheets (a thin wall, where borrowed proofs fail), and
 // the finder must match it bit for bit: the same feet, parameters and certificates and the same
 // work counters (a hint that changed, e.g. a lost own hint or a lookup skipped or made wrongly,
