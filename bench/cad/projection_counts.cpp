@@ -15,6 +15,7 @@
 #include <tbb/task_arena.h>
 #include <CLI/CLI.hpp>
 
+#include <algorithm>
 #include <chrono>
 
 #include <cmath>
@@ -24,6 +25,7 @@
 #include <ctime>
 #include <optional>
 #include <random>
+#include <span>
 #include <string>
 #include <utility>
 #include <vector>
@@ -118,9 +120,55 @@ void print_certificate_kinds(const engine::PreparedModel& model, const engine::P
   projector.project(engine::PointView::of(points), {}, out, hints, &counters);
 }
 
+// --check: the finder's answers in every pass of the alignment against a cold projection of the
+// same points (no hints, no certificates): the warm starts, borrowed certificates and the
+// finder's per-point state may change which Newton start finds a foot, never its distance.
+class CheckedFinder final : public icp::CorrespondenceFinder {
+ public:
+  CheckedFinder(icp::ModelCorrespondenceFinder& finder, const engine::PreparedModel& model)
+      : finder_(finder), cold_(model), diagonal_(model.geometry_bounds().box.diagonal()) {}
+  void reset(std::size_t scan_size) override { finder_.reset(scan_size); }
+  void find(const icp::CorrespondenceQuery& query, std::span<icp::Correspondence> out) override {
+    finder_.find(query, out);
+    engine::ProjectionOptions options;
+    options.max_distance = query.max_distance;
+    cold_.project(engine::PointView::of(query.points), options, cold_results_);
+    const engine::ProjectionResults& warm = finder_.last_results();
+    for (std::size_t k = 0; k < out.size(); ++k) {
+      ++answers_;
+      const bool cold_ok = cold_results_.status[k] == engine::ProjectionStatus::ok;
+      if (out[k].valid != cold_ok) {
+        ++wrong_;
+        continue;
+      }
+      if (!cold_ok) continue;
+      const double d = out[k].distance - cold_results_.distance[k];
+      warm_farther_ = std::max(warm_farther_, d);
+      cold_farther_ = std::max(cold_farther_, -d);
+      if (std::abs(d) > 1e-10 * diagonal_) ++wrong_;
+      if (warm.entity[k] != cold_results_.entity[k]) ++other_face_;
+    }
+  }
+  void print() const {
+    std::printf(
+        "check: %zu answers, %zu not the cold distance (1e-10 of the diagonal); farther "
+        "than the cold foot by up to %.3g, nearer by up to %.3g of the diagonal; %zu on "
+        "another face than the cold foot\n",
+        answers_, wrong_, warm_farther_ / diagonal_, cold_farther_ / diagonal_, other_face_);
+  }
+
+ private:
+  icp::ModelCorrespondenceFinder& finder_;
+  engine::Projector cold_;
+  engine::ProjectionResults cold_results_;
+  double diagonal_;
+  std::size_t answers_ = 0, wrong_ = 0, other_face_ = 0;
+  double warm_farther_ = 0.0, cold_farther_ = 0.0;
+};
+
 // The alignment alone, so that callgrind can count all of it (the finder's hints and atlas
 // lookups too, which lie outside Projector::project): --toggle-collect='*align_scan*'.
-[[gnu::noinline]] icp::IcpResult align_scan(icp::ModelCorrespondenceFinder& finder,
+[[gnu::noinline]] icp::IcpResult align_scan(icp::CorrespondenceFinder& finder,
                                             const std::vector<Vec3>& scan) {
   icp::IcpSolver solver;
   return solver.align(finder, scan, Eigen::Isometry3d::Identity());
@@ -140,6 +188,9 @@ int main(int argc, char** argv) {
   app.add_option("--threads", threads);
   app.add_option("--sets", sets,
                  "which point sets to project: near, mixed, warm (comma-separated)");
+  bool check = false;
+  app.add_flag("--check", check,
+               "compare every pass of the alignment with a cold projection (CheckedFinder)");
   bool verbose = false;
   app.add_flag("-v,--verbose", verbose, "log every ICP pass (the finder's debug lines)");
   CLI11_PARSE(app, argc, argv);
@@ -238,8 +289,12 @@ int main(int argc, char** argv) {
     arena.execute([&] {
       icp::ModelCorrespondenceFinder finder(prepared);
       c = cpu_seconds();
-      const icp::IcpResult result = align_scan(finder, s.points);
+      std::optional<CheckedFinder> checked;
+      if (check) checked.emplace(finder, prepared);
+      const icp::IcpResult result =
+          checked ? align_scan(*checked, s.points) : align_scan(finder, s.points);
       const double t = cpu_seconds() - c;
+      if (checked) checked->print();
       Checksum pose;
       for (int i = 0; i < 4; ++i)
         for (int j = 0; j < 4; ++j)
@@ -247,6 +302,18 @@ int main(int argc, char** argv) {
       std::printf("align: %zu points, %.3f CPU s, %d iterations, rms %.6g, pose checksum %016llx\n",
                   align_points, t, result.iterations, result.rms,
                   static_cast<unsigned long long>(pose.h));
+      // The pose itself, to measure how far two builds' poses lie apart when their checksums
+      // differ (rotation rows, then the translation).
+      const Eigen::Matrix4d& m = result.T_model_scan.matrix();
+      std::printf("pose:");
+      for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 4; ++j)
+          std::printf(" %.17g", m(i, j));
+      // Its standard deviations (IcpResult::covariance: rotation, then translation).
+      std::printf("\nsigma:");
+      for (int i = 0; i < 6; ++i)
+        std::printf(" %.6g", std::sqrt(std::max(0.0, result.covariance(i, i))));
+      std::printf("\n");
       print_counters("last ICP pass", finder.last_counters());
     });
   }

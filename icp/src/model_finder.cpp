@@ -5,6 +5,7 @@
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 
@@ -28,6 +29,7 @@ void ModelCorrespondenceFinder::reset(std::size_t scan_size) {
   scan_size_ = scan_size;
   has_previous_ = false;
   previous_position_.assign(scan_size, kNoPosition);
+  borrow_failed_.assign(scan_size, 0);
   if (!keep_certificates_) atlas_.reset(cell_side());
 }
 
@@ -44,7 +46,8 @@ bool ModelCorrespondenceFinder::repeats_previous_query(const CorrespondenceQuery
 }
 
 // Point k's hint (engine::HintView): its previous answer, if it had one, or a certificate
-// borrowed from the atlas when that one does not cover the point.
+// borrowed from the atlas when that one does not cover the point and no borrowed one failed it
+// before.
 struct ModelCorrespondenceFinder::HintSource {
   // Same query as before: the previous answers, read in place (the projector reads hint k
   // before it writes answer k).
@@ -114,10 +117,13 @@ ModelCorrespondenceFinder::HintSource ModelCorrespondenceFinder::prepare_hints(
   if (atlas_.size() > 0) {
     const std::size_t n = query.points.size();
     borrowed_.resize(n);
+    const std::span<const std::size_t> ids = query.scan_indices;
     detail::for_each_block(n, query.parallel, [&](std::size_t begin, std::size_t end, std::size_t) {
       for (std::size_t k = begin; k < end; ++k) {
         const engine::Vec3& p = query.points[k];
-        borrowed_[k] = source.own(k).certificate.covers(p) ? nullptr : atlas_.find(p);
+        const bool keeps_own =
+            stopped_borrowing(ids.empty() ? k : ids[k]) || source.own(k).certificate.covers(p);
+        borrowed_[k] = keeps_own ? nullptr : atlas_.find(p);
       }
     });
     source.borrowed = borrowed_.data();
@@ -149,6 +155,31 @@ void ModelCorrespondenceFinder::remember_query(const CorrespondenceQuery& query,
   }
   // Scan indices should be below reset()'s scan_size; more is tolerated.
   if (previous_position_.size() < needed) previous_position_.resize(needed, kNoPosition);
+  if (borrow_failed_.size() < needed) borrow_failed_.resize(needed, 0);
+}
+
+// A borrowed certificate proved point k when the projection kept it as the answer's certificate
+// (ProjectionResults::certificate: the hint's when it held; a failed one leaves none, or a new
+// one anchored at the point itself when certifying). Flags are only ever set, so a scan point
+// named twice in a query ends the same whichever copy is marked last; the two copies may be
+// marked from two threads, hence the atomic (relaxed: a plain byte store) writes.
+void ModelCorrespondenceFinder::remember_failed_borrows(const CorrespondenceQuery& query) {
+  if (results_.certificate.empty()) return;
+  const std::span<const std::size_t> ids = query.scan_indices;
+  const auto mark = [&](std::size_t begin, std::size_t end, std::size_t) {
+    for (std::size_t k = begin; k < end; ++k) {
+      const engine::ProjectionHint* borrowed = borrowed_[k];
+      if (borrowed == nullptr) continue;
+      const engine::WarmCertificate& kept = results_.certificate[k];
+      const bool proven = results_.status[k] == engine::ProjectionStatus::ok &&
+                          kept.radius > 0.0f && kept.anchor == borrowed->certificate.anchor;
+      if (!proven) {
+        std::atomic_ref<std::uint8_t>(borrow_failed_[ids.empty() ? k : ids[k]])
+            .store(1, std::memory_order_relaxed);
+      }
+    }
+  };
+  detail::for_each_block(query.points.size(), query.parallel, mark);
 }
 
 // The point lies beyond an open edge of the model when its foot is on a face boundary (a trim
@@ -207,6 +238,7 @@ void ModelCorrespondenceFinder::find(const CorrespondenceQuery& query,
   }
   const auto t2 = std::chrono::steady_clock::now();
   remember_query(query, repeats);
+  if (source.borrowed != nullptr) remember_failed_borrows(query);
   detail::for_each_block(n, query.parallel, [&](std::size_t begin, std::size_t end, std::size_t) {
     for (std::size_t k = begin; k < end; ++k) {
       Correspondence& c = out[k];

@@ -14,7 +14,11 @@
 // next iterations then answer each point with one Newton on one patch. Points without a
 // certificate of their own (the full-resolution stage's points that the coarse stages did not
 // use) borrow a neighbour's from a CertificateAtlas, looked up before the projection (a pointer
-// per query point).
+// per query point). A borrowed certificate replaces the point's own hint for that query; when it
+// does not prove the answer, the point borrows no more until reset() and keeps its own previous
+// answer as its hint (a byte per scan point): on thin walls and near face boundaries the same
+// neighbour's certificate would fail again, and each failure costs the lookup, a Newton on the
+// neighbour's box and a search without the point's own warm start.
 
 #include <vector>
 
@@ -48,6 +52,11 @@ class ModelCorrespondenceFinder final : public CorrespondenceFinder {
   // are empty): those went straight into find()'s correspondences.
   const engine::ProjectionResults& last_results() const { return results_; }
   const engine::ProjectionCounters& last_counters() const { return counters_; }
+  // Scan point s borrowed an atlas certificate since reset() that did not prove its answer, so
+  // it borrows no more (for tests and benchmarks).
+  bool stopped_borrowing(std::size_t s) const {
+    return s < borrow_failed_.size() && borrow_failed_[s] != 0;
+  }
   // Radius cap of the certificates (engine::ProjectionOptions::certificate_radius): 1% of the
   // model's bounding-box diagonal, so that a certificate made on a 10% subsample usually covers
   // the points between.
@@ -61,6 +70,8 @@ class ModelCorrespondenceFinder final : public CorrespondenceFinder {
   struct HintSource;
   HintSource prepare_hints(const CorrespondenceQuery& query, bool repeats);
   void remember_query(const CorrespondenceQuery& query, bool repeats);
+  // After the projection: marks the points whose borrowed certificate did not prove them.
+  void remember_failed_borrows(const CorrespondenceQuery& query);
   bool repeats_previous_query(const CorrespondenceQuery& query) const;
   std::size_t previous_index(std::size_t j) const {
     return previous_all_ ? j : previous_indices_[j];
@@ -85,6 +96,9 @@ class ModelCorrespondenceFinder final : public CorrespondenceFinder {
   engine::FrameVector<std::uint32_t> previous_position_;
   // Per query point: the atlas certificate it borrows, or null (HintSource::borrowed).
   engine::FrameVector<const engine::ProjectionHint*> borrowed_;
+  // Per scan point: 1 once a certificate it borrowed did not prove its answer (it borrows no
+  // more until reset()); sized with previous_position_.
+  engine::FrameVector<std::uint8_t> borrow_failed_;
   CertificateAtlas atlas_;
   bool keep_certificates_ = false;
 };
