@@ -55,7 +55,9 @@ void run_align(const AlignArgs& args) {
   engine::Model model = load_model_file(args.model);
   if (model.surfaces.empty()) throw UsageError(args.model + ": align needs a model with surfaces");
   const io::PointCloud cloud = io::read_scan(args.scan);
-  const registration::AlignRequest request = align_request(args.init, args.global);
+  registration::AlignRequest request = align_request(args.init, args.global);
+  // Only --aligned writes per-point distances; the rest reads the summary and the verdict.
+  request.all_projections = !args.aligned.empty();
   spdlog::info("{}: {} points ({} skipped: NaN or infinite)", args.scan, cloud.size(),
                cloud.skipped_nonfinite);
 

@@ -39,7 +39,9 @@ class PyAligner {
                           const std::optional<int>& threads, const After& after = {}) {
     const auto start = std::chrono::steady_clock::now();
     const PointsArg scan(scan_object, "scan");
-    const registration::AlignRequest request = make_request(init_object, global);
+    registration::AlignRequest request = make_request(init_object, global);
+    // Per-point exact projections only for what reads them: the distances, and `after`.
+    request.all_projections = distances || static_cast<bool>(after);
     const int thread_limit = thread_count(threads);
     auto frame = std::make_shared<AlignmentFrame>();
     frame->method = options_.method;

@@ -5,6 +5,7 @@
 
 #include <chrono>
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 
 #include "coarse.hpp"
@@ -73,11 +74,23 @@ AlignmentResult Aligner::align(std::span<const engine::Vec3> scan, const AlignRe
     ~DeadlineScope() { solver.set_deadline(std::chrono::steady_clock::time_point::max()); }
   } scope{solver_};
   solver_.set_deadline(request.deadline);
-  if (!global) return align(scan, request.init.value_or(Eigen::Isometry3d::Identity()));
-  return align(scan);
+  if (!global) {
+    return align_from(scan, request.init.value_or(Eigen::Isometry3d::Identity()),
+                      request.all_projections);
+  }
+  return align_global(scan, request.all_projections);
 }
 
 AlignmentResult Aligner::align(std::span<const engine::Vec3> scan, const Eigen::Isometry3d& init) {
+  return align_from(scan, init, true);
+}
+
+AlignmentResult Aligner::align(std::span<const engine::Vec3> scan) {
+  return align_global(scan, true);
+}
+
+AlignmentResult Aligner::align_from(std::span<const engine::Vec3> scan,
+                                    const Eigen::Isometry3d& init, bool all_projections) {
   AlignmentResult frame;
   frame.sizes = scan_size(scan, model_);
   frame.icp = solver_.align(finder_, scan, init);
@@ -85,10 +98,10 @@ AlignmentResult Aligner::align(std::span<const engine::Vec3> scan, const Eigen::
       frame.icp.termination == icp::IcpTermination::invalid_input
           ? 0.0
           : detail::estimate_noise(scan, features().voxel(), registration_.global.seed);
-  return finish(scan, std::move(frame), options(), noise);
+  return finish(scan, std::move(frame), options(), noise, all_projections);
 }
 
-AlignmentResult Aligner::align(std::span<const engine::Vec3> scan) {
+AlignmentResult Aligner::align_global(std::span<const engine::Vec3> scan, bool all_projections) {
   // From any pose the answer is a fresh aligner's to the bit: no certificates of the frames
   // before (keep_certificates) in the coarse stage's or the fine ICP's passes.
   struct FreshCertificates {
@@ -112,7 +125,7 @@ AlignmentResult Aligner::align(std::span<const engine::Vec3> scan) {
   }
   // Fewer points than any pose needs: ICP's own message says so (no place to look for).
   if (scan.size() < options().min_correspondences) {
-    return align(scan, Eigen::Isometry3d::Identity());
+    return align_from(scan, Eigen::Isometry3d::Identity(), all_projections);
   }
   // Stage times for `-v` (wall and this process's CPU since the previous stage).
   auto lap = [last = wall0, last_cpu = cpu0](const char* what) mutable {
@@ -185,7 +198,7 @@ AlignmentResult Aligner::align(std::span<const engine::Vec3> scan) {
     std::string& symmetry = frame.coarse->symmetry;
     symmetry = symmetry.empty() ? continuous : continuous + "; " + symmetry;
   }
-  frame = finish(scan, std::move(frame), fine, noise);
+  frame = finish(scan, std::move(frame), fine, noise, all_projections);
   lap("deviations and verdict");
   CoarseReport& c = *frame.coarse;
   c.alignment_seconds =
@@ -196,7 +209,7 @@ AlignmentResult Aligner::align(std::span<const engine::Vec3> scan) {
 }
 
 AlignmentResult Aligner::finish(std::span<const engine::Vec3> scan, AlignmentResult frame,
-                                const icp::IcpOptions& used, double noise) {
+                                const icp::IcpOptions& used, double noise, bool all_projections) {
   const icp::IcpResult& result = frame.icp;
   for (const icp::IcpIteration& it : result.log) {
     spdlog::debug("stage {} rms {:.6g} inliers {}/{} step {:.3g} rad {:.3g}", it.stage, it.rms,
@@ -219,6 +232,14 @@ AlignmentResult Aligner::finish(std::span<const engine::Vec3> scan, AlignmentRes
     correspondences_.resize(scan.size());
     icp::CorrespondenceQuery query;
     query.points = aligned;
+    if (!all_projections) {
+      // Only the deviation summary (within max_distance) and the verdict (within its tolerance)
+      // read the distances: a point with nothing of the model that near needs no exact foot.
+      const double tolerance =
+          detail::fit_tolerance(noise, frame.sizes.scan, features().voxel(), registration_.verdict);
+      query.max_distance = std::nextafter(std::max(used.max_correspondence_distance, tolerance),
+                                          std::numeric_limits<double>::infinity());
+    }
     finder_.find(query, correspondences_);
   }
   const engine::ProjectionResults& proj = finder_.last_results();

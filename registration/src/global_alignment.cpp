@@ -112,8 +112,37 @@ std::vector<Vec3> verification_points(std::span<const Vec3> scan, std::size_t m,
   return out;
 }
 
+// One hypothesis's short ICP runs in steps (one IcpSolver::align each, for the duplicate and
+// rejection checks between them), and every align() starts with the finder's reset(), which
+// drops the per-point hints: each step's first pass, and the score's after the last, would
+// project the subsample cold although the points moved by a fraction of a voxel since the pass
+// before. This finder passes everything through but skips the reset while the same points are
+// asked again (warm), so that the steps and the score of one hypothesis continue from the
+// previous answers. Hints only speed the exact projection up: every answer is still the exact
+// closest point, warm or cold (icp/model_finder.hpp).
+class ContinuingFinder final : public icp::CorrespondenceFinder {
+ public:
+  explicit ContinuingFinder(icp::ModelCorrespondenceFinder& finder) : finder_(finder) {}
+  // The next reset() is done: a new hypothesis, or the finder has answered other points since.
+  void start_over() { warm_ = false; }
+  void reset(std::size_t scan_size) override {
+    if (warm_ && scan_size == size_) return;
+    finder_.reset(scan_size);
+    size_ = scan_size;
+    warm_ = true;
+  }
+  void find(const icp::CorrespondenceQuery& query, std::span<icp::Correspondence> out) override {
+    finder_.find(query, out);
+  }
+
+ private:
+  icp::ModelCorrespondenceFinder& finder_;
+  std::size_t size_ = 0;
+  bool warm_ = false;
+};
+
 // Exact distances of T * points (those farther than max_distance are +infinity).
-void exact_distances(icp::ModelCorrespondenceFinder& finder, const Eigen::Isometry3d& T,
+void exact_distances(icp::CorrespondenceFinder& finder, const Eigen::Isometry3d& T,
                      std::span<const Vec3> points, double max_distance,
                      std::vector<double>& distances) {
   std::vector<Vec3> moved(points.size());
@@ -259,6 +288,7 @@ CoarseOutcome coarse_align(std::span<const Vec3> scan, const ModelFeatures& feat
     return static_cast<double>(n) / static_cast<double>(std::max<std::size_t>(1, d.size()));
   };
   std::vector<double> d;
+  ContinuingFinder continuing(finder);
   std::vector<PoseScore> scored;
   // The glance points' fraction within the tolerance at each scored pose (the early rejection
   // compares a running ICP with the best of these).
@@ -296,13 +326,14 @@ CoarseOutcome coarse_align(std::span<const Vec3> scan, const ModelFeatures& feat
     for (const auto& [h, near] : promising) {
       if (past_deadline(fmt::format("after verifying {} hypotheses", r.verified))) return false;
       ++r.verified;
+      continuing.start_over();
       Eigen::Isometry3d T = h.T_model_scan;
       const char* outcome = "max_iterations";
       for (int done = 0; done < iterations;) {
         // The first step is short: a duplicate is usually on its pose after two iterations.
         vo.max_iterations = std::min(done == 0 ? 2 : kVerifyStep, iterations - done);
         vo.kernel_scale = done < kWideScaleIterations ? v : 0.0;
-        const icp::IcpResult res = icp::IcpSolver(vo).align(finder, sub, T);
+        const icp::IcpResult res = icp::IcpSolver(vo).align(continuing, sub, T);
         if (res.termination == icp::IcpTermination::too_few_correspondences ||
             res.termination == icp::IcpTermination::numerical_failure ||
             res.termination == icp::IcpTermination::invalid_input) {
@@ -330,6 +361,7 @@ CoarseOutcome coarse_align(std::span<const Vec3> scan, const ModelFeatures& feat
         }
         if (done >= kRejectAfter && best_quick > 0.0) {
           exact_distances(finder, T, glance, 3.0 * v, d);
+          continuing.start_over();  // the finder now holds the glance points' answers
           if (near_fraction(d, tolerance) < 0.5 * best_quick) {
             outcome = "rejected";
             break;
@@ -339,7 +371,8 @@ CoarseOutcome coarse_align(std::span<const Vec3> scan, const ModelFeatures& feat
       const bool dropped =
           std::string_view(outcome) == "duplicate" || std::string_view(outcome) == "rejected";
       if (!dropped) {
-        exact_distances(finder, T, sub, 3.0 * v, d);
+        // Warm from the short ICP's last pass (the same points, within the same distance).
+        exact_distances(continuing, T, sub, 3.0 * v, d);
         scored.push_back(score_of(T, d, tolerance));
         std::vector<double> quick;
         for (std::size_t i = 0; i < sub.size(); i += glance_stride)

@@ -237,6 +237,7 @@ std::vector<Hypothesis> ransac_hypotheses(std::span<const Vec3> scan, std::span<
     std::vector<Hypothesis>& best = chunk_best[chunk];
     std::vector<std::uint32_t> with_a;
     std::vector<std::uint8_t> mask;
+    std::vector<Vec3> sampled_scan, sampled_model;
     for (std::size_t si = chunk; si < seeds.size(); si += chunks) {
       const std::uint32_t a = seeds[si];
       // The matches consistent with a: if a is right, every right match is among them.
@@ -248,8 +249,17 @@ std::vector<Hypothesis> ransac_hypotheses(std::span<const Vec3> scan, std::span<
       if (with_a.size() < 2) continue;
       std::mt19937_64 rng(p.seed * 0x9E3779B97F4A7C15ull + a);
       Hypothesis seed_best;
-      // Support is counted on at most kSupportSample of a's consistent matches (evenly spread).
+      // Support is counted on at most kSupportSample of a's consistent matches (evenly spread),
+      // their points gathered once for all of a's draws.
       const std::size_t step = std::max<std::size_t>(1, with_a.size() / kSupportSample);
+      sampled_scan.clear();
+      sampled_model.clear();
+      for (std::size_t i = 0; i < with_a.size(); i += step) {
+        const Match& k = matches[with_a[i]];
+        sampled_scan.push_back(scan[k.scan]);
+        sampled_model.push_back(model[k.model]);
+      }
+      const std::size_t sampled = sampled_scan.size();
       for (int draw = 0; draw < p.draws_per_seed; ++draw) {
         const std::uint32_t b = with_a[static_cast<std::size_t>(rng() % with_a.size())];
         // c: consistent with a (drawn from with_a) and with b (rejection: a few tries).
@@ -270,17 +280,26 @@ std::vector<Hypothesis> ransac_hypotheses(std::span<const Vec3> scan, std::span<
         for (int k = 0; k < 3 && fits; ++k)
           fits = (T * s[k] - d[k]).squaredNorm() <= d2max;
         if (!fits) continue;
-        // Support among a's consistent matches (where every right match lies), cheap.
+        // Support among a's consistent matches (where every right match lies), cheap. Only a
+        // draw with more support than the seed's best so far is kept: once even all the matches
+        // left could not give it more, the count stops (the same draw wins as with a full count).
         std::size_t support = 1;
-        for (std::size_t i = 0; i < with_a.size(); i += step) {
-          const Match& k = matches[with_a[i]];
-          support += (T * scan[k.scan] - model[k.model]).squaredNorm() <= d2max;
+        for (std::size_t i = 0; i < sampled; ++i) {
+          if (support + (sampled - i) <= seed_best.support) break;
+          support += (T * sampled_scan[i] - sampled_model[i]).squaredNorm() <= d2max;
         }
         if (support > seed_best.support) seed_best = {T, support, 0};
       }
       if (seed_best.support < 3) continue;
-      seed_best.support = support_of(seed_best.T_model_scan, scan, model, matches, d2max, nullptr);
       seed_best.overlap = overlap_of(seed_best.T_model_scan, probes, occupancy);
+      // Hypotheses rank by overlap first: one below the last of a full list ranks after every
+      // kept one, so keep_best drops it whatever its support (no need to count it on all
+      // matches).
+      if (!best.empty() && best.size() >= static_cast<std::size_t>(p.keep) &&
+          seed_best.overlap < best.back().overlap) {
+        continue;
+      }
+      seed_best.support = support_of(seed_best.T_model_scan, scan, model, matches, d2max, nullptr);
       keep_best(best, seed_best, p);
     }
   });

@@ -2,6 +2,7 @@
 
 #include <spdlog/fmt/fmt.h>
 
+#include <algorithm>
 #include <cmath>
 #include <string>
 #include <unordered_set>
@@ -43,7 +44,18 @@ double coverage_of(std::span<const engine::Vec3> aligned, std::span<const double
   return static_cast<double>(covered) / static_cast<double>(k.points.size());
 }
 
+// A scan too sparse for its noise to be estimated (no neighbourhood of six points within a
+// voxel) is judged at a twentieth of the model's sample spacing instead: looser, but a noise of
+// 0 would call every real scan poor.
+double tolerance_floor(double noise, double scan_diagonal, double voxel) {
+  return noise > 0.0 ? 1e-5 * scan_diagonal : std::max(1e-5 * scan_diagonal, 0.05 * voxel);
+}
+
 }  // namespace
+
+double fit_tolerance(double noise, double scan_diagonal, double voxel, const VerdictOptions& o) {
+  return std::max(o.tolerance_sigmas * noise, tolerance_floor(noise, scan_diagonal, voxel));
+}
 
 FitVerdict judge_fit(std::span<const engine::Vec3> aligned, std::span<const double> distances,
                      double noise, double scan_diagonal, const ModelFeatures& features,
@@ -51,12 +63,8 @@ FitVerdict judge_fit(std::span<const engine::Vec3> aligned, std::span<const doub
   FitVerdict v;
   v.evaluated = true;
   v.noise = noise;
-  // A scan too sparse for its noise to be estimated (no neighbourhood of six points within a
-  // voxel) is judged at a twentieth of the model's sample spacing instead: looser, but a
-  // noise of 0 would call every real scan poor.
-  const double floor =
-      noise > 0.0 ? 1e-5 * scan_diagonal : std::max(1e-5 * scan_diagonal, 0.05 * features.voxel());
-  v.tolerance = std::max(o.tolerance_sigmas * noise, floor);
+  const double floor = tolerance_floor(noise, scan_diagonal, features.voxel());
+  v.tolerance = fit_tolerance(noise, scan_diagonal, features.voxel(), o);
   std::size_t inliers = 0;
   double sum_sq = 0.0;
   for (double d : distances) {

@@ -13,6 +13,12 @@
 
 namespace nurbsreg::registration::detail {
 
+// The distance within which a point counts as an inlier for the verdict: options'
+// tolerance_sigmas x the scan's noise, at least a floor from its bounding-box diagonal (and,
+// when the noise could not be estimated (0), from the model's sample spacing `voxel`).
+double fit_tolerance(double noise, double scan_diagonal, double voxel,
+                     const VerdictOptions& options);
+
 // The verdict on aligned scan points with their exact distances to the model (both in scan
 // order, all points), the scan's noise estimate and its bounding-box diagonal.
 FitVerdict judge_fit(std::span<const engine::Vec3> aligned, std::span<const double> distances,

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <numbers>
 #include <random>
+#include <span>
 #include <stdexcept>
 
 #include "nurbsreg/engine/prepared_model.hpp"
@@ -103,6 +104,88 @@ TEST(Aligner, ReusedOverFramesGivesTheSamePoseAsAFreshOne) {
   Aligner fresh(model, icp::IcpOptions{});
   const AlignmentResult cold = fresh.align(second.points, Isometry3d::Identity());
   EXPECT_TRUE(warm.icp.T_model_scan.matrix().isApprox(cold.icp.T_model_scan.matrix(), 1e-9));
+}
+
+// AlignRequest::all_projections false bounds the final pass by the deviation summary's distance
+// (and the verdict's tolerance): the pose, the summary and the verdict are those of the full
+// pass, the points near the model keep their exact distances, and only far ones go unanswered.
+void expect_same_answers_without_far_projections(const engine::PreparedModel& model,
+                                                 std::span<const Vec3> scan,
+                                                 const icp::IcpOptions& options,
+                                                 const AlignRequest& request,
+                                                 double deviation_distance) {
+  Aligner full(model, options);
+  const AlignmentResult a = full.align(scan, request);
+  AlignRequest near_only = request;
+  near_only.all_projections = false;
+  Aligner bounded(model, options);
+  const AlignmentResult b = bounded.align(scan, near_only);
+  ASSERT_TRUE(a.ok()) << *a.failure;
+  ASSERT_TRUE(b.ok()) << *b.failure;
+  EXPECT_EQ(a.icp.T_model_scan.matrix(), b.icp.T_model_scan.matrix());
+  EXPECT_EQ(a.deviation.count, b.deviation.count);
+  EXPECT_EQ(a.deviation.mean, b.deviation.mean);
+  EXPECT_EQ(a.deviation.rms, b.deviation.rms);
+  EXPECT_EQ(a.deviation.p50, b.deviation.p50);
+  EXPECT_EQ(a.deviation.p99, b.deviation.p99);
+  EXPECT_EQ(a.deviation.max, b.deviation.max);
+  EXPECT_EQ(a.fit.good, b.fit.good);
+  EXPECT_EQ(a.fit.inlier_fraction, b.fit.inlier_fraction);
+  EXPECT_EQ(a.fit.rms, b.fit.rms);
+  EXPECT_EQ(a.fit.coverage, b.fit.coverage);
+  const engine::ProjectionResults& pa = full.last_projections();
+  const engine::ProjectionResults& pb = bounded.last_projections();
+  ASSERT_EQ(pa.size(), scan.size());
+  ASSERT_EQ(pb.size(), scan.size());
+  const double bound = std::max(deviation_distance, a.fit.tolerance);
+  std::size_t unanswered = 0;
+  for (std::size_t i = 0; i < scan.size(); ++i) {
+    EXPECT_EQ(pa.status[i], engine::ProjectionStatus::ok);
+    if (pa.distance[i] <= bound) {
+      ASSERT_EQ(pb.status[i], engine::ProjectionStatus::ok) << i;
+      EXPECT_EQ(pa.distance[i], pb.distance[i]) << i;
+    } else {
+      unanswered += pb.status[i] != engine::ProjectionStatus::ok;
+    }
+  }
+  EXPECT_GT(unanswered, 0u);  // the outliers beyond the bound were not projected
+}
+
+engine::SyntheticScan cluttered_scan_of(const engine::PreparedModel& model, std::size_t points,
+                                        double noise, std::uint64_t seed) {
+  engine::SyntheticScanOptions o;
+  o.points = points;
+  o.noise_sigma = noise;
+  o.outlier_fraction = 0.2;
+  o.T_scan_model = true_pose(model.bounds().diagonal()).inverse();
+  o.seed = seed;
+  return engine::make_synthetic_scan(model.model(), o);
+}
+
+TEST(Aligner, WithoutFarProjectionsFromAPoseTheSummaryAndVerdictAreTheSame) {
+  const engine::PreparedModel& model = panel();
+  const double noise = 1e-4 * model.bounds().diagonal();
+  const engine::SyntheticScan scan = cluttered_scan_of(model, 4000, noise, 21);
+  icp::IcpOptions options;
+  options.kernel = icp::RobustKernel::tukey;
+  options.max_correspondence_distance = 0.01 * model.bounds().diagonal();
+  AlignRequest request;
+  request.init = Isometry3d::Identity();
+  expect_same_answers_without_far_projections(model, scan.points, options, request,
+                                              options.max_correspondence_distance);
+}
+
+TEST(Aligner, WithoutFarProjectionsFromAnyPoseTheSummaryAndVerdictAreTheSame) {
+  const engine::PreparedModel& model = panel();
+  const double noise = 1e-4 * model.bounds().diagonal();
+  const engine::SyntheticScan scan = cluttered_scan_of(model, 4000, noise, 22);
+  AlignRequest request;
+  request.global = GlobalMode::on;
+  // The fine ICP after the global stage bounds its distances itself (GlobalOptions).
+  Aligner probe(model, icp::IcpOptions{});
+  const double fine_distance = GlobalOptions{}.fine_max_distance_voxels * probe.features().voxel();
+  expect_same_answers_without_far_projections(model, scan.points, icp::IcpOptions{}, request,
+                                              fine_distance);
 }
 
 TEST(Aligner, AScanFarFromTheModelFailsWithAReason) {

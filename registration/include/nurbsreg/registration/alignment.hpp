@@ -64,6 +64,14 @@ struct AlignRequest {
   // Past it the call returns a failure "time limit exceeded ..." with icp.termination
   // IcpTermination::time_limit. max(): no limit.
   std::chrono::steady_clock::time_point deadline = std::chrono::steady_clock::time_point::max();
+  // Every aligned point's exact projection in last_projections(), as the outputs that report
+  // per-point distances need (`align --aligned`, `batch`, `inspect`, the service's and Python's
+  // distances). false: only the points within the deviation summary's distance (the ICP
+  // options' max_correspondence_distance) or the verdict's tolerance get one; the others are
+  // left beyond_max_distance (distance NaN, entity -1) without their exact foot. The pose, the
+  // deviation summary and the verdict are the same; far outliers then cost next to nothing (an
+  // unbounded projection of a point far from the model searches much of it).
+  bool all_projections = true;
 };
 
 class Aligner {
@@ -91,7 +99,8 @@ class Aligner {
   AlignmentResult align(std::span<const engine::Vec3> scan, const AlignRequest& request);
 
   // The exact projections of the last align()'s aligned points (entity, u, v, distance, signed
-  // distance; no feet or normals), in scan order.
+  // distance; no feet or normals), in scan order; with AlignRequest::all_projections false only
+  // those of the points near the model.
   const engine::ProjectionResults& last_projections() const { return finder_.last_results(); }
   // Frames of one stream (a service session): the finder keeps its certificates from frame to
   // frame (icp::ModelCorrespondenceFinder::keep_certificates) for the frames from a pose. The
@@ -106,8 +115,12 @@ class Aligner {
   const ModelFeatures& features();
 
  private:
+  // The two alignments, with AlignRequest::all_projections.
+  AlignmentResult align_from(std::span<const engine::Vec3> scan, const Eigen::Isometry3d& init,
+                             bool all_projections);
+  AlignmentResult align_global(std::span<const engine::Vec3> scan, bool all_projections);
   AlignmentResult finish(std::span<const engine::Vec3> scan, AlignmentResult frame,
-                         const icp::IcpOptions& options, double noise);
+                         const icp::IcpOptions& options, double noise, bool all_projections);
 
   const engine::PreparedModel& model_;
   RegistrationOptions registration_;
