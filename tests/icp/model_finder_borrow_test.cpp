@@ -18,6 +18,7 @@
 #include <random>
 #include <vector>
 
+#include "finder_checks.hpp"
 #include "nurbsreg/engine/prepared_model.hpp"
 #include "nurbsreg/engine/projection.hpp"
 #include "nurbsreg/icp/certificate_atlas.hpp"
@@ -76,20 +77,8 @@ class ModelFinderBorrow : public ::testing::Test {
   engine::ProjectionCounters find(ModelCorrespondenceFinder& finder,
                                   const std::vector<std::size_t>& ids,
                                   const std::vector<Vec3>& points, double expected_motion) {
-    CorrespondenceQuery query;
-    query.points = points;
-    query.scan_indices = ids;
-    query.expected_motion = expected_motion;
-    std::vector<Correspondence> out(points.size());
-    finder.find(query, out);
-    engine::ProjectionResults cold;
-    reference_.project(engine::PointView::of(points), {}, cold);
-    const double tolerance = 1e-10 * prepared_.bounds().diagonal();
-    for (std::size_t k = 0; k < points.size(); ++k) {
-      EXPECT_TRUE(out[k].valid) << k;
-      EXPECT_NEAR(out[k].distance, cold.distance[k], tolerance) << k;
-    }
-    return finder.last_counters();
+    return find_checked(finder, reference_, 1e-10 * prepared_.bounds().diagonal(), ids, points,
+                        expected_motion);
   }
 
   engine::PreparedModel prepared_;

@@ -12,6 +12,7 @@
 #include <random>
 #include <vector>
 
+#include "finder_checks.hpp"
 #include "nurbsreg/engine/prepared_model.hpp"
 #include "nurbsreg/engine/projection.hpp"
 #include "nurbsreg/icp/model_finder.hpp"
@@ -54,21 +55,8 @@ class ModelFinderHints : public ::testing::Test {
       for (const std::size_t i : ids)
         points.push_back(scan_[i] + Vec3(shift, -0.5 * shift, shift));
     }
-    CorrespondenceQuery query;
-    query.points = points;
-    query.scan_indices = ids;
-    query.expected_motion = expected_motion;
-    std::vector<Correspondence> out(points.size());
-    finder.find(query, out);
-    engine::ProjectionResults cold;
-    reference_.project(engine::PointView::of(points), {}, cold);
-    const double tolerance = 1e-10 * prepared_.bounds().diagonal();
-    for (std::size_t k = 0; k < points.size(); ++k) {
-      EXPECT_TRUE(out[k].valid) << k;
-      EXPECT_NEAR(out[k].distance, cold.distance[k], tolerance) << k;
-      EXPECT_LT((out[k].foot - cold.foot[k]).norm(), 1e-7) << k;
-    }
-    return finder.last_counters();
+    return find_checked(finder, reference_, 1e-10 * prepared_.bounds().diagonal(), ids, points,
+                        expected_motion, 1e-7);
   }
 
   std::vector<std::size_t> every(std::size_t step, std::size_t offset) const {
