@@ -437,6 +437,16 @@ PcdData parse_pcd_data(const std::string& path, const std::string& data) {
   }
   out.point_step = offset;
   out.values_per_point = first;
+  // Every value of a point takes at least a byte of the body, so with one point or more the
+  // body size check below bounds the COUNTs. With POINTS 0 nothing does, and a table reader
+  // still makes a column per value: a file cannot describe more values per point than it has
+  // bytes.
+  if (h.points == 0 && out.values_per_point > data.size()) {
+    throw InputError(path, "PCD header: the COUNTs add up to " +
+                               std::to_string(out.values_per_point) +
+                               " values per point, more than the file's " +
+                               std::to_string(data.size()) + " bytes could hold");
+  }
   check_body_size(path, data, h, out.point_step, out.values_per_point);
   // A body that really holds more points than the limit (a truncated claim is reported above).
   const std::uint64_t max_points = resource_limits().max_points;

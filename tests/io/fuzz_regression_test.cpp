@@ -157,6 +157,28 @@ TEST(FuzzRegression, PcdHeaderClaimsBeyondTheFileAreRejectedBeforeAllocation) {
   EXPECT_HAS(error_of([&] { read_point_cloud(huge); }), "PCD data is truncated or corrupt");
 }
 
+TEST(FuzzRegression, PcdCountsBeyondTheFileAreRejectedWithNoPoints) {
+  // Found by CI's fuzz stage (2026-12-03): POINTS 0 (WIDTH 2 HEIGHT 0), so no body size check
+  // bounded the COUNTs, and the table reader made a column per value: 4.6e14 columns (out of
+  // memory at 2 GB) or 4.7e13 column names (a timeout).
+  for (const char* name :
+       {"pcd_points0_huge_count_table_oom.pcd", "pcd_points0_huge_count_table_timeout.pcd"}) {
+    SCOPED_TRACE(name);
+    const std::string file = kFindings + name;
+    const std::string table = error_of([&] { read_point_table(file); });
+    EXPECT_HAS(table, file + ": PCD header: the COUNTs add up to ");
+    EXPECT_HAS(table, " values per point, more than the file's ");
+    EXPECT_HAS(error_of([&] { read_point_cloud(file); }), "values per point, more than the file's");
+  }
+  // The bound is the file's size, not a fixed cap: a wide record that the file holds is read.
+  Scratch dir;
+  const PointTable wide =
+      read_point_table(dir.write("wide.pcd",
+                                 "FIELDS x y z h\nSIZE 4 4 4 4\nTYPE F F F F\nCOUNT 1 1 1 33\n"
+                                 "POINTS 0\nDATA ascii\n"));
+  EXPECT_EQ(wide.columns().size(), 36u);
+}
+
 // ---- PLY ---------------------------------------------------------------------------------
 
 TEST(FuzzRegression, PlyCountsAreIntegersNotCastFloats) {
