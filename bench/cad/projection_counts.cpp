@@ -36,6 +36,7 @@
 #include "nurbsreg/icp/icp.hpp"
 #include "nurbsreg/icp/model_finder.hpp"
 #include "nurbsreg/io/model_file.hpp"
+#include "nurbsreg/io/model_json.hpp"
 
 namespace engine = nurbsreg::engine;
 namespace io = nurbsreg::io;
@@ -144,7 +145,20 @@ class CheckedFinder final : public icp::CorrespondenceFinder {
       if (!cold_ok) continue;
       const double d = out[k].distance - cold_results_.distance[k];
       warm_farther_ = std::max(warm_farther_, d);
-      cold_farther_ = std::max(cold_farther_, -d);
+      if (-d > cold_farther_) {
+        cold_farther_ = -d;
+        worst_ = {query.points[k],
+                  warm.entity[k],
+                  cold_results_.entity[k],
+                  warm.u[k],
+                  warm.v[k],
+                  cold_results_.u[k],
+                  cold_results_.v[k],
+                  warm.on_trim_edge[k] != 0,
+                  cold_results_.on_trim_edge[k] != 0,
+                  out[k].distance,
+                  cold_results_.distance[k]};
+      }
       if (std::abs(d) > 1e-10 * diagonal_) ++wrong_;
       if (warm.entity[k] != cold_results_.entity[k]) ++other_face_;
     }
@@ -155,6 +169,17 @@ class CheckedFinder final : public icp::CorrespondenceFinder {
         "than the cold foot by up to %.3g, nearer by up to %.3g of the diagonal; %zu on "
         "another face than the cold foot\n",
         answers_, wrong_, warm_farther_ / diagonal_, cold_farther_ / diagonal_, other_face_);
+    if (cold_farther_ > 0.0) {
+      // The point where the cold answer is farthest above the finder's, exactly (hex), to
+      // reproduce it in a test.
+      const Worst& w = worst_;
+      std::printf(
+          "check: worst cold point %a %a %a: finder face %d (%a, %a)%s distance %.17g, cold "
+          "face %d (%a, %a)%s distance %.17g\n",
+          w.p.x(), w.p.y(), w.p.z(), w.warm_entity, w.warm_u, w.warm_v,
+          w.warm_edge ? " on a trim edge," : ",", w.warm_distance, w.cold_entity, w.cold_u,
+          w.cold_v, w.cold_edge ? " on a trim edge," : ",", w.cold_distance);
+    }
   }
 
  private:
@@ -164,6 +189,13 @@ class CheckedFinder final : public icp::CorrespondenceFinder {
   double diagonal_;
   std::size_t answers_ = 0, wrong_ = 0, other_face_ = 0;
   double warm_farther_ = 0.0, cold_farther_ = 0.0;
+  struct Worst {
+    Vec3 p = Vec3::Zero();
+    int warm_entity = -1, cold_entity = -1;
+    double warm_u = 0, warm_v = 0, cold_u = 0, cold_v = 0;
+    bool warm_edge = false, cold_edge = false;
+    double warm_distance = 0, cold_distance = 0;
+  } worst_;
 };
 
 // The alignment alone, so that callgrind can count all of it (the finder's hints and atlas
@@ -191,6 +223,10 @@ int main(int argc, char** argv) {
   bool check = false;
   app.add_flag("--check", check,
                "compare every pass of the alignment with a cold projection (CheckedFinder)");
+  std::string save_json;
+  app.add_option("--save-json", save_json,
+                 "write the loaded model as JSON (a STEP/IGES file converted once, for the "
+                 "callgrind runs) and exit");
   bool verbose = false;
   app.add_flag("-v,--verbose", verbose, "log every ICP pass (the finder's debug lines)");
   CLI11_PARSE(app, argc, argv);
@@ -202,6 +238,10 @@ int main(int argc, char** argv) {
   no_cache.cache.enabled = false;
   const engine::Model model = io::read_model_file(path, no_cache);
   const double load_s = cpu_seconds() - c;
+  if (!save_json.empty()) {
+    io::write_model(save_json, model);
+    return 0;
+  }
   c = cpu_seconds();
   const auto wall = std::chrono::steady_clock::now();
   // Inside the arena: the preparation's parallel parts run on --threads threads too.
