@@ -7,11 +7,13 @@
 // measured.
 //
 //   build/bench/service/warm_frames MODEL FRAMES SCAN... [--threads N] [--callgrind] [-v]
-//                                   [--fresh-certificates]
+//                                   [--fresh-certificates] [--no-coarse]
 //
 // -v: the ICP iterations and each correspondence pass (engine counters) as debug lines.
 // --fresh-certificates: every frame starts without the certificates of the frames before (as
 // `align --init` in a new process; the service's sessions keep them).
+// --no-coarse: the warm frames' ICP on all points from the first iteration (no subsample stages:
+// IcpOptions::auto_coarse false), to weigh the 10% stage against the full passes it saves.
 
 #include <spdlog/spdlog.h>
 #include <tbb/global_control.h>
@@ -47,6 +49,7 @@ int main(int argc, char** argv) {
   int threads = 0;
   bool callgrind = false;
   bool keep = true;
+  bool coarse = true;
   for (int i = 3; i < argc; ++i) {
     const std::string a = argv[i];
     if (a == "--threads" && i + 1 < argc) {
@@ -55,6 +58,8 @@ int main(int argc, char** argv) {
       callgrind = true;
     } else if (a == "--fresh-certificates") {
       keep = false;
+    } else if (a == "--no-coarse") {
+      coarse = false;
     } else if (a == "-v") {
       spdlog::set_level(spdlog::level::debug);
     } else {
@@ -62,10 +67,10 @@ int main(int argc, char** argv) {
     }
   }
   if (argc < 4 || scans.empty()) {
-    std::fprintf(
-        stderr,
-        "usage: %s MODEL FRAMES SCAN... [--threads N] [--callgrind] [-v] [--fresh-certificates]\n",
-        argv[0]);
+    std::fprintf(stderr,
+                 "usage: %s MODEL FRAMES SCAN... [--threads N] [--callgrind] [-v] "
+                 "[--fresh-certificates] [--no-coarse]\n",
+                 argv[0]);
     return 2;
   }
   const int frames = std::atoi(argv[2]);
@@ -82,6 +87,15 @@ int main(int argc, char** argv) {
   registration::Aligner aligner(model, icp::IcpOptions{}, options, features);
   aligner.keep_certificates(keep);
   registration::AlignmentResult first = aligner.align(clouds[0].points);
+  // --no-coarse: a second aligner (it starts without the first frame's certificates).
+  std::optional<registration::Aligner> full_only;
+  if (!coarse) {
+    icp::IcpOptions warm_options;
+    warm_options.auto_coarse = false;
+    full_only.emplace(model, warm_options, options, features);
+    full_only->keep_certificates(keep);
+  }
+  registration::Aligner& warm = full_only ? *full_only : aligner;
   if (!first.ok()) {
     std::fprintf(stderr, "first frame: %s\n", first.failure->c_str());
     return 1;
@@ -93,7 +107,7 @@ int main(int argc, char** argv) {
     const io::PointCloud& cloud = clouds[static_cast<std::size_t>(k) % clouds.size()];
     const double cpu0 = cpu_seconds();
     const auto wall0 = std::chrono::steady_clock::now();
-    const registration::AlignmentResult r = aligner.align(cloud.points, pose);
+    const registration::AlignmentResult r = warm.align(cloud.points, pose);
     const double wall =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
     const double cpu = cpu_seconds() - cpu0;

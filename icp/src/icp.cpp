@@ -363,9 +363,10 @@ void decouple(LinearSystem& sys) {
 // and in scaled coordinates xi_s = (L omega, v): J_s,i = [(q_i - c) x n_i / L ; n_i].
 // Weighted Gauss-Newton normal equations H_s = sum w J_s J_s^T, g_s = sum w J_s r (IRLS),
 // reduced by blocks.
-// The point-to-point moments about c are collected in the same pass; then the centre moves
-// to c' (decouple()).
-LinearSystem linearize(double length_scale, bool parallel, Buffers& b) {
+// The point-to-point moments about c are collected in the same pass when the step needs them
+// (point_moments: only solve()'s point-to-point branch reads them); then the centre moves to c'
+// (decouple()).
+LinearSystem linearize(double length_scale, bool parallel, bool point_moments, Buffers& b) {
   const std::size_t n = b.ids.size();
   LinearSystem sys;
   sys.length_scale = length_scale;
@@ -404,6 +405,7 @@ LinearSystem linearize(double length_scale, bool parallel, Buffers& b) {
       part.g.noalias() += (w * r) * J;
       part.sum_w += w;
       part.sum_wr2 += w * r * r;
+      if (!point_moments) continue;
       const Vec3 fb = m.foot - c;
       part.sum_wa += w * a;
       part.sum_wb += w * fb;
@@ -677,7 +679,7 @@ IcpResult IcpSolver::align(CorrespondenceFinder& finder, std::span<const Vec3> s
                   std::to_string(o.min_correspondences) + "); rejected: " + rejection_summary(o, b);
         break;
       }
-      const LinearSystem sys = linearize(L, o.parallel, b);
+      const LinearSystem sys = linearize(L, o.parallel, o.method == IcpMethod::point_to_point, b);
       const Step step = solve(o.method, sys, o.degeneracy_threshold);
       if (!step.finite) {
         termination = IcpTermination::numerical_failure;
@@ -766,7 +768,7 @@ IcpResult IcpSolver::align(CorrespondenceFinder& finder, std::span<const Vec3> s
     result.inliers = kept.inliers;
     result.rms = kept.rms;
     if (kept.inliers > 0) {
-      const LinearSystem sys = linearize(L, o.parallel, b);
+      const LinearSystem sys = linearize(L, o.parallel, o.method == IcpMethod::point_to_point, b);
       if (sys.m.sum_w > 0.0 && sys.m.H.allFinite()) {
         result.covariance =
             pose_covariance(sys, residual_variance(sys, sys.m.sum_wr2), o.degeneracy_threshold);

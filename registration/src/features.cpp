@@ -236,10 +236,8 @@ double estimate_noise(std::span<const Vec3> scan, double voxel, std::uint64_t se
   }
   // The scanned surface's area: its voxels with two points or more (a uniform outlier is alone
   // in its voxel) times the voxel's face.
-  const Voxelised cells = voxelise(subset, voxel);
-  const auto occupied = std::count_if(cells.counts.begin(), cells.counts.end(),
-                                      [](std::uint32_t c) { return c >= 2; });
-  const double area = static_cast<double>(std::max<std::ptrdiff_t>(occupied, 1)) * voxel * voxel;
+  const std::size_t occupied = voxels_with_at_least(subset, voxel, 2);
+  const double area = static_cast<double>(std::max<std::size_t>(occupied, 1)) * voxel * voxel;
   const double spacing = std::sqrt(area / static_cast<double>(subset.size()));
   // About 16 neighbours, but never beyond the voxel (curvature) nor below the spacing.
   const double radius = std::clamp(2.3 * spacing, 0.25 * voxel, voxel);

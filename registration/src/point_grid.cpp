@@ -1,6 +1,7 @@
 #include "point_grid.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <numeric>
 
@@ -16,6 +17,77 @@ engine::Vec3 lower_corner(std::span<const engine::Vec3> points) {
   for (const engine::Vec3& p : points)
     lo = lo.cwiseMin(p);
   return points.empty() ? engine::Vec3::Zero() : lo;
+}
+
+// Integer cell coordinates of a point relative to the points' lower corner (so never negative):
+// floor((p - origin) / cell) per axis, as both packings below compute them.
+std::array<std::int64_t, 3> cell_coordinates(const engine::Vec3& p, const engine::Vec3& origin,
+                                             double cell) {
+  const engine::Vec3 s = (p - origin) / cell;
+  return {static_cast<std::int64_t>(std::floor(s.x())),
+          static_cast<std::int64_t>(std::floor(s.y())),
+          static_cast<std::int64_t>(std::floor(s.z()))};
+}
+
+// The point indices in the order of (packed cell key, index), keys[i] being point i's packed key,
+// for packings that order cells by (x, y, z) lexicographically while every coordinate is in
+// [0, 2^20). Instead of comparing pairs, a stable LSD radix sort of the indices by the cells'
+// dense number (x * ny + y) * nz + z over the occupied box: the same order (stable, from index
+// order), in a few passes over the points. Outside that range (a huge grid, or cells beyond the
+// packings' monotone range) the comparison sort.
+std::vector<std::uint32_t> cell_order(std::span<const std::array<std::int64_t, 3>> cells,
+                                      std::span<const std::uint64_t> keys) {
+  const std::size_t n = cells.size();
+  std::vector<std::uint32_t> order(n);
+  std::array<std::int64_t, 3> top{0, 0, 0};
+  bool in_range = true;
+  for (const auto& c : cells) {
+    for (int a = 0; a < 3; ++a) {
+      in_range = in_range && c[a] >= 0 && c[a] < kBias;
+      top[a] = std::max(top[a], c[a]);
+    }
+  }
+  const double box = static_cast<double>(top[0] + 1) * static_cast<double>(top[1] + 1) *
+                     static_cast<double>(top[2] + 1);
+  if (!in_range || box >= 4294967296.0) {
+    std::iota(order.begin(), order.end(), std::uint32_t{0});
+    std::sort(order.begin(), order.end(), [&](std::uint32_t a, std::uint32_t b) {
+      return keys[a] != keys[b] ? keys[a] < keys[b] : a < b;
+    });
+    return order;
+  }
+  const auto ny = static_cast<std::uint64_t>(top[1] + 1);
+  const auto nz = static_cast<std::uint64_t>(top[2] + 1);
+  std::vector<std::uint32_t> dense(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    const auto& c = cells[i];
+    dense[i] = static_cast<std::uint32_t>(
+        (static_cast<std::uint64_t>(c[0]) * ny + static_cast<std::uint64_t>(c[1])) * nz +
+        static_cast<std::uint64_t>(c[2]));
+  }
+  constexpr int kDigit = 11;
+  constexpr std::uint32_t kBuckets = 1u << kDigit;
+  int bits = 0;
+  while (bits < 32 && (static_cast<std::uint64_t>(box) - 1) >> bits != 0)
+    ++bits;
+  std::iota(order.begin(), order.end(), std::uint32_t{0});
+  std::vector<std::uint32_t> next(n);
+  std::vector<std::uint32_t> start(kBuckets);
+  for (int shift = 0; shift < bits; shift += kDigit) {
+    std::fill(start.begin(), start.end(), 0u);
+    for (const std::uint32_t i : order)
+      ++start[(dense[i] >> shift) & (kBuckets - 1)];
+    std::uint32_t sum = 0;
+    for (std::uint32_t& b : start) {
+      const std::uint32_t count = b;
+      b = sum;
+      sum += count;
+    }
+    for (const std::uint32_t i : order)
+      next[start[(dense[i] >> shift) & (kBuckets - 1)]++] = i;
+    order.swap(next);
+  }
+  return order;
 }
 
 }  // namespace
@@ -35,16 +107,14 @@ PointGrid::Key PointGrid::key_of(const engine::Vec3& p) const {
 
 PointGrid::PointGrid(std::span<const engine::Vec3> points, double cell)
     : points_(points), cell_(cell), origin_(lower_corner(points)) {
+  std::vector<std::array<std::int64_t, 3>> cells(points.size());
   std::vector<std::uint64_t> keys(points.size());
   for (std::size_t i = 0; i < points.size(); ++i) {
     const Key k = key_of(points[i]);
+    cells[i] = {k.x, k.y, k.z};
     keys[i] = pack(k.x, k.y, k.z);
   }
-  order_.resize(points.size());
-  std::iota(order_.begin(), order_.end(), std::uint32_t{0});
-  std::sort(order_.begin(), order_.end(), [&](std::uint32_t a, std::uint32_t b) {
-    return keys[a] != keys[b] ? keys[a] < keys[b] : a < b;
-  });
+  order_ = cell_order(cells, keys);
   cells_.reserve(points.size() / 4 + 1);
   for (std::uint32_t k = 0; k < order_.size();) {
     std::uint32_t e = k + 1;
@@ -67,17 +137,47 @@ std::pair<std::int64_t, double> PointGrid::nearest(const engine::Vec3& q, double
   return {best, best_d2};
 }
 
+namespace {
+
+// Every point's voxel key with its index, sorted (by key, then index).
+std::vector<std::pair<std::uint64_t, std::uint32_t>> voxel_keys(
+    std::span<const engine::Vec3> points, double voxel) {
+  const engine::Vec3 origin = lower_corner(points);
+  std::vector<std::array<std::int64_t, 3>> cells(points.size());
+  std::vector<std::uint64_t> keys(points.size());
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    cells[i] = cell_coordinates(points[i], origin, voxel);
+    const auto c = [](std::int64_t x) { return static_cast<std::uint64_t>(x) & kMask; };
+    keys[i] = (c(cells[i][0]) << 42) | (c(cells[i][1]) << 21) | c(cells[i][2]);
+  }
+  const std::vector<std::uint32_t> order = cell_order(cells, keys);
+  std::vector<std::pair<std::uint64_t, std::uint32_t>> keyed(points.size());
+  for (std::size_t k = 0; k < order.size(); ++k)
+    keyed[k] = {keys[order[k]], order[k]};
+  return keyed;
+}
+
+}  // namespace
+
+std::size_t voxels_with_at_least(std::span<const engine::Vec3> points, double voxel,
+                                 std::uint32_t count) {
+  if (points.empty()) return 0;
+  const std::vector<std::pair<std::uint64_t, std::uint32_t>> keyed = voxel_keys(points, voxel);
+  std::size_t voxels = 0;
+  for (std::size_t k = 0; k < keyed.size();) {
+    std::size_t e = k + 1;
+    while (e < keyed.size() && keyed[e].first == keyed[k].first)
+      ++e;
+    voxels += e - k >= count;
+    k = e;
+  }
+  return voxels;
+}
+
 Voxelised voxelise(std::span<const engine::Vec3> points, double voxel) {
   Voxelised out;
   if (points.empty()) return out;
-  const engine::Vec3 origin = lower_corner(points);
-  std::vector<std::pair<std::uint64_t, std::uint32_t>> keyed(points.size());
-  for (std::size_t i = 0; i < points.size(); ++i) {
-    const engine::Vec3 s = (points[i] - origin) / voxel;
-    const auto c = [](double x) { return static_cast<std::uint64_t>(std::floor(x)) & kMask; };
-    keyed[i] = {(c(s.x()) << 42) | (c(s.y()) << 21) | c(s.z()), static_cast<std::uint32_t>(i)};
-  }
-  std::sort(keyed.begin(), keyed.end());
+  const std::vector<std::pair<std::uint64_t, std::uint32_t>> keyed = voxel_keys(points, voxel);
   for (std::size_t k = 0; k < keyed.size();) {
     std::size_t e = k + 1;
     while (e < keyed.size() && keyed[e].first == keyed[k].first)

@@ -70,5 +70,9 @@ struct Voxelised {
   std::vector<std::uint32_t> counts;   // points per voxel
 };
 Voxelised voxelise(std::span<const engine::Vec3> points, double voxel);
+// How many voxels of voxelise(points, voxel) hold `count` points or more (its counts alone,
+// without the centroids).
+std::size_t voxels_with_at_least(std::span<const engine::Vec3> points, double voxel,
+                                 std::uint32_t count);
 
 }  // namespace nurbsreg::registration::detail

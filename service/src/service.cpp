@@ -517,6 +517,10 @@ void Service::Impl::align(const httplib::Request& req, httplib::Response& res,
   registration::AlignRequest request;
   request.init = init;
   request.deadline = work_deadline;
+  // As `align` without --aligned: only per-point distances need every point's exact projection;
+  // the report (pose, deviations, verdict) is the same either way, and with a distance bound (the
+  // global path's fine ICP, max_distance) far outliers then cost next to nothing.
+  request.all_projections = with_distances;
   const registration::AlignmentResult frame = aligner->align(cloud.points, request);
 
   const io::AlignmentReport report = io::make_alignment_report(

@@ -158,6 +158,36 @@ TEST_F(ServeFrames, SignedDistancesEqualTheClis) {
   EXPECT_LT(negative, 4500);
 }
 
+// The service asks for every point's exact projection only when the answer carries per-point
+// distances (as `align` only with --aligned): the report is the same either way, and with a
+// distance bound the points beyond it still get their exact signed distance when asked for.
+TEST_F(ServeFrames, DistancesBeyondTheBoundAreExactAndTheReportIsTheSame) {
+  ServerProcess server("--model " + kPanel, path("log_bounded.txt"));
+  ASSERT_GT(server.port(), 0);
+  auto c = client(server.port());
+  // A bound below the scan's noise (0.01): about 40% of the points lie beyond it, and a few
+  // beyond the verdict's tolerance (3 noise) too. From any pose: the global stage, then ICP.
+  const std::string query = "/v1/align?model=panel&max_distance=0.008";
+  const auto plain = c->Post(query.c_str(), bytes("scan.pcd"), kPcd);
+  const auto with = c->Post((query + "&distances=true").c_str(), bytes("scan.pcd"), kPcd);
+  ASSERT_TRUE(plain && with);
+  ASSERT_EQ(plain->status, 200) << plain->body;
+  ASSERT_EQ(with->status, 200) << with->body;
+  Json a = without_seconds(Json::parse(plain->body));
+  Json b = without_seconds(Json::parse(with->body));
+  const Json distances = b.at("signed_distances");
+  b.erase("signed_distances");
+  EXPECT_EQ(a, b);
+  ASSERT_EQ(distances.size(), 5000u);
+  int beyond = 0;
+  for (const Json& d : distances) {
+    ASSERT_TRUE(d.is_number()) << d;  // NaN (null) would be a point left unprojected
+    beyond += std::abs(d.get<double>()) > 0.008;
+  }
+  EXPECT_GT(beyond, 1000);
+  EXPECT_EQ(server.terminate(30), 0);
+}
+
 TEST_F(ServeFrames, TimeLimitStopsTheWorkWith504AndTheServiceStaysUp) {
   // The server's limit, above the full frames' time (the sanitizer builds' too).
   const int limit = test_size(30, 600);
