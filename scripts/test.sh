@@ -53,7 +53,7 @@ ci_seconds="${NURBSREG_CI_SECONDS:-5100}"
 script_start=$(date +%s)
 not_run=()
 budget_fuzz="${NURBSREG_BUDGET_FUZZ:-420}"
-budget_tsan="${NURBSREG_BUDGET_TSAN:-1500}"
+budget_tsan="${NURBSREG_BUDGET_TSAN:-2400}"
 timings=()
 failed=()
 # CPU seconds of this script's finished children (bash `times`, second line: user and system),
@@ -209,19 +209,33 @@ stage_fuzz() {
 }
 
 stage_tsan() {
-  # The tests of our own threads: the service's admission and workers, concurrent clients of
-  # `nurbsreg serve` (service_tests drive the TSan-built binary) and its frame streams. Not the
-  # TBB-parallel engine / ICP / registration / batch code: Debian's libtbb is not instrumented,
-  # tests/sanitizers/tsan.supp must suppress every report with a libtbb frame, and every access
-  # inside a TBB task has one, so those tests would find nothing under TSan; the thread-count
-  # invariance tests (bitwise equal for 1, 2 threads and serial) check them in the release and
-  # asan stages (README "ThreadSanitizer and TBB").
-  # Exported before the build too: it runs service_tests to list its tests (gtest discovery).
+  # The tests of our own threads and of the TBB-parallel code: the service's admission and
+  # workers, concurrent clients of `nurbsreg serve` (service_tests drive the TSan-built binary)
+  # and its frame streams; and every test that runs the engine's projection, ICP, global
+  # registration, sampling or the batch pipeline on more than one thread (the thread-count
+  # invariance tests, `batch`). Debian's libtbb is not instrumented (TSan would not see its
+  # scheduler's synchronisation and report every task's data), so this stage links a oneTBB built
+  # here with -fsanitize=thread from Debian's source package of the same version
+  # (scripts/tsan_tbb.sh; README "ThreadSanitizer and TBB").
+  # Exported before the build too: it runs the test programs to list their tests (gtest discovery).
   export TSAN_OPTIONS="suppressions=$supp/tsan.supp:halt_on_error=1:second_deadlock_stack=1"
-  sanitizer_build build-tsan thread -- service_tests nurbsreg_cli || return 1
+  local tbb_dir
+  tbb_dir="$(./scripts/tsan_tbb.sh build-tsan/onetbb | tail -1)" || return 1
+  # The instrumented library before Debian's for every program of the stage (the test programs'
+  # own RUNPATH names it too; this also covers libraries such as OpenCASCADE's that load it).
+  export LD_LIBRARY_PATH="${tbb_dir%/cmake/TBB}${LD_LIBRARY_PATH:+:$LD_LIBRARY_PATH}"
+  sanitizer_build build-tsan thread -DTBB_DIR="$tbb_dir" -- service_tests nurbsreg_cli \
+    engine_tests icp_tests registration_tests cli_tests tsan_tbb_canary || return 1
+  if ldd build-tsan/bin/nurbsreg | grep -q 'libtbb.so.* => /usr/'; then
+    echo "test.sh: build-tsan/bin/nurbsreg loads Debian's uninstrumented libtbb" >&2
+    return 1
+  fi
   ctest --test-dir build-tsan --output-on-failure --parallel "$(nproc)" --timeout 1200 \
-    -R '^(Serve|ServeFrames|RequestOptions|RequestCorpus)\.' || return 1
+    -R "$tsan_tests" || return 1
 }
+# The tsan stage's tests (ctest -R): the service's, every test of more than one thread, and the
+# canary that shows a race inside a TBB task is reported (tests/sanitizers/tsan_tbb_canary.cpp).
+tsan_tests='^(Serve|ServeFrames|RequestOptions|RequestCorpus|Batch|TsanTbb)\.|Thread|Parallel|Serial|Concurrent'
 
 if [ "${1:-}" = "--stage" ]; then
   # One stage, in the child process run_stage starts (its process group is the one a budget's
