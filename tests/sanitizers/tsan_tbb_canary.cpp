@@ -21,14 +21,17 @@ int main(int argc, char** argv) {
   long shared = 0;
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, values.size(), 1000),
                     [&](const tbb::blocked_range<std::size_t>& r) {
-                      for (std::size_t i = r.begin(); i != r.end(); ++i) values[i] = 0.5 * i;
+                      for (std::size_t i = r.begin(); i != r.end(); ++i)
+                        values[i] = 0.5 * i;
                       per_thread.local() += static_cast<long>(r.size());
                       if (race) shared += static_cast<long>(r.size());
                     });
   double sum = 0;
-  for (const double v : values) sum += v;
+  for (const double v : values)
+    sum += v;
   long counted = 0;
-  for (const long n : per_thread) counted += n;
+  for (const long n : per_thread)
+    counted += n;
   std::printf("sum %.1f, %ld values counted, shared %ld\n", sum, counted, shared);
   return counted == static_cast<long>(values.size()) ? 0 : 1;
 }
