@@ -21,6 +21,13 @@ Json number_or_null(double x) {
   return std::isfinite(x) ? Json(x) : Json(nullptr);
 }
 
+// A value from the file for a message: its JSON text, shortened and with bytes outside printable
+// ASCII as \xHH (JSON escapes control characters only), so that the message stays one line.
+std::string shown(const Json& value) {
+  return text_detail::quote(
+      value.dump(-1, ' ', /*ensure_ascii=*/false, Json::error_handler_t::replace));
+}
+
 class ReportReader {
  public:
   ReportReader(const std::string& file, const Json& object) : file_(file), object_(object) {}
@@ -39,12 +46,12 @@ class ReportReader {
   }
   double number(const Json& value, const std::string& field) const {
     if (value.is_null()) return std::numeric_limits<double>::quiet_NaN();
-    if (!value.is_number()) fail(field, "expected a number, got " + value.dump());
+    if (!value.is_number()) fail(field, "expected a number, got " + shown(value));
     return value.get<double>();
   }
   std::size_t count(const Json& value, const std::string& field) const {
     if (!value.is_number_unsigned())
-      fail(field, "expected a non-negative integer, got " + value.dump());
+      fail(field, "expected a non-negative integer, got " + shown(value));
     return value.get<std::size_t>();
   }
   const Json& object() const { return object_; }
@@ -167,7 +174,7 @@ AlignmentReport parse_alignment_report(std::string_view text, const std::string&
   r.iterations = static_cast<int>(in.count(in.required("iterations"), "iterations"));
   const Json& converged = in.required("converged");
   if (!converged.is_boolean())
-    in.fail("converged", "expected true or false, got " + converged.dump());
+    in.fail("converged", "expected true or false, got " + shown(converged));
   r.converged = converged.get<bool>();
   r.inliers = in.count(in.required("inliers"), "inliers");
   r.points = in.count(in.required("points"), "points");

@@ -22,7 +22,10 @@ std::string describe(const json& value) {
     case json::value_t::boolean:
       return value.get<bool>() ? "true" : "false";
     case json::value_t::string: {
-      std::string text = value.dump();
+      // JSON escapes control characters but keeps DEL and UTF-8 as they are: bytes outside
+      // printable ASCII become \xHH, so that the message stays one printable line.
+      std::string text = text_detail::printable(
+          value.dump(-1, ' ', /*ensure_ascii=*/false, json::error_handler_t::replace));
       if (text.size() > 40) text = text.substr(0, 37) + "...\"";
       return "a string (" + text + ")";
     }

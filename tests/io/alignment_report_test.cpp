@@ -132,6 +132,15 @@ TEST(AlignmentReport, ErrorsNameTheField) {
   EXPECT_NE(parse_error("{\"pose\": [1,\n 2,]}").find("line 2, column 4: invalid JSON"),
             std::string::npos);
   EXPECT_NE(parse_error("[]").find("expected a JSON object"), std::string::npos);
+  // A value quoted in the message keeps to one printable line, shortened (JSON escapes control
+  // characters only: DEL and UTF-8 letters are shown as \xHH).
+  bad = j;
+  bad["converged"] = std::string("\x7f\xc3\xa9") + std::string(100, 'a');
+  const std::string shown = parse_error(bad.dump());
+  EXPECT_NE(shown.find("converged: expected true or false, got '\"\\x7f\\xc3\\xa9aaa"),
+            std::string::npos)
+      << shown;
+  EXPECT_LT(shown.size(), 120u) << shown;
 }
 
 }  // namespace

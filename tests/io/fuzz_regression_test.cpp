@@ -256,6 +256,17 @@ TEST(FuzzRegression, FileBytesInMessagesAreEscaped) {
   EXPECT_TRUE(printable(json)) << json;
   EXPECT_HAS(json, "line 11, column 52: invalid JSON: ");
   EXPECT_HAS(json, "36,\\xe0");
+  // Found by the fuzz stage (2026-12-03): a JSON string value quoted in a message kept its DEL
+  // byte (JSON escapes only control characters); a UTF-8 letter likewise.
+  const std::string del =
+      error_of([&] { read_model_json(kFindings + "json_del_byte_in_string_message.json"); });
+  EXPECT_TRUE(printable(del)) << del;
+  EXPECT_HAS(del, "at the top level, got a string (\"\\x7fnH ] 11,");
+  Scratch dir;
+  const std::string utf8 =
+      error_of([&] { read_model_json(dir.write("utf8.json", "\"\xc3\xa9t\xc3\xa9\"")); });
+  EXPECT_TRUE(printable(utf8)) << utf8;
+  EXPECT_HAS(utf8, "got a string (\"\\xc3\\xa9t\\xc3\\xa9\")");
 }
 
 TEST(FuzzRegression, ModelCoordinatesBeyondTheProjectionsRangeAreRejected) {
