@@ -146,7 +146,9 @@ void expect_rows_done_or_pending(const std::vector<std::vector<std::string>>& fi
     }
     EXPECT_EQ(interim[i][0], finished[i][0]);
     for (std::size_t c = 1; c < interim[i].size(); ++c) {
-      if (c != 3) EXPECT_EQ(interim[i][c], "") << interim[i][0] << " column " << c;
+      if (c != 3) {
+        EXPECT_EQ(interim[i][c], "") << interim[i][0] << " column " << c;
+      }
     }
   }
 }
