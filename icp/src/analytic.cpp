@@ -1,4 +1,5 @@
 #include "nurbsreg/icp/analytic.hpp"
+#include "nurbsreg/engine/cancellation.hpp"
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
@@ -247,6 +248,7 @@ void UnionFinder::find(const CorrespondenceQuery& query, std::span<Correspondenc
     tbb::parallel_for(
         tbb::blocked_range<std::size_t>(0, query.points.size(), 1024),
         [&](const tbb::blocked_range<std::size_t>& r) { answer(r.begin(), r.end()); });
+    nurbsreg::engine::stop_if_cancelled();
   } else {
     answer(0, query.points.size());
   }

@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cstddef>
 
+#include "nurbsreg/engine/cancellation.hpp"
 #include "nurbsreg/icp/icp.hpp"
 
 namespace nurbsreg::icp::detail {
@@ -21,6 +22,7 @@ void for_each_block(std::size_t n, bool parallel, const Body& body) {
   };
   if (parallel && blocks > 1) {
     tbb::parallel_for(std::size_t{0}, blocks, run);
+    nurbsreg::engine::stop_if_cancelled();
   } else {
     for (std::size_t b = 0; b < blocks; ++b)
       run(b);

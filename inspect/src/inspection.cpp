@@ -1,4 +1,5 @@
 #include "nurbsreg/inspect/inspection.hpp"
+#include "nurbsreg/engine/cancellation.hpp"
 
 #include <spdlog/fmt/fmt.h>
 #include <spdlog/spdlog.h>
@@ -76,6 +77,7 @@ InspectionReport run_inspection(const engine::PreparedModel& model,
                        [&] {
                          if (needs_mesh) mesh = tessellate(model, options.mesh_vertices);
                        });
+  nurbsreg::engine::stop_if_cancelled();
   report.viewer_points = subset.indices.size();
   report.viewer_subset =
       subset.cell == 0.0 ? "every point"
@@ -94,6 +96,7 @@ InspectionReport run_inspection(const engine::PreparedModel& model,
         if (!out.png.empty())
           write_deviation_picture(out.png, deviations, mesh, report, options.picture);
       });
+  nurbsreg::engine::stop_if_cancelled();
   report.inspection_seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   stage.log("PLY and picture");

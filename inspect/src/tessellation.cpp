@@ -1,4 +1,5 @@
 #include "nurbsreg/inspect/tessellation.hpp"
+#include "nurbsreg/engine/cancellation.hpp"
 
 #include <tbb/parallel_for.h>
 
@@ -72,6 +73,7 @@ DisplayMesh tessellate(const engine::PreparedModel& prepared, std::size_t max_ve
   tbb::parallel_for(std::size_t{0}, surfaces.size(), [&](std::size_t s) {
     sample(surfaces[s], prepared.surface_region(static_cast<int>(s)), grids[s]);
   });
+  nurbsreg::engine::stop_if_cancelled();
   DisplayMesh mesh;
   for (const SurfaceGrid& g : grids) {
     const auto base = static_cast<std::uint32_t>(mesh.vertex_count());

@@ -1,4 +1,5 @@
 #include "nurbsreg/io/projection_results.hpp"
+#include "nurbsreg/engine/cancellation.hpp"
 
 #include <pcl/PCLPointCloud2.h>
 #include <pcl/io/pcd_io.h>
@@ -73,6 +74,7 @@ void stream_rows_parallel(std::ostream& out, std::size_t rows, const AppendRow& 
       for (std::size_t r = lo; r < hi; ++r)
         append_row(block, r);
     });
+    nurbsreg::engine::stop_if_cancelled();
     for (std::size_t b = 0; b < block_count; ++b) {
       out.write(blocks[b].data(), static_cast<std::streamsize>(blocks[b].size()));
     }

@@ -4,6 +4,7 @@
 #include <limits>
 
 #include "coarse_detail.hpp"
+#include "nurbsreg/engine/cancellation.hpp"
 
 namespace nurbsreg::registration::detail {
 
@@ -41,6 +42,7 @@ std::vector<Match> match_descriptors(const DescriptorMatrix& scan, const ModelDe
       forward[static_cast<std::size_t>(begin + r)] = best_j;
     }
   });
+  nurbsreg::engine::stop_if_cancelled();
   out.reserve(static_cast<std::size_t>(ns + nm));
   for (Eigen::Index i = 0; i < ns; ++i)
     out.push_back({static_cast<std::uint32_t>(i), forward[static_cast<std::size_t>(i)]});

@@ -1,4 +1,5 @@
 #include "features.hpp"
+#include "nurbsreg/engine/cancellation.hpp"
 
 #include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
@@ -169,6 +170,7 @@ PcaNormals pca_normals(std::span<const Vec3> points, const PointGrid& grid, doub
     out.normals[i] = eig.eigenvectors().col(0).normalized();
     out.valid[i] = 1;
   });
+  nurbsreg::engine::stop_if_cancelled();
   return out;
 }
 
@@ -201,6 +203,7 @@ DescriptorMatrix describe(std::span<const Vec3> points, std::span<const Vec3> no
     for (int k = 0; k < kDescriptorSize; ++k)
       spfh(static_cast<Eigen::Index>(i), k) = h[static_cast<std::size_t>(k)] * scale;
   });
+  nurbsreg::engine::stop_if_cancelled();
   DescriptorMatrix out = DescriptorMatrix::Zero(static_cast<Eigen::Index>(n), kDescriptorSize);
   tbb::parallel_for(std::size_t{0}, n, [&](std::size_t i) {
     Eigen::Matrix<float, 1, kDescriptorSize> sum = Eigen::Matrix<float, 1, kDescriptorSize>::Zero();
@@ -217,6 +220,7 @@ DescriptorMatrix describe(std::span<const Vec3> points, std::span<const Vec3> no
       out.row(row) = spfh.row(row);
     }
   });
+  nurbsreg::engine::stop_if_cancelled();
   return out;
 }
 
@@ -268,6 +272,7 @@ double estimate_noise(std::span<const Vec3> scan, double voxel, std::uint64_t se
     variances[k] =
         quadric_residual_variance(near.offsets, radius, eig.eigenvectors(), near.local, near.kept);
   });
+  nurbsreg::engine::stop_if_cancelled();
   std::vector<double> valid;
   for (double v : variances) {
     if (v >= 0.0) valid.push_back(v);

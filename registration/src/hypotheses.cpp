@@ -10,6 +10,7 @@
 #include <unordered_set>
 
 #include "coarse_detail.hpp"
+#include "nurbsreg/engine/cancellation.hpp"
 
 namespace nurbsreg::registration::detail {
 namespace {
@@ -303,6 +304,7 @@ std::vector<Hypothesis> ransac_hypotheses(std::span<const Vec3> scan, std::span<
       keep_best(best, seed_best, p);
     }
   });
+  nurbsreg::engine::stop_if_cancelled();
   for (const auto& chunk : chunk_best) {
     for (const Hypothesis& h : chunk)
       keep_best(kept, h, p);

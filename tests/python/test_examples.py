@@ -8,10 +8,10 @@ import sys
 import numpy as np
 
 import nurbsreg
-from conftest import EXAMPLES, PANEL, sized
+from conftest import EXAMPLES, PANEL, PANEL_SCAN_POINTS, sized
 
 SCRIPTS = EXAMPLES / "python"
-# A hang detector: under sanitizers (conftest.REDUCED) a 20,000-point alignment takes minutes.
+# A hang detector: under sanitizers (conftest.REDUCED) an alignment takes minutes.
 TIMEOUT = sized(120, 900)
 
 
@@ -25,8 +25,8 @@ def run_script(name, *args):
 def test_align_scan_prints_pose_and_deviations(panel_scan):
     out = run_script("align_scan.py", PANEL, panel_scan[0])
     assert "pose (model_point = T * scan_point):" in out
-    assert re.search(r"rms 0\.0\d+ over \d+/20000 inliers .* converged", out), out
-    assert "deviation |d| of 20000 points" in out
+    assert re.search(rf"rms 0\.0\d+ over \d+/{PANEL_SCAN_POINTS} inliers .* converged", out), out
+    assert f"deviation |d| of {PANEL_SCAN_POINTS} points" in out
     assert re.search(r"fit good: 99\.\d% of the points", out), out
     assert "coarse: fpfh-ransac" in out
 
@@ -34,7 +34,8 @@ def test_align_scan_prints_pose_and_deviations(panel_scan):
 def test_inspect_scan_saves_the_coloured_cloud(panel, panel_scan, tmp_path):
     out = run_script("inspect_scan.py", PANEL, panel_scan[0], 0.05, tmp_path / "d.ply",
                      tmp_path / "r.html")
-    assert re.search(r"\d+\.\d\d % of 20000 points inside \[-0\.05, \+0\.05\] mm", out), out
+    assert re.search(rf"\d+\.\d\d % of {PANEL_SCAN_POINTS} points inside \[-0\.05, \+0\.05\] mm",
+                     out), out
     assert "signed deviation: mean" in out and "fit good" in out
     expected = nurbsreg.inspect(panel, panel_scan[0], tolerance=0.05, ply=tmp_path / "e.ply")
     assert (tmp_path / "d.ply").read_bytes() == (tmp_path / "e.ply").read_bytes()

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 import nurbsreg
-from conftest import EXAMPLES, PANEL, read_csv_columns, run_cli
+from conftest import EXAMPLES, PANEL, PANEL_SCAN_POINTS, read_csv_columns, run_cli
 
 
 def test_same_rows_as_the_cli(panel, panel_scan, tmp_path):
@@ -14,7 +14,7 @@ def test_same_rows_as_the_cli(panel, panel_scan, tmp_path):
     cli = read_csv_columns(out)
     cloud = nurbsreg.read_point_cloud(scan)
     r = nurbsreg.project(panel, cloud.points)
-    assert len(r) == len(cli["index"]) == 20000
+    assert len(r) == len(cli["index"]) == PANEL_SCAN_POINTS
     np.testing.assert_array_equal(cloud.index, cli["index"])
     np.testing.assert_array_equal(cloud.points, np.c_[cli["x"], cli["y"], cli["z"]])
     np.testing.assert_array_equal(r.foot, np.c_[cli["foot_x"], cli["foot_y"], cli["foot_z"]])

@@ -43,7 +43,8 @@ def test_two_threads_at_once_give_the_serial_answers(panel):
 def test_python_runs_while_a_projection_runs(panel):
     # With the GIL held for the call, this thread would stand still until it returned: its
     # longest pause between two loop turns would be about the call's duration.
-    points = np.random.default_rng(2).uniform([0, 0, -5], [100, 100, 20], (200000, 3))
+    points = np.random.default_rng(2).uniform([0, 0, -5], [100, 100, 20],
+                                              (sized(200000, 50000), 3))
     worker = threading.Thread(target=nurbsreg.project, args=(panel, points),
                               kwargs={"threads": 1})
     start = time.perf_counter()

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "global_support.hpp"
+#include "support/test_scale.hpp"
 
 namespace nurbsreg::registration {
 namespace {
@@ -65,7 +66,11 @@ void run_trials(const std::string& path, std::size_t points, std::vector<Conditi
 }
 
 TEST(GlobalAlignment, PanelFromAnyPose) {
-  run_trials(testing::kPanel, 5000, {kFull, kOutliers, kHalf, kFull, kOutliers, kHalf}, 11);
+  // Under sanitizers (test_scale.hpp) each condition once.
+  std::vector<Condition> conditions = {kFull, kOutliers, kHalf};
+  if (!nurbsreg::test::kReducedTests)
+    conditions.insert(conditions.end(), {kFull, kOutliers, kHalf});
+  run_trials(testing::kPanel, 5000, conditions, 11);
 }
 
 TEST(GlobalAlignment, IeaBladeFromAnyPose) {

@@ -10,6 +10,7 @@
 #include <tbb/parallel_for.h>
 
 #include "curve/curve_local_solve.hpp"
+#include "nurbsreg/engine/cancellation.hpp"
 #include "nurbsreg/engine/curve_projection.hpp"
 #include "nurbsreg/engine/decompose.hpp"
 #include "reference/curve_ma_hewitt.hpp"
@@ -183,6 +184,7 @@ void CurveProjector::project(std::span<const Vec3> points, std::span<CurveProjec
                       for (std::size_t i = range.begin(); i != range.end(); ++i)
                         one(i, acc);
                     });
+  nurbsreg::engine::stop_if_cancelled();
   // Integer sums: the total does not depend on how the work was split.
   if (stats) {
     for (const CurveProjectionStats& s : per_thread)

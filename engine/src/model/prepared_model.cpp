@@ -1,4 +1,5 @@
 #include "nurbsreg/engine/prepared_model.hpp"
+#include "nurbsreg/engine/cancellation.hpp"
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
@@ -175,6 +176,7 @@ PreparedModel::PreparedModel(Model model)
                         }
                       }
                     });
+  nurbsreg::engine::stop_if_cancelled();
   for (const std::exception_ptr& e : region_errors) {
     if (e) std::rethrow_exception(e);
   }
@@ -300,6 +302,7 @@ PreparedModel::PreparedModel(Model model)
                         }
                       }
                     });
+  nurbsreg::engine::stop_if_cancelled();
   for (const std::exception_ptr& e : edge_errors) {
     if (e) std::rethrow_exception(e);
   }

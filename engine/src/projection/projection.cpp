@@ -1,4 +1,5 @@
 #include "nurbsreg/engine/projection.hpp"
+#include "nurbsreg/engine/cancellation.hpp"
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
@@ -90,6 +91,7 @@ void Projector::project(PointView points, const ProjectionOptions& options, Proj
         project_range(points, options, out, hints, order, range.begin(), range.end(),
                       impl_->states.local());
       });
+  nurbsreg::engine::stop_if_cancelled();
   if (counters) {
     *counters = {};
     // Integer sums: the order of combination does not matter.

@@ -1,4 +1,5 @@
 #include "projection/spatial_order.hpp"
+#include "nurbsreg/engine/cancellation.hpp"
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
@@ -63,6 +64,7 @@ void spatial_order(PointView points, FrameVector<std::uint32_t>& order,
       [](const Box& a, const Box& b) {
         return Box{a.first.cwiseMin(b.first), a.second.cwiseMax(b.second)};
       });
+  nurbsreg::engine::stop_if_cancelled();
   const Vec3& lo = box.first;
   const Vec3& hi = box.second;
   const int bits = bits_per_axis(n);
@@ -86,6 +88,7 @@ void spatial_order(PointView points, FrameVector<std::uint32_t>& order,
           scratch.key[i] = key;
         }
       });
+  nurbsreg::engine::stop_if_cancelled();
   // Stable counting sort by key.
   const std::size_t cells = std::size_t{1} << (3 * bits);
   scratch.start.assign(cells + 1, 0);

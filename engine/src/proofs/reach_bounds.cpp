@@ -1,4 +1,5 @@
 #include "proofs/reach_bounds.hpp"
+#include "nurbsreg/engine/cancellation.hpp"
 
 // Reach bounds. For a foot f of the model M and a unit direction v of M's normal cone at f, the
 // point q = f + d v has f as its closest point on M exactly when the open ball B(f + d v, d)
@@ -942,6 +943,7 @@ ReachTable build_reach_table(const PreparedModel& model) {
       }
     }
   });
+  nurbsreg::engine::stop_if_cancelled();
   return table;
 }
 

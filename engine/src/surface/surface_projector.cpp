@@ -8,6 +8,7 @@
 #include <cmath>
 #include <stdexcept>
 
+#include "nurbsreg/engine/cancellation.hpp"
 #include "nurbsreg/engine/decompose.hpp"
 #include "nurbsreg/engine/surface_projection.hpp"
 
@@ -129,6 +130,7 @@ void SurfaceProjector::project(std::span<const Vec3> points, SurfaceStrategy str
   const tbb::blocked_range<std::size_t> all(0, points.size(), 64);
   if (execution == Execution::parallel) {
     tbb::parallel_for(all, body);
+    nurbsreg::engine::stop_if_cancelled();
   } else {
     body(all);
   }

@@ -1,4 +1,5 @@
 #include "nurbsreg/engine/sampling.hpp"
+#include "nurbsreg/engine/cancellation.hpp"
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
@@ -212,6 +213,7 @@ Cells collect_cells(const Model& model, bool bounds) {
                   cells[k], areas[k]);
     }
   });
+  nurbsreg::engine::stop_if_cancelled();
   for (std::size_t k = 0; k < n; ++k) {
     out.cells.insert(out.cells.end(), cells[k].begin(), cells[k].end());
     out.areas.insert(out.areas.end(), areas[k].begin(), areas[k].end());
@@ -365,6 +367,7 @@ std::vector<SurfaceSample> sample_surfaces(const Model& model, std::size_t count
       }
     }
   });
+  nurbsreg::engine::stop_if_cancelled();
   if (exceeded.load() > 0) {
     spdlog::warn(
         "sampling: the area element exceeded its estimated bound in {} of {} samples; the "

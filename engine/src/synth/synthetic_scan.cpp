@@ -1,4 +1,5 @@
 #include "nurbsreg/engine/synthetic_scan.hpp"
+#include "nurbsreg/engine/cancellation.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -100,6 +101,7 @@ SyntheticScan make_synthetic_scan(const Model& model, const SyntheticScanOptions
       }
     }
   });
+  nurbsreg::engine::stop_if_cancelled();
   // Outliers replace evenly spaced samples so they are spread over the scan order.
   for (std::size_t k = 0; k < outliers; ++k) {
     const std::size_t i = k * n / outliers;

@@ -74,7 +74,9 @@ std::vector<Model> test_models() {
   // Under sanitizers (test_scale.hpp) a C2 sheet of 7 x 7 patches instead of 11 x 11: preparing
   // the bounds is most of both tests' time, and this sheet's 121 patches the largest share of it.
   models.push_back(model_of({test::wavy_sheet(test::test_size(14, 10), 1)}));
-  models.push_back(model_of({test::wavy_sheet(12, 2)}));
+  // The degree-2 sheet exercises the same multi-patch code as the one above: under sanitizers,
+  // which hunt memory errors rather than check the bounds' numbers, one sheet is enough.
+  if (!test::kReducedTests) models.push_back(model_of({test::wavy_sheet(12, 2)}));
   models.push_back(model_of({tube()}));
   models.push_back(model_of({pole_sheet()}));
   return models;
@@ -170,7 +172,11 @@ void check_claims(const PreparedModel& pm) {
   const std::vector<BallCase> cases = ball_cases(pm);
   const double size = model_size(pm);
   std::size_t checked = 0, large = 0;
-  for (const BallCase& c : cases) {
+  // Under sanitizers every third ball (each patch still has many): the hairpin's 79,260 balls
+  // against its samples were a minute of the asan stage.
+  const std::size_t stride = test::test_size<std::size_t>(1, 3);
+  for (std::size_t k = 0; k < cases.size(); k += stride) {
+    const BallCase& c = cases[k];
     if (!(c.rho > 0.0)) continue;
     ++checked;
     if (c.rho > 0.05 * size) ++large;
@@ -188,7 +194,7 @@ void check_claims(const PreparedModel& pm) {
       "the model's size\n",
       pm.model().surfaces[0].name.c_str(), checked, cases.size(), large);
   if (pm.model().surfaces[0].name == "wavy sheet") {
-    EXPECT_GT(large, cases.size() / 10) << "the bounds prove little on a smooth sheet";
+    EXPECT_GT(large * stride, cases.size() / 10) << "the bounds prove little on a smooth sheet";
   }
 }
 
