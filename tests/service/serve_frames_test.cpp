@@ -210,6 +210,11 @@ TEST_F(ServeFrames, TimeLimitStopsTheWorkWith504AndTheServiceStaysUp) {
     EXPECT_EQ(j.at("iterations"), 0);
     return j;
   };
+  // One full frame first: the server's one-time work (the model's features, its first
+  // allocations) is not counted in a limited frame's time below.
+  const auto warm_up = c->Post("/v1/align?model=panel", big, kPcd);
+  ASSERT_TRUE(warm_up);
+  ASSERT_EQ(warm_up->status, 200) << warm_up->body;
   // A limit that has passed before ICP's first iteration (1 ns after the body is in): no
   // iteration runs, from a given pose and from any pose (the coarse stage stops at its first
   // check).
@@ -219,13 +224,15 @@ TEST_F(ServeFrames, TimeLimitStopsTheWorkWith504AndTheServiceStaysUp) {
       timed_out("/v1/align?model=panel&time_limit=1e-9", "time limit exceeded in the global");
 
   // The same frames without a limit, on the same connection: the service is up and answers them
-  // in full, and took clearly longer than the limited ones did.
+  // in full. The limited ICP frame ran no iteration (above); its time is not compared with the
+  // full one's, whose few iterations on this scan are about as long as reading the body (on a
+  // loaded machine the limited one took 0.134 s against 0.124 s). The global stage is long
+  // enough that the limited one must take clearly less.
   const auto full_icp = c->Post(("/v1/align?model=panel&init=" + kIdentity).c_str(), big, kPcd);
   ASSERT_TRUE(full_icp);
   ASSERT_EQ(full_icp->status, 200) << full_icp->body;
   const Json a = Json::parse(full_icp->body);
   EXPECT_GT(a.at("iterations").get<int>(), 2);
-  EXPECT_LT(icp.at("seconds").get<double>(), a.at("seconds").get<double>());
   const auto full_global = c->Post("/v1/align?model=panel", big, kPcd);
   ASSERT_TRUE(full_global);
   ASSERT_EQ(full_global->status, 200) << full_global->body;
