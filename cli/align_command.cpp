@@ -103,11 +103,14 @@ void run_align(const AlignArgs& args) {
                      : std::string());
   }
   const registration::FitVerdict& fit = frame.fit;
+  // Where the tolerance came from: a scan whose noise could not be estimated gets the model's
+  // floor, and "3 x noise 0" would read as a bug.
+  const std::string basis =
+      fit.noise > 0.0 ? fmt::format("{:.3g} x noise {:.3g}", fit.tolerance / fit.noise, fit.noise)
+                      : std::string("noise not estimated: the model's floor");
   std::cout << fmt::format(
-      "fit {}: {:.1f}% of the points within {:.3g} (3 x noise {:.3g}), rms {:.3g}, model "
-      "coverage {:.1f}%\n",
-      fit.word(), 100.0 * fit.inlier_fraction, fit.tolerance, fit.noise, fit.rms,
-      100.0 * fit.coverage);
+      "fit {}: {:.1f}% of the points within {:.3g} ({}), rms {:.3g}, model coverage {:.1f}%\n",
+      fit.word(), 100.0 * fit.inlier_fraction, fit.tolerance, basis, fit.rms, 100.0 * fit.coverage);
   write_align_outputs(frame, aligner.last_projections(), cloud, args.icp,
                       AlignOutputs{args.out_pose, args.aligned, args.report}, total);
   spdlog::info("aligned {} points in {:.2f} s", cloud.size(), total.seconds());

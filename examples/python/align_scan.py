@@ -35,8 +35,11 @@ print(f"deviation |d| of {d['count']} points: mean {d['mean']:.4g}  rms {d['rms'
       f"median {d['median']:.4g}  p95 {d['p95']:.4g}  p99 {d['p99']:.4g}  max {d['max']:.4g} "
       f"{model.units}")
 fit = result.fit
+# Where the tolerance came from (a scan whose noise could not be estimated gets a floor).
+basis = (f"{fit.tolerance / fit.noise:.3g} x noise {fit.noise:.3g}" if fit.noise > 0
+         else "noise not estimated: the model's floor")
 print(f"fit {fit.fit}: {100 * fit.inlier_fraction:.1f}% of the points within {fit.tolerance:.3g} "
-      f"(3 x noise {fit.noise:.3g}), rms {fit.rms:.3g}, model coverage {100 * fit.coverage:.1f}%")
+      f"({basis}), rms {fit.rms:.3g}, model coverage {100 * fit.coverage:.1f}%")
 if result.coarse is not None:
     c = result.coarse
     print(f"coarse: {c.method}, {c.verified} hypotheses verified in {c.seconds:.2f} s; winner "
