@@ -263,8 +263,11 @@ AlignmentResult Aligner::finish(std::span<const engine::Vec3> scan, AlignmentRes
   // Only the deviation summary (within max_distance) and the verdict (within its tolerance)
   // read the distances unless every point's projection is asked for.
   const double mcd = used.max_correspondence_distance;
-  const double tolerance =
-      detail::fit_tolerance(noise, frame.sizes.scan, features().voxel(), registration_.verdict);
+  // (Only then: features() builds the model's features when none were shared.)
+  const double tolerance = all_projections
+                               ? 0.0
+                               : detail::fit_tolerance(noise, frame.sizes.scan, features().voxel(),
+                                                       registration_.verdict);
   const double bound = all_projections ? std::numeric_limits<double>::infinity()
                                        : std::nextafter(std::max(mcd, tolerance),
                                                         std::numeric_limits<double>::infinity());
