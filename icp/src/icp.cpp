@@ -641,7 +641,7 @@ IcpResult IcpSolver::align(CorrespondenceFinder& finder, std::span<const Vec3> s
   // Latest observed contraction rate of successive steps (|xi_s| ratio), for prediction.
   double rate = std::numeric_limits<double>::quiet_NaN();
   // The last step's displacement of the points (CorrespondenceQuery::expected_motion).
-  double expected_motion = std::numeric_limits<double>::infinity();
+  double expected_motion = o.initial_expected_motion;
   for (std::size_t stage = 0; stage < stage_sizes.size(); ++stage) {
     const bool last_stage = stage + 1 == stage_sizes.size();
     const Tolerances tol{o.rotation_tolerance, translation_tolerance,

@@ -127,6 +127,10 @@ std::optional<std::string> IcpOptions::validate() const {
     return "coarse_statistical_tolerance: must be finite and >= 0" +
            got(coarse_statistical_tolerance);
   }
+  if (!(initial_expected_motion > 0.0)) {
+    return "initial_expected_motion: must be > 0 (infinity: unknown)" +
+           got(initial_expected_motion);
+  }
   if (min_correspondences < 3) {
     return "min_correspondences: must be >= 3 (got " + std::to_string(min_correspondences) + ")";
   }

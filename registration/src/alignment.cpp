@@ -13,7 +13,30 @@
 #include "verdict.hpp"
 
 namespace nurbsreg::registration {
+
 namespace {
+
+// Entry k of `part` into entry ids[k] of `into` (the fields `into` holds; a field `part` lacks,
+// certificates after a pass without hints or certification, leaves none for those entries).
+void scatter(const engine::ProjectionResults& part, std::span<const std::size_t> ids,
+             engine::ProjectionResults& into) {
+  for (std::size_t k = 0; k < ids.size(); ++k) {
+    const std::size_t i = ids[k];
+    if (!into.foot.empty() && !part.foot.empty()) into.foot[i] = part.foot[k];
+    if (!into.normal.empty() && !part.normal.empty()) into.normal[i] = part.normal[k];
+    into.distance[i] = part.distance[k];
+    into.signed_distance[i] = part.signed_distance[k];
+    into.entity[i] = part.entity[k];
+    into.u[i] = part.u[k];
+    into.v[i] = part.v[k];
+    into.status[i] = part.status[k];
+    into.on_trim_edge[i] = part.on_trim_edge[k];
+    if (!into.certificate.empty()) {
+      into.certificate[i] =
+          part.certificate.empty() ? engine::WarmCertificate{} : part.certificate[k];
+    }
+  }
+}
 
 icp::IcpOptions validated(icp::IcpOptions options) {
   if (auto error = options.validate()) throw std::invalid_argument(*error);
@@ -74,6 +97,7 @@ AlignmentResult Aligner::align(std::span<const engine::Vec3> scan, const AlignRe
     ~DeadlineScope() { solver.set_deadline(std::chrono::steady_clock::time_point::max()); }
   } scope{solver_};
   solver_.set_deadline(request.deadline);
+  completed_ = false;
   if (!global) {
     return align_from(scan, request.init.value_or(Eigen::Isometry3d::Identity()),
                       request.all_projections);
@@ -82,10 +106,12 @@ AlignmentResult Aligner::align(std::span<const engine::Vec3> scan, const AlignRe
 }
 
 AlignmentResult Aligner::align(std::span<const engine::Vec3> scan, const Eigen::Isometry3d& init) {
+  completed_ = false;
   return align_from(scan, init, true);
 }
 
 AlignmentResult Aligner::align(std::span<const engine::Vec3> scan) {
+  completed_ = false;
   return align_global(scan, true);
 }
 
@@ -177,14 +203,22 @@ AlignmentResult Aligner::align_global(std::span<const engine::Vec3> scan, bool a
   }
   // Only the last stage's passes touch every point: the coarse stage's pose is within a
   // fraction of a voxel, so the fine ICP starts on a tenth of the scan, then two fifths, and
-  // stops on all points once its next step is predicted below g.fine_statistical_tolerance of
-  // the pose's own standard deviation (the deviations and the verdict then project every point
+  // stops on all points once its step is below g.fine_statistical_tolerance of the pose's own
+  // standard deviation, at the pose of that pass (the deviations and the verdict read its
+  // distances when nobody asks for the far points' projections; else they project every point
   // once more, at the returned pose).
   if (fine.coarse_sizes.empty() && fine.auto_coarse) {
     for (const std::size_t m : {scan.size() / 10, scan.size() * 2 / 5}) {
       if (m >= icp::kAutoCoarseMinPoints) fine.coarse_sizes.push_back(m);
     }
   }
+  // The winner is a converged short ICP's pose: the first step moves the points by about the
+  // noise, far less than a certificate's radius, so the first stage's first pass makes the
+  // certificates its next pass and the later stages use (else only its second pass would, and
+  // the first would be one cold pass more).
+  const double first_motion =
+      detail::fit_tolerance(noise, frame.sizes.scan, f.voxel(), registration_.verdict);
+  if (first_motion > 0.0) fine.initial_expected_motion = first_motion;
   fine.statistical_tolerance = std::max(fine.statistical_tolerance, g.fine_statistical_tolerance);
   fine.predict_final_convergence = fine.predict_final_convergence || g.fine_predict_final;
   icp::IcpSolver fine_solver(fine);
@@ -226,24 +260,61 @@ AlignmentResult Aligner::finish(std::span<const engine::Vec3> scan, AlignmentRes
   aligned.resize(scan.size());
   for (std::size_t i = 0; i < scan.size(); ++i)
     aligned[i] = result.T_model_scan * scan[i];
-  const bool reuse = result.statistics_at_pose && std::isinf(used.max_correspondence_distance) &&
-                     finder_.last_results().size() == scan.size();
-  if (!reuse) {
+  // Only the deviation summary (within max_distance) and the verdict (within its tolerance)
+  // read the distances unless every point's projection is asked for.
+  const double mcd = used.max_correspondence_distance;
+  // (Only then: features() builds the model's features when none were shared.)
+  const double tolerance = all_projections
+                               ? 0.0
+                               : detail::fit_tolerance(noise, frame.sizes.scan, features().voxel(),
+                                                       registration_.verdict);
+  const double bound = all_projections ? std::numeric_limits<double>::infinity()
+                                       : std::nextafter(std::max(mcd, tolerance),
+                                                        std::numeric_limits<double>::infinity());
+  // From any pose, ICP's bounded last pass at the returned pose (the same points, T * p in scan
+  // order) answered every point within its bound exactly: the deviations and the verdict read
+  // those answers, and only the points it left unanswered are projected (with the wider bound,
+  // or none), so that the report's distances are the same bits with and without every
+  // projection. A pass over every point would repeat those answers (the exact closest points,
+  // from warmer hints, equal up to the last bits). From a given pose the pass stays, so that
+  // those reports keep their bits.
+  const bool at_pose = result.statistics_at_pose && finder_.last_results().size() == scan.size();
+  const bool complete = frame.coarse && at_pose && std::isfinite(mcd);
+  if (at_pose && std::isinf(mcd)) {
+    // ICP's last pass answered every point: it is this one.
+  } else if (complete) {
+    const engine::ProjectionResults& icp_pass = finder_.last_results();
+    far_ids_.clear();
+    far_points_.clear();
+    // Beyond ICP's bound the report reads distances only up to a verdict tolerance above it.
+    if (all_projections || tolerance > mcd) {
+      for (std::size_t i = 0; i < scan.size(); ++i) {
+        if (icp_pass.status[i] == engine::ProjectionStatus::ok) continue;
+        far_ids_.push_back(i);
+        far_points_.push_back(aligned[i]);
+      }
+    }
+    completed_projections_ = icp_pass;
+    if (!far_ids_.empty()) {
+      correspondences_.resize(far_ids_.size());
+      icp::CorrespondenceQuery query;
+      query.points = far_points_;
+      query.scan_indices = far_ids_;
+      query.max_distance = bound;
+      finder_.find(query, correspondences_);
+      scatter(finder_.last_results(), far_ids_, completed_projections_);
+    }
+    completed_ = true;
+  } else {
     correspondences_.resize(scan.size());
     icp::CorrespondenceQuery query;
     query.points = aligned;
-    if (!all_projections) {
-      // Only the deviation summary (within max_distance) and the verdict (within its tolerance)
-      // read the distances: a point with nothing of the model that near needs no exact foot.
-      const double tolerance =
-          detail::fit_tolerance(noise, frame.sizes.scan, features().voxel(), registration_.verdict);
-      query.max_distance = std::nextafter(std::max(used.max_correspondence_distance, tolerance),
-                                          std::numeric_limits<double>::infinity());
-    }
+    // A point with nothing of the model that near needs no exact foot.
+    query.max_distance = bound;
     finder_.find(query, correspondences_);
   }
-  const engine::ProjectionResults& proj = finder_.last_results();
-  const double max_distance = used.max_correspondence_distance;
+  const engine::ProjectionResults& proj = last_projections();
+  const double max_distance = mcd;
   std::vector<double> inlier_distances;
   inlier_distances.reserve(scan.size());
   for (std::size_t i = 0; i < scan.size(); ++i) {

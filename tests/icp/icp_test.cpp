@@ -489,6 +489,43 @@ TEST(IcpFinderContract, StableScanIndicesAcrossStagesAndOneResetPerAlignment) {
   EXPECT_TRUE(third.T_model_scan.matrix() == first.T_model_scan.matrix());
 }
 
+// IcpOptions::initial_expected_motion is the first query's expected motion (a caller that
+// knows its start to be close, e.g. the global stage's refined winner, lets the finder make
+// certificates from the first pass); later queries carry the previous step's motion; the
+// answers, and with them the pose, do not depend on it.
+class MotionRecordingFinder : public CorrespondenceFinder {
+ public:
+  explicit MotionRecordingFinder(CorrespondenceFinder& inner) : inner_(inner) {}
+  void reset(std::size_t scan_size) override { inner_.reset(scan_size); }
+  void find(const CorrespondenceQuery& query, std::span<Correspondence> out) override {
+    motions.push_back(query.expected_motion);
+    inner_.find(query, out);
+  }
+  std::vector<double> motions;
+
+ private:
+  CorrespondenceFinder& inner_;
+};
+
+TEST(IcpFinderContract, TheFirstQueryExpectsTheInitialMotion) {
+  UnionFinder inner(scene());
+  const std::vector<Vec3> scan = to_scan(sample_uniform(scene(), 3000, 25), true_pose());
+  IcpOptions o = exact_options();
+  o.coarse_sizes = {200};
+  MotionRecordingFinder unknown(inner);
+  const IcpResult a = IcpSolver(o).align(unknown, scan, Isometry3d::Identity());
+  o.initial_expected_motion = 1e-3 * kSize;
+  MotionRecordingFinder known(inner);
+  const IcpResult b = IcpSolver(o).align(known, scan, Isometry3d::Identity());
+  ASSERT_EQ(a.termination, IcpTermination::converged) << a.brief_report();
+  ASSERT_GE(known.motions.size(), 2u);
+  EXPECT_TRUE(std::isinf(unknown.motions.front()));
+  EXPECT_EQ(known.motions.front(), 1e-3 * kSize);
+  EXPECT_EQ(std::vector<double>(known.motions.begin() + 1, known.motions.end()),
+            std::vector<double>(unknown.motions.begin() + 1, unknown.motions.end()));
+  EXPECT_TRUE(a.T_model_scan.matrix() == b.T_model_scan.matrix());
+}
+
 // The automatic levels are n/100 and n/10, each only with >= kAutoCoarseMinPoints points;
 // explicit coarse_sizes win (those not below the scan size dropped); auto_coarse = false: none.
 TEST(IcpCoarseToFine, ScheduleLevels) {
@@ -541,6 +578,10 @@ TEST(IcpOptionsValidation, ErrorsNameTheField) {
   EXPECT_NE(
       error_of([](IcpOptions& o) { o.degeneracy_threshold = 1.0; }).find("degeneracy_threshold"),
       std::string::npos);
+  EXPECT_NE(error_of([](IcpOptions& o) {
+              o.initial_expected_motion = 0.0;
+            }).find("initial_expected_motion"),
+            std::string::npos);
   // align() reports bad options and bad points as invalid_input, naming them.
   UnionFinder finder(scene());
   std::vector<Vec3> scan = sample_uniform(scene(), 100, 22);

@@ -2,6 +2,8 @@
 // the pose against the known one of a synthetic scan, the deviation summary against a sort, the
 // failure line when ICP loses its correspondences, and warm reuse over frames.
 #include <gtest/gtest.h>
+#include <spdlog/sinks/ringbuffer_sink.h>
+#include <spdlog/spdlog.h>
 
 #include <algorithm>
 #include <cmath>
@@ -9,6 +11,8 @@
 #include <random>
 #include <span>
 #include <stdexcept>
+#include <string>
+#include <vector>
 
 #include "nurbsreg/engine/prepared_model.hpp"
 #include "nurbsreg/engine/synthetic_scan.hpp"
@@ -186,6 +190,63 @@ TEST(Aligner, WithoutFarProjectionsFromAnyPoseTheSummaryAndVerdictAreTheSame) {
   const double fine_distance = GlobalOptions{}.fine_max_distance_voxels * probe.features().voxel();
   expect_same_answers_without_far_projections(model, scan.points, icp::IcpOptions{}, request,
                                               fine_distance);
+}
+
+// The `-v` lines of one call (spdlog's default logger, debug level), restored afterwards.
+template <typename F>
+std::vector<std::string> debug_lines_of(F&& call) {
+  const auto sink = std::make_shared<spdlog::sinks::ringbuffer_sink_mt>(100000);
+  const auto capture = std::make_shared<spdlog::logger>("capture", sink);
+  capture->set_level(spdlog::level::debug);
+  const auto previous = spdlog::default_logger();
+  spdlog::set_default_logger(capture);
+  try {
+    call();
+  } catch (...) {
+    spdlog::set_default_logger(previous);
+    throw;
+  }
+  spdlog::set_default_logger(previous);
+  std::vector<std::string> lines;
+  for (const auto& m : sink->last_raw())
+    lines.emplace_back(m.payload.begin(), m.payload.end());
+  return lines;
+}
+
+// From any pose, the fine ICP's last pass (at the returned pose, bounded by its distance, which
+// is beyond the verdict's tolerance) is the deviations' and the verdict's: when nobody reads the
+// far points' projections no projection follows it, and with every projection asked for only
+// the points it left unanswered are projected (the reports are the same bits: above).
+TEST(Aligner, FromAnyPoseTheVerdictReadsTheFineIcpsLastPass) {
+  const engine::PreparedModel& model = panel();
+  const double noise = 1e-4 * model.bounds().diagonal();
+  const engine::SyntheticScan scan = cluttered_scan_of(model, 4000, noise, 22);
+  // The points of every projection after the fine ICP's, from the `-v` lines.
+  const auto passes_after_the_fine_icp = [&](bool all_projections) {
+    AlignRequest request;
+    request.global = GlobalMode::on;
+    request.all_projections = all_projections;
+    Aligner aligner(model, icp::IcpOptions{});
+    AlignmentResult r;
+    const std::vector<std::string> lines =
+        debug_lines_of([&] { r = aligner.align(scan.points, request); });
+    EXPECT_TRUE(r.ok()) << r.failure.value_or("");
+    EXPECT_TRUE(r.icp.statistics_at_pose);
+    auto line = std::find_if(lines.begin(), lines.end(), [](const std::string& l) {
+      return l.starts_with("align: fine ICP in");
+    });
+    EXPECT_NE(line, lines.end());
+    std::vector<std::size_t> points;
+    for (; line != lines.end(); ++line) {
+      if (line->starts_with("find ")) points.push_back(std::stoul(line->substr(5)));
+    }
+    return points;
+  };
+  EXPECT_TRUE(passes_after_the_fine_icp(false).empty());
+  const std::vector<std::size_t> far = passes_after_the_fine_icp(true);
+  ASSERT_EQ(far.size(), 1u);
+  EXPECT_GT(far.front(), 0u);                  // the outliers beyond the ICP's bound
+  EXPECT_LT(far.front(), scan.points.size());  // not every point
 }
 
 TEST(Aligner, AScanFarFromTheModelFailsWithAReason) {

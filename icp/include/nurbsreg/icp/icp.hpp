@@ -133,6 +133,12 @@ struct IcpOptions {
   // largest is <= this count as unconstrained (see degeneracy.hpp); the solver does not move
   // along them. In [0, 1).
   double degeneracy_threshold = 1e-6;
+  // How far the points are expected to move in the first step (model units; the first query's
+  // CorrespondenceQuery::expected_motion, later ones take the previous step's): +infinity, any
+  // move, unless the caller knows the initial pose to be that close (the global stage's refined
+  // winner), so that a finder may spend work on the first pass that only nearby later queries
+  // repay (certificates). Answers never depend on it; > 0.
+  double initial_expected_motion = std::numeric_limits<double>::infinity();
   // false: every loop on the calling thread (debugging, parallel == serial tests).
   bool parallel = true;
   // A bound on the run's wall time (a service's per-request limit): checked once before every

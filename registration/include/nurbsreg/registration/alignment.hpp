@@ -101,7 +101,9 @@ class Aligner {
   // The exact projections of the last align()'s aligned points (entity, u, v, distance, signed
   // distance; no feet or normals), in scan order; with AlignRequest::all_projections false only
   // those of the points near the model.
-  const engine::ProjectionResults& last_projections() const { return finder_.last_results(); }
+  const engine::ProjectionResults& last_projections() const {
+    return completed_ ? completed_projections_ : finder_.last_results();
+  }
   // Frames of one stream (a service session): the finder keeps its certificates from frame to
   // frame (icp::ModelCorrespondenceFinder::keep_certificates) for the frames from a pose. The
   // answers stay exact, but not bit-identical to a fresh aligner's. A frame from any pose (the
@@ -129,6 +131,13 @@ class Aligner {
   icp::IcpSolver solver_;
   // finish()'s correspondences when it projects itself (kept: no frame-sized allocation each).
   std::vector<icp::Correspondence> correspondences_;
+  // From any pose, when finish() projects only the points ICP's bounded last pass left
+  // unanswered: that pass's answers with theirs (completed_ true), the far points and their
+  // indices (kept like correspondences_).
+  engine::ProjectionResults completed_projections_;
+  bool completed_ = false;
+  std::vector<engine::Vec3> far_points_;
+  std::vector<std::size_t> far_ids_;
 };
 
 }  // namespace nurbsreg::registration

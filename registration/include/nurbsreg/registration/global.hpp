@@ -46,9 +46,12 @@ struct GlobalOptions {
   // standard deviations of its own pose estimate (icp::IcpOptions::statistical_tolerance, whose
   // default 0.1 costs one or two more passes over every point for a pose change far below its
   // own uncertainty). Without a user's --coarse its stages are a tenth and two fifths of the
-  // scan, then all points.
-  double fine_statistical_tolerance = 0.5;
-  bool fine_predict_final = true;
+  // scan, then all points. One standard deviation, the step itself (not predicted) and not
+  // applied: the returned pose is then the one its last pass evaluated, whose distances the
+  // verdict reads (no further pass over every point), within the noise's own uncertainty of
+  // the next step's.
+  double fine_statistical_tolerance = 1.0;
+  bool fine_predict_final = false;
   std::uint64_t seed = 1;
 };
 
