@@ -16,28 +16,6 @@ namespace nurbsreg::registration {
 
 namespace {
 
-// Entry k of `part` into entry ids[k] of `into` (the fields `into` holds; a field `part` lacks,
-// certificates after a pass without hints or certification, leaves none for those entries).
-void scatter(const engine::ProjectionResults& part, std::span<const std::size_t> ids,
-             engine::ProjectionResults& into) {
-  for (std::size_t k = 0; k < ids.size(); ++k) {
-    const std::size_t i = ids[k];
-    if (!into.foot.empty() && !part.foot.empty()) into.foot[i] = part.foot[k];
-    if (!into.normal.empty() && !part.normal.empty()) into.normal[i] = part.normal[k];
-    into.distance[i] = part.distance[k];
-    into.signed_distance[i] = part.signed_distance[k];
-    into.entity[i] = part.entity[k];
-    into.u[i] = part.u[k];
-    into.v[i] = part.v[k];
-    into.status[i] = part.status[k];
-    into.on_trim_edge[i] = part.on_trim_edge[k];
-    if (!into.certificate.empty()) {
-      into.certificate[i] =
-          part.certificate.empty() ? engine::WarmCertificate{} : part.certificate[k];
-    }
-  }
-}
-
 icp::IcpOptions validated(icp::IcpOptions options) {
   if (auto error = options.validate()) throw std::invalid_argument(*error);
   return options;
@@ -302,7 +280,7 @@ AlignmentResult Aligner::finish(std::span<const engine::Vec3> scan, AlignmentRes
       query.scan_indices = far_ids_;
       query.max_distance = bound;
       finder_.find(query, correspondences_);
-      scatter(finder_.last_results(), far_ids_, completed_projections_);
+      completed_projections_.scatter_from(finder_.last_results(), far_ids_);
     }
     completed_ = true;
   } else {

@@ -51,6 +51,40 @@ void ProjectionResults::copy_from(const ProjectionResults& part, std::size_t off
   put(certificate, part.certificate);
 }
 
+void ProjectionResults::scatter_from(const ProjectionResults& part,
+                                     std::span<const std::size_t> ids) {
+  if (part.size() != ids.size()) {
+    throw std::logic_error("ProjectionResults::scatter_from: " + std::to_string(part.size()) +
+                           " results for " + std::to_string(ids.size()) + " entries");
+  }
+  for (const std::size_t i : ids) {
+    if (i >= size()) {
+      throw std::logic_error("ProjectionResults::scatter_from: entry " + std::to_string(i) +
+                             " of " + std::to_string(size()));
+    }
+  }
+  auto put = [&ids](auto& to, const auto& from, bool clear_missing) {
+    if (to.empty()) return;
+    for (std::size_t k = 0; k < ids.size(); ++k) {
+      if (!from.empty()) {
+        to[ids[k]] = from[k];
+      } else if (clear_missing) {
+        to[ids[k]] = {};
+      }
+    }
+  };
+  put(foot, part.foot, false);
+  put(distance, part.distance, false);
+  put(signed_distance, part.signed_distance, false);
+  put(entity, part.entity, false);
+  put(u, part.u, false);
+  put(v, part.v, false);
+  put(normal, part.normal, false);
+  put(status, part.status, false);
+  put(on_trim_edge, part.on_trim_edge, false);
+  put(certificate, part.certificate, true);
+}
+
 Projector::Projector(const PreparedModel& model) : model_(model), impl_(std::make_unique<Impl>()) {}
 
 Projector::~Projector() = default;

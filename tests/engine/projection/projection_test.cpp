@@ -403,5 +403,39 @@ TEST(PreparedModel, RejectsInvalidModels) {
   EXPECT_THROW(PreparedModel{empty}, std::invalid_argument);
 }
 
+// A few entries projected again go back in place: every field the results hold, feet kept
+// where the part has none, certificates cleared where it has none; sizes are checked.
+TEST(ProjectionResults, ScatterFromPutsEachEntryAtItsIndex) {
+  ProjectionResults into;
+  into.resize(5);
+  for (std::size_t i = 0; i < 5; ++i) {
+    into.distance[i] = static_cast<double>(i);
+    into.foot[i] = Vec3::Constant(static_cast<double>(i));
+    into.certificate[i].patch = static_cast<std::int32_t>(i);
+  }
+  ProjectionResults part;
+  part.resize(2, /*feet=*/false, /*certificates=*/false);
+  part.distance[0] = 30.0;
+  part.distance[1] = 10.0;
+  part.entity[0] = 7;
+  part.u[1] = 0.25;
+  part.status[0] = ProjectionStatus::ok;
+  const std::size_t ids[] = {3, 1};
+  into.scatter_from(part, ids);
+  EXPECT_EQ(into.distance[3], 30.0);
+  EXPECT_EQ(into.distance[1], 10.0);
+  EXPECT_EQ(into.distance[2], 2.0);
+  EXPECT_EQ(into.entity[3], 7);
+  EXPECT_EQ(into.u[1], 0.25);
+  EXPECT_EQ(into.status[3], ProjectionStatus::ok);
+  EXPECT_EQ(into.foot[3], Vec3::Constant(3.0));  // the part has no feet: kept
+  EXPECT_EQ(into.certificate[3].patch, -1);      // no certificate for the new answer
+  EXPECT_EQ(into.certificate[2].patch, 2);
+  const std::size_t too_far[] = {3, 5};
+  EXPECT_THROW(into.scatter_from(part, too_far), std::logic_error);
+  const std::size_t one[] = {0};
+  EXPECT_THROW(into.scatter_from(part, one), std::logic_error);
+}
+
 }  // namespace
 }  // namespace nurbsreg::engine

@@ -124,6 +124,10 @@ struct ProjectionResults {
   void resize(std::size_t n, bool feet = true, bool certificates = true);
   // Copies `part` into entries [offset, offset + part.size()) (frames projected in blocks).
   void copy_from(const ProjectionResults& part, std::size_t offset);
+  // Copies entry k of `part` into entry ids[k] (a few points projected again). A field this one
+  // does not hold is skipped; feet or normals `part` lacks leave those entries as they were,
+  // certificates it lacks leave none there (an old certificate would not match the new answer).
+  void scatter_from(const ProjectionResults& part, std::span<const std::size_t> ids);
   ProjectionHint hint(std::size_t i) const {
     if (status[i] != ProjectionStatus::ok) return ProjectionHint{};
     return ProjectionHint{entity[i], u[i], v[i],
