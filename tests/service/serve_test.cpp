@@ -3,8 +3,14 @@
 // is started by its test and killed at its end (ServerProcess); every client call has a
 // timeout.
 #include <gtest/gtest.h>
+#include <netinet/in.h>
+#include <netinet/tcp.h>
+#include <sys/socket.h>
+#include <sys/syscall.h>
 
 #include <atomic>
+#include <cerrno>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
@@ -476,6 +482,46 @@ TEST_F(Serve, SigtermClosesIdleKeepAliveConnectionsAtOnce) {
   const auto after = idle.front()->Get("/healthz");
   EXPECT_FALSE(after);
   EXPECT_NE(read_text(path("log_idle.txt")).find("idle connection(s)"), std::string::npos);
+}
+
+// The server's connections have TCP_NODELAY: httplib writes an answer's headers and its body in
+// two writes, and with Nagle's algorithm the body waits for the client's delayed acknowledgement
+// of the headers (about 40 ms on Linux, a warm frame's whole budget). Read from the server's own
+// sockets (pidfd_getfd: the test is the server's parent), not from a round trip's time.
+TEST_F(Serve, ConnectionsSendWithoutNaglesDelay) {
+  ServerProcess server("--model " + kPanel, path("log_nodelay.txt"));
+  ASSERT_GT(server.port(), 0);
+  auto c = client(server.port());
+  c->set_keep_alive(true);
+  const auto r = c->Get("/healthz");
+  ASSERT_TRUE(r);
+  ASSERT_EQ(r->status, 200);
+
+  const int pidfd = static_cast<int>(::syscall(SYS_pidfd_open, server.pid(), 0));
+  ASSERT_GE(pidfd, 0) << "pidfd_open: " << std::strerror(errno);
+  int connections = 0;
+  for (const auto& entry :
+       std::filesystem::directory_iterator("/proc/" + std::to_string(server.pid()) + "/fd")) {
+    const int fd = static_cast<int>(
+        ::syscall(SYS_pidfd_getfd, pidfd, std::atoi(entry.path().filename().c_str()), 0));
+    if (fd < 0 && errno == EBADF) continue;  // closed since the listing
+    ASSERT_GE(fd, 0) << "pidfd_getfd: " << std::strerror(errno);
+    sockaddr_in local{}, peer{};
+    socklen_t local_length = sizeof local, peer_length = sizeof peer;
+    // The server's accepted connections: its port locally, a peer on the other end.
+    if (getsockname(fd, reinterpret_cast<sockaddr*>(&local), &local_length) == 0 &&
+        local.sin_family == AF_INET && ntohs(local.sin_port) == server.port() &&
+        getpeername(fd, reinterpret_cast<sockaddr*>(&peer), &peer_length) == 0) {
+      int nodelay = 0;
+      socklen_t length = sizeof nodelay;
+      ASSERT_EQ(getsockopt(fd, IPPROTO_TCP, TCP_NODELAY, &nodelay, &length), 0);
+      EXPECT_NE(nodelay, 0) << "connection from port " << ntohs(peer.sin_port);
+      ++connections;
+    }
+    ::close(fd);
+  }
+  ::close(pidfd);
+  EXPECT_GE(connections, 1) << "no accepted connection found among the server's descriptors";
 }
 
 }  // namespace
