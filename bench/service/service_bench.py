@@ -5,7 +5,7 @@ For each model (the freeform panel and a real part, NIST CTC-02), in the same ru
   1. synthesise --distinct frames of --points points (moved and noisy scans, binary PCD);
   2. `nurbsreg batch` over clients x frames of them (symlinks to the distinct files);
   3. `nurbsreg serve` on a loopback ephemeral port, --clients concurrent keep-alive clients
-     (http.client) posting --frames frames each to /v1/align, after two warm-up frames each;
+     (http.client) posting --frames frames each to /v1/align, after --warmup warm-up frames each;
 and prints frames/s, points/s, the ratio to batch, p50/p95/p99 latency, the server's CPU
 seconds per frame (utime + stime of all its threads: less disturbed by a shared machine than the
 wall time) and its resident memory (VmRSS, and the peak VmHWM) after the warm-up and at the end.
@@ -70,6 +70,18 @@ def percentile(values, q):
     return ordered[min(len(ordered) - 1, int(q * (len(ordered) - 1) + 0.5))] if ordered else float("nan")
 
 
+def memory_profile(trace, frames):
+    """VmRSS (MB) when 10%, 20%, ... 100% of the frames had been answered, from the sampler's
+    (frames answered, bytes) trace: the last sample at or before each tenth."""
+    out = []
+    for tenth in range(1, 11):
+        mark = frames * tenth // 10
+        below = [rss for done, rss in trace if done <= mark]
+        if below:
+            out.append(f"{mark}: {below[-1] / 2**20:.0f}")
+    return "  ".join(out)
+
+
 def synth_frames(binary, model, noise, points, distinct, out_dir):
     files = []
     for i in range(distinct):
@@ -98,7 +110,7 @@ def bench_batch(binary, model, files, total, threads, work, max_seconds):
 
 
 def bench_serve(binary, model, files, clients, frames, threads, max_seconds, log, session=False,
-                time_limit=600):
+                time_limit=600, warmup=2):
     server = subprocess.Popen(
         [binary, "serve", "--model", model, "--id", "m", "--port", "0", "--threads", str(threads),
          "--max-inflight", str(clients), "--connections", str(clients + 2),
@@ -130,11 +142,13 @@ def bench_serve(binary, model, files, clients, frames, threads, max_seconds, log
                 if answer.status != 200:
                     failures.append(f"{answer.status}: {text[:200]!r}")
                 return time.monotonic() - t
-            # Warm-up, two frames: the first fills an aligner's coarse-stage buffers (and, in
-            # a session, is its global frame), the second the aligner's own ICP buffers (a
-            # session's first frame from a previous pose); the memory is sampled after them.
-            frame(c)
-            frame(c + 1)
+            # Warm-up, --warmup frames (default: every distinct frame once): the first fills an
+            # aligner's coarse-stage buffers (and, in a session, is its global frame), the next
+            # ones the aligner's own ICP buffers; a pooled aligner's buffers keep the capacity of
+            # the largest frame it has run, so the memory is sampled once every client has sent
+            # every distinct frame (two frames leave the pool growing for its first ~10%).
+            for k in range(warmup):
+                frame(c + k)
             barrier.wait()
             for k in range(frames):
                 if time.monotonic() > deadline[0]:
@@ -151,13 +165,26 @@ def bench_serve(binary, model, files, clients, frames, threads, max_seconds, log
         cpu_start = cpu_seconds(server.pid)
         start = time.monotonic()
         deadline[0] = start + max_seconds
+        # The resident memory along the run (frames answered, VmRSS), sampled every quarter
+        # second: the start and end alone cannot tell a plateau from a steady growth.
+        rss_trace = []
+        sampling = threading.Event()
+
+        def sample_memory():
+            while not sampling.wait(0.25):
+                rss_trace.append((sum(len(per) for per in latencies),
+                                  proc_status(server.pid)["VmRSS"]))
+        sampler = threading.Thread(target=sample_memory)
+        sampler.start()
         for t in threads_:
             t.join()
+        sampling.set()
+        sampler.join()
         seconds = time.monotonic() - start
         cpu = cpu_seconds(server.pid) - cpu_start
         memory_end = proc_status(server.pid)
         return ([x for per in latencies for x in per], seconds, memory_start, memory_end, failures,
-                cpu)
+                cpu, rss_trace)
     finally:
         server.terminate()
         try:
@@ -230,6 +257,10 @@ def main():
     p.add_argument("--max-seconds", type=float, default=900, help="per stage")
     p.add_argument("--binary", default=os.path.join(ROOT, "build", "bin", "nurbsreg"))
     p.add_argument("--soak", type=int, default=0, help="memory soak: this many small requests")
+    p.add_argument("--warmup", type=int,
+                   help="warm-up frames per client before the measured ones (default: --distinct)")
+    p.add_argument("--no-batch", action="store_true",
+                   help="the service alone (no batch stage, no ratio): memory and latency runs")
     p.add_argument("--session", action="store_true", help="each client one session (warm frames)")
     p.add_argument("--time-limit", type=float, default=600,
                    help="the server's --time-limit (s): frames over it are answered 504 and count "
@@ -251,16 +282,21 @@ def main():
             print(f"[{name}] synthesising {a.distinct} frames of {a.points} points ...", flush=True)
             files = synth_frames(a.binary, model, noise, a.points, a.distinct, model_work)
             total = a.clients * a.frames
-            print(f"[{name}] batch over {total} frames ...", flush=True)
-            batch_done, batch_seconds = bench_batch(a.binary, model, files, total, a.threads,
-                                                    model_work, a.max_seconds)
+            if a.no_batch:
+                batch_done, batch_seconds = 0, float("nan")
+            else:
+                print(f"[{name}] batch over {total} frames ...", flush=True)
+                batch_done, batch_seconds = bench_batch(a.binary, model, files, total, a.threads,
+                                                        model_work, a.max_seconds)
             print(f"[{name}] serve: {a.clients} clients x {a.frames} frames ...", flush=True)
-            latencies, seconds, m0, m1, failures, cpu = bench_serve(
+            latencies, seconds, m0, m1, failures, cpu, rss_trace = bench_serve(
                 a.binary, model, files, a.clients, a.frames, a.threads, a.max_seconds, log,
-                a.session, a.time_limit)
+                a.session, a.time_limit, a.warmup if a.warmup is not None else len(files))
             if failures:
                 print(f"[{name}] {len(failures)} failed frames, first: {failures[0]}")
             served = len(latencies)
+            print(f"[{name}] resident MB by frames answered: " + memory_profile(rss_trace, served),
+                  flush=True)
             batch_fps = batch_done / batch_seconds
             serve_fps = served / seconds
             rows.append({
@@ -273,7 +309,7 @@ def main():
                 "rss_start": m0["VmRSS"], "rss_end": m1["VmRSS"],
                 "hwm_start": m0["VmHWM"], "hwm_end": m1["VmHWM"],
                 "cpu_ms": 1e3 * cpu / max(served, 1),
-                "cut_short": served < total or batch_done < total, "failed": len(failures)})
+                "cut_short": served < total or (batch_done < total and not a.no_batch), "failed": len(failures)})
     print()
     print(f"{a.clients} clients{' (one session each)' if a.session else ''}, {a.points} points a "
           f"frame, threads {a.threads or 'all'}, {os.cpu_count()} hardware threads, load average "
