@@ -153,6 +153,12 @@ TEST(GlobalAlignment, AMillionPointScanWithOutliersFindsThePose) {
   const AlignmentResult r = aligner.align(scan.points, request);
   ASSERT_TRUE(r.coarse.has_value());
   EXPECT_GT(r.coarse->winner.inlier_fraction, 0.6);
+  // The fine ICP's stages (fine_stage_sizes): 50,000 and 200,000 points, not a tenth and two
+  // fifths (100,000 and 400,000), then all of them.
+  std::vector<std::size_t> stage_points;
+  for (const icp::IcpIteration& it : r.icp.log)
+    stage_points.push_back(it.points);
+  EXPECT_EQ(stage_points, (std::vector<std::size_t>{50000, 200000, 1000000}));
   const Errors e = pose_error(scan.T_model_scan, r.coarse->winner.T_model_scan);
   EXPECT_LT(e.degrees, 0.5);
   EXPECT_LT(e.translation, 1e-2 * p.size);
