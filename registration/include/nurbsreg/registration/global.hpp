@@ -54,10 +54,10 @@ struct GlobalOptions {
   // standard deviations of its own pose estimate (icp::IcpOptions::statistical_tolerance, whose
   // default 0.1 costs one or two more passes over every point for a pose change far below its
   // own uncertainty). Without a user's --coarse its stages are fine_stage_sizes (alignment.hpp:
-  // a tenth and two fifths of the scan, capped for large scans), then all points. One standard deviation, the step itself (not predicted) and not
-  // applied: the returned pose is then the one its last pass evaluated, whose distances the
-  // verdict reads (no further pass over every point), within the noise's own uncertainty of
-  // the next step's.
+  // a tenth and two fifths of the scan, capped for large scans), then all points. One standard
+  // deviation, the step itself (not predicted) and not applied: the returned pose is then the
+  // one its last pass evaluated, whose distances the verdict reads (no further pass over every
+  // point), within the noise's own uncertainty of the next step's.
   double fine_statistical_tolerance = 1.0;
   bool fine_predict_final = false;
   std::uint64_t seed = 1;
