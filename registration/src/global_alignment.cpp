@@ -94,14 +94,14 @@ ScanKeypoints scan_keypoints(std::span<const Vec3> scan, const ModelFeatures& fe
   return out;
 }
 
-// The verification subsample: the first m of a seeded permutation of the scan.
-std::vector<Vec3> verification_points(std::span<const Vec3> scan, std::size_t m,
-                                      std::uint64_t seed) {
+// The first m of a seeded permutation of the scan, in scan order (the whole scan when m >= its
+// size): the verification subsample, and the points a large scan's keypoints come from.
+std::vector<Vec3> seeded_subset(std::span<const Vec3> scan, std::size_t m, std::uint64_t seed) {
   std::vector<Vec3> out;
   if (scan.size() <= m) return {scan.begin(), scan.end()};
   std::vector<std::size_t> order(scan.size());
   std::iota(order.begin(), order.end(), std::size_t{0});
-  std::mt19937_64 rng(seed ^ 0x5DEECE66Dull);
+  std::mt19937_64 rng(seed);
   for (std::size_t i = 0; i < m; ++i)
     std::swap(order[i], order[i + static_cast<std::size_t>(rng() % (order.size() - i))]);
   order.resize(m);
@@ -234,7 +234,12 @@ CoarseOutcome coarse_align(std::span<const Vec3> scan, const ModelFeatures& feat
   r.model_features_cpu_seconds = process_cpu_seconds() - cpu0;
   r.model_features_seconds = std::chrono::duration<double>(Clock::now() - start).count();
   lap("model features (once per model)");
-  const ScanKeypoints keys = scan_keypoints(scan, features);
+  // A large scan's keypoints come from a subset of it (GlobalOptions::feature_points).
+  const ScanKeypoints keys =
+      o.feature_points == 0 || scan.size() <= o.feature_points
+          ? scan_keypoints(scan, features)
+          : scan_keypoints(seeded_subset(scan, o.feature_points, o.seed ^ 0x9E3779B97F4A7C15ull),
+                           features);
   lap("scan keypoints");
   if (past_deadline("after the scan's keypoints")) return out;
   r.scan_keypoints = keys.points.size();
@@ -269,7 +274,7 @@ CoarseOutcome coarse_align(std::span<const Vec3> scan, const ModelFeatures& feat
   rp.seed = o.seed;
 
   // 3. Verification: a short exact ICP from each hypothesis, exact distances, score.
-  const std::vector<Vec3> sub = verification_points(scan, o.verify_points, o.seed);
+  const std::vector<Vec3> sub = seeded_subset(scan, o.verify_points, o.seed ^ 0x5DEECE66Dull);
   // The first look's points: every k-th of the verification subsample (itself a random
   // subset in scan order, so a stride keeps it random and spread over the scan).
   const std::size_t glance_stride = std::max<std::size_t>(1, sub.size() / kGlancePoints);

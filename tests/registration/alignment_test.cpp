@@ -74,6 +74,20 @@ TEST(DeviationSummary, QuantilesAreThoseOfTheSortedValues) {
   EXPECT_EQ(summarise_deviations({}).count, 0u);
 }
 
+// From any pose the fine ICP's stages are a tenth and two fifths of the scan up to 500,000 points
+// (as they always were); a larger scan's stay at 50,000 points and at least a fifth of it: the
+// certificates of 50,000 points cover a part as well, and from a fifth the first full step is
+// small enough for the second full pass to stop.
+TEST(Aligner, TheFineStagesOfALargeScanAreBounded) {
+  using Sizes = std::vector<std::size_t>;
+  EXPECT_EQ(fine_stage_sizes(4000), Sizes{});
+  EXPECT_EQ(fine_stage_sizes(10000), Sizes{4000});
+  EXPECT_EQ(fine_stage_sizes(50000), (Sizes{5000, 20000}));
+  EXPECT_EQ(fine_stage_sizes(500000), (Sizes{50000, 200000}));
+  EXPECT_EQ(fine_stage_sizes(1000000), (Sizes{50000, 200000}));
+  EXPECT_EQ(fine_stage_sizes(2000000), (Sizes{50000, 400000}));
+}
+
 TEST(Aligner, RecoversTheKnownPoseAndSummarisesTheExactDeviations) {
   const engine::PreparedModel& model = panel();
   const double noise = 1e-4 * model.bounds().diagonal();

@@ -73,6 +73,29 @@ TEST(FitVerdict, ARightPoseIsGoodWithItsNumbers) {
   EXPECT_LT(r.fit.coverage, 0.5);
 }
 
+// The coverage hashes a sample of a large scan's points. A fixed stride (every 5th of a million)
+// aliased with synth's outliers, which replace every 5th point at 20%: it saw only outliers, and
+// a right pose on a full view was judged poor for covering a few percent of the model.
+TEST(FitVerdict, TheCoverageOfALargeScanSeesItsInliersWhereverTheOutliersAre) {
+  const testing::Part& p = part(testing::kPanel);
+  engine::SyntheticScanOptions o;
+  o.points = 1000000;  // above the sample's 200,000 points: a stride of 5 before
+  o.noise_sigma = 1e-4 * p.size;
+  o.outlier_fraction = 0.2;
+  const engine::SyntheticScan scan = engine::make_synthetic_scan(p.model->model(), o);
+  icp::IcpOptions tukey;
+  tukey.kernel = icp::RobustKernel::tukey;
+  tukey.max_iterations = 1;
+  Aligner aligner(*p.model, tukey, {}, p.features);
+  AlignRequest request;
+  request.init = scan.T_model_scan;
+  request.all_projections = false;
+  const AlignmentResult r = aligner.align(scan.points, request);
+  EXPECT_TRUE(r.fit.good) << r.fit.reason;
+  EXPECT_GT(r.fit.inlier_fraction, 0.75);
+  EXPECT_GT(r.fit.coverage, 0.9);
+}
+
 // The estimate once read 1.6-2.7 times the noise on machined parts (a plane fit per
 // neighbourhood took the fillets' and holes' curvature for noise): within 1.5 both ways, with
 // and without outliers, at two noise levels.

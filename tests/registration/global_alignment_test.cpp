@@ -132,6 +132,38 @@ TEST(GlobalAlignment, PanelWithAFixturePlaneUnderIt) {
   EXPECT_LT(e.translation, 5e-4 * p.size);
 }
 
+// A large scan's keypoints come from a subset of it (GlobalOptions::feature_points): on all of a
+// 1 M-point scan with 20% outliers the outliers fill every voxel of the scan's box, the
+// keypoints' neighbourhoods see no surface, and the coarse stage's best pose put 3.9% of the
+// panel's points onto it. Only the coarse stage is checked (the fine ICP runs one iteration).
+TEST(GlobalAlignment, AMillionPointScanWithOutliersFindsThePose) {
+  const testing::Part& p = part(testing::kPanel);
+  engine::SyntheticScanOptions o;
+  o.points = 1000000;
+  o.noise_sigma = 1e-4 * p.size;
+  o.outlier_fraction = 0.2;
+  std::mt19937_64 rng(9);
+  o.T_scan_model = random_pose(rng, p.size);
+  const engine::SyntheticScan scan = engine::make_synthetic_scan(p.model->model(), o);
+  icp::IcpOptions brief;
+  brief.max_iterations = 1;
+  Aligner aligner(*p.model, brief, {}, p.features);
+  AlignRequest request;
+  request.all_projections = false;
+  const AlignmentResult r = aligner.align(scan.points, request);
+  ASSERT_TRUE(r.coarse.has_value());
+  EXPECT_GT(r.coarse->winner.inlier_fraction, 0.6);
+  // The fine ICP's stages (fine_stage_sizes): 50,000 and 200,000 points, not a tenth and two
+  // fifths (100,000 and 400,000), then all of them.
+  std::vector<std::size_t> stage_points;
+  for (const icp::IcpIteration& it : r.icp.log)
+    stage_points.push_back(it.points);
+  EXPECT_EQ(stage_points, (std::vector<std::size_t>{50000, 200000, 1000000}));
+  const Errors e = pose_error(scan.T_model_scan, r.coarse->winner.T_model_scan);
+  EXPECT_LT(e.degrees, 0.5);
+  EXPECT_LT(e.translation, 1e-2 * p.size);
+}
+
 TEST(GlobalAlignment, SameResultForOneAndTwoThreads) {
   const testing::Part& p = part(testing::kReal + "occt/bearing.iges");
   engine::SyntheticScanOptions o;

@@ -74,6 +74,12 @@ struct AlignRequest {
   bool all_projections = true;
 };
 
+// The fine ICP's subsample stages after the global stage, for a scan of n points (unless the
+// options give coarse_sizes or switch auto_coarse off): a tenth of the scan up to 50,000 points,
+// then two fifths up to 200,000 but at least a fifth, each only with
+// icp::kAutoCoarseMinPoints or more; then all points.
+std::vector<std::size_t> fine_stage_sizes(std::size_t n);
+
 class Aligner {
  public:
   // `model` must outlive the aligner; `options` are validated (std::invalid_argument naming the
