@@ -195,6 +195,8 @@ def main():
     ap.add_argument("--run-parts",
                     help="run only these of --parts, drawing the others' poses all the same: "
                          "rows of one sweep split over processes get the same scans")
+    ap.add_argument("--peer-voxel-divisor", type=float, default=150.0,
+                    help="the peers' voxel is the model's diagonal over this (default 150)")
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--timeout", type=float, default=120.0, help="seconds per run")
     ap.add_argument("--markdown", help="write the table here")
@@ -230,7 +232,11 @@ def main():
             info = run([a.nurbsreg, "info", "--model", model, "--json"])
             box = json.loads(info.stdout)["bounding_box"]
             diag = float(np.linalg.norm(np.array(box["max"]) - np.array(box["min"])))
-            voxel = diag / 150.0
+            # The peers' voxel (their downsampling, FPFH radii, RANSAC and ICP distances):
+            # --peer-voxel-divisor parts of the diagonal. RANSAC's time grows with the keypoints
+            # (diagonal / 150: about 30,000 on a 50,000-point NIST scan, 13-24 s on one thread;
+            # / 50: about 5,700, 3 s at the same final accuracy on the scan tried).
+            voxel = diag / a.peer_voxel_divisor
             dense = os.path.join(tmp, part + ".dense.pcd")
             if o3d or "pcl" in peers:
                 run([a.nurbsreg, "-q", "synth", "--model", model, "--points", "200000", "--out",
