@@ -23,6 +23,18 @@ using testing::part;
 using testing::pose_error;
 using testing::random_pose;
 
+// A scan of `points` points of the part at a random pose (seed 9), noise 1e-4 of its size, 20%
+// uniform outliers.
+engine::SyntheticScan scan_with_outliers(const testing::Part& p, std::size_t points) {
+  engine::SyntheticScanOptions o;
+  o.points = points;
+  o.noise_sigma = 1e-4 * p.size;
+  o.outlier_fraction = 0.2;
+  std::mt19937_64 rng(9);
+  o.T_scan_model = random_pose(rng, p.size);
+  return engine::make_synthetic_scan(p.model->model(), o);
+}
+
 struct Condition {
   const char* name;
   double outliers;
@@ -138,13 +150,7 @@ TEST(GlobalAlignment, PanelWithAFixturePlaneUnderIt) {
 // panel's points onto it. Only the coarse stage is checked (the fine ICP runs one iteration).
 TEST(GlobalAlignment, AMillionPointScanWithOutliersFindsThePose) {
   const testing::Part& p = part(testing::kPanel);
-  engine::SyntheticScanOptions o;
-  o.points = 1000000;
-  o.noise_sigma = 1e-4 * p.size;
-  o.outlier_fraction = 0.2;
-  std::mt19937_64 rng(9);
-  o.T_scan_model = random_pose(rng, p.size);
-  const engine::SyntheticScan scan = engine::make_synthetic_scan(p.model->model(), o);
+  const engine::SyntheticScan scan = scan_with_outliers(p, 1000000);
   icp::IcpOptions brief;
   brief.max_iterations = 1;
   Aligner aligner(*p.model, brief, {}, p.features);
@@ -166,13 +172,7 @@ TEST(GlobalAlignment, AMillionPointScanWithOutliersFindsThePose) {
 
 TEST(GlobalAlignment, SameResultForOneAndTwoThreads) {
   const testing::Part& p = part(testing::kReal + "occt/bearing.iges");
-  engine::SyntheticScanOptions o;
-  o.points = 6000;
-  o.noise_sigma = 1e-4 * p.size;
-  o.outlier_fraction = 0.2;
-  std::mt19937_64 rng(9);
-  o.T_scan_model = random_pose(rng, p.size);
-  const engine::SyntheticScan scan = engine::make_synthetic_scan(p.model->model(), o);
+  const engine::SyntheticScan scan = scan_with_outliers(p, 6000);
   const auto run = [&](int threads) {
     tbb::task_arena arena(threads);
     return arena.execute([&] {
