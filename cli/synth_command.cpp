@@ -22,6 +22,8 @@ struct SynthArgs {
   std::uint64_t seed = 1;
   std::string out_pose;
   double outliers = 0.0;
+  double fixture = 0.0;
+  std::string fixture_up = "0 0 1";
   double view_fraction = 1.0;
   std::string view_direction = "0 0 1";
 };
@@ -48,6 +50,9 @@ void run_synth(const SynthArgs& args) {
   options.noise_sigma = args.noise;
   options.seed = args.seed;
   options.outlier_fraction = args.outliers;
+  options.fixture_fraction = args.fixture;
+  const auto up = parse_numbers("--fixture-up", args.fixture_up, 3);
+  options.fixture_up = engine::Vec3(up[0], up[1], up[2]);
   options.view_fraction = args.view_fraction;
   const auto dir = parse_numbers("--view-direction", args.view_direction, 3);
   options.view_direction = engine::Vec3(dir[0], dir[1], dir[2]);
@@ -61,9 +66,10 @@ void run_synth(const SynthArgs& args) {
   const engine::SyntheticScan scan = engine::make_synthetic_scan(model, options);
   io::write_point_cloud(args.out, scan.points);
   if (!args.out_pose.empty()) io::write_pose(args.out_pose, scan.T_model_scan.matrix());
-  spdlog::info("{}: {} points (noise {}, outliers {:.1f}%, view {:.0f}%) in {:.2f} s", args.out,
-               scan.points.size(), args.noise, 100.0 * args.outliers, 100.0 * args.view_fraction,
-               watch.seconds());
+  spdlog::info(
+      "{}: {} points (noise {}, outliers {:.1f}%, fixture {:.1f}%, view {:.0f}%) in {:.2f} s",
+      args.out, scan.points.size(), args.noise, 100.0 * args.outliers, 100.0 * args.fixture,
+      100.0 * args.view_fraction, watch.seconds());
 }
 
 }  // namespace
@@ -84,8 +90,15 @@ void add_synth_command(CLI::App& app) {
   cmd->add_option("--seed", args->seed, "Random seed (same seed, same scan)");
   cmd->add_option("--out-pose", args->out_pose,
                   "Write the pose that maps the scan back onto the model (T_model_scan)");
-  cmd->add_option("--outliers", args->outliers, "Fraction of points replaced by outliers")
+  cmd->add_option("--outliers", args->outliers,
+                  "Fraction of points replaced by outliers, uniform in the scan's box")
       ->check(CLI::Range(0.0, 1.0));
+  cmd->add_option("--fixture", args->fixture,
+                  "Fraction of points replaced by a fixture plane under the part (clustered "
+                  "clutter; with --outliers at most 1 in all)")
+      ->check(CLI::Range(0.0, 1.0));
+  cmd->add_option("--fixture-up", args->fixture_up,
+                  "\"x y z\": the model's up direction; the fixture lies below the part along it");
   cmd->add_option("--view-fraction", args->view_fraction,
                   "Partial view: keep this fraction of the model, seen from --view-direction")
       ->check(CLI::Range(0.0, 1.0));

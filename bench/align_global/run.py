@@ -38,6 +38,10 @@ PARTS = {
     "bearing": "occt/bearing.iges",
 }
 CONDITIONS = {"full": [], "outliers20": ["--outliers", "0.2"], "half": ["--view-fraction", "0.5"]}
+# Beyond the three rows (--conditions names them): its 30% outliers, a fixture plane
+# under the part (clustered clutter), and a quarter view.
+EXTRA_CONDITIONS = {"outliers30": ["--outliers", "0.3"], "fixture20": ["--fixture", "0.2"],
+                    "quarter": ["--view-fraction", "0.25"]}
 PEERS = ("nurbsreg", "o3d-ransac", "o3d-fgr", "pcl")
 
 
@@ -255,7 +259,8 @@ def main():
                     truth_path = os.path.join(tmp, f"truth{t}.txt")
                     run([a.nurbsreg, "-q", "synth", "--model", model, "--points", str(a.points),
                          "--noise", str(1e-4 * diag), "--pose", pose, "--seed", str(t + 1),
-                         "--out", scan, "--out-pose", truth_path, *CONDITIONS[cond]])
+                         "--out", scan, "--out-pose", truth_path,
+                         *{**CONDITIONS, **EXTRA_CONDITIONS}[cond]])
                     scans.append((scan, np.loadtxt(truth_path), pose))
                 peer_scans = scans[:a.peer_trials] if a.peer_trials is not None else scans
                 pcl = pcl_align(a, dense, voxel, [s for s, _, _ in peer_scans]) \

@@ -372,12 +372,13 @@ class SyntheticScan:
 
 
 def synth(model, points, *, noise=0.0, pose=None, seed=1, outliers=0.0, view_fraction=1.0,
-          view_direction=(0.0, 0.0, 1.0)):
+          view_direction=(0.0, 0.0, 1.0), fixture=0.0, fixture_up=(0.0, 0.0, 1.0)):
     """A synthetic scan of ``model`` as ``nurbsreg synth``: ``points`` area-uniform samples,
     Gaussian ``noise`` (sigma, model units) along the normal, scanner ``pose`` (rx, ry, rz
     degrees about x, y, z, then tx, ty, tz: scan_point = pose * model_point), ``seed``, a
-    fraction of ``outliers``, a partial view (``view_fraction`` of the model seen from
-    ``view_direction``). Same options, same points as the CLI."""
+    fraction of ``outliers`` (uniform in the scan's box), a partial view (``view_fraction`` of
+    the model seen from ``view_direction``), a ``fixture`` fraction on a plane under the part
+    (below it along ``fixture_up``). Same options, same points as the CLI."""
     if pose is not None:
         pose = [float(x) for x in pose]
         if len(pose) != 6:
@@ -385,5 +386,9 @@ def synth(model, points, *, noise=0.0, pose=None, seed=1, outliers=0.0, view_fra
     direction = [float(x) for x in view_direction]
     if len(direction) != 3:
         raise ValueError("view_direction: expected 3 numbers, got %d" % len(direction))
+    up = [float(x) for x in fixture_up]
+    if len(up) != 3:
+        raise ValueError("fixture_up: expected 3 numbers, got %d" % len(up))
     return SyntheticScan(**_core.synth(model, int(points), float(noise), pose, int(seed),
-                                       float(outliers), float(view_fraction), direction))
+                                       float(outliers), float(view_fraction), direction,
+                                       float(fixture), up))

@@ -83,7 +83,8 @@ void write_cloud(const std::filesystem::path& path, const py::handle& points_obj
 
 py::dict synth(const ModelPtr& model, std::size_t points, double noise,
                const std::optional<std::array<double, 6>>& pose, std::uint64_t seed,
-               double outliers, double view_fraction, const std::array<double, 3>& view_direction) {
+               double outliers, double view_fraction, const std::array<double, 3>& view_direction,
+               double fixture, const std::array<double, 3>& fixture_up) {
   if (model->model().surfaces.empty()) {
     throw py::value_error(model->path() + ": synth needs a model with surfaces");
   }
@@ -95,6 +96,8 @@ py::dict synth(const ModelPtr& model, std::size_t points, double noise,
   options.outlier_fraction = outliers;
   options.view_fraction = view_fraction;
   options.view_direction = engine::Vec3(view_direction[0], view_direction[1], view_direction[2]);
+  options.fixture_fraction = fixture;
+  options.fixture_up = engine::Vec3(fixture_up[0], fixture_up[1], fixture_up[2]);
   if (pose) {
     const auto& p = *pose;
     options.T_scan_model =
@@ -127,7 +130,8 @@ void bind_point_io(py::module_& m) {
   m.def("write_point_cloud", &write_cloud, py::arg("path"), py::arg("points"), py::arg("encoding"),
         py::arg("double_precision"));
   m.def("synth", &synth, py::arg("model"), py::arg("points"), py::arg("noise"), py::arg("pose"),
-        py::arg("seed"), py::arg("outliers"), py::arg("view_fraction"), py::arg("view_direction"));
+        py::arg("seed"), py::arg("outliers"), py::arg("view_fraction"), py::arg("view_direction"),
+        py::arg("fixture"), py::arg("fixture_up"));
 }
 
 }  // namespace nurbsreg::python

@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <numeric>
 #include <random>
 
@@ -14,6 +15,40 @@
 #include "synth/random_streams.hpp"
 
 namespace nurbsreg::engine {
+namespace {
+
+// A rectangle of the fixture's plane: origin + a span_a + b span_b for a, b in [0, 1].
+struct FixturePlane {
+  Vec3 origin = Vec3::Zero();
+  Vec3 span_a = Vec3::Zero();
+  Vec3 span_b = Vec3::Zero();
+  Vec3 up = Vec3::UnitZ();
+};
+
+// The plane touches the samples' lowest point along `up`; across it, their extent plus half of
+// it on every side.
+FixturePlane fixture_plane(const std::vector<SurfaceSample>& samples, const Vec3& up_direction) {
+  FixturePlane plane;
+  plane.up = up_direction.normalized();
+  const Vec3 a = plane.up.unitOrthogonal();
+  const Vec3 b = plane.up.cross(a);
+  constexpr double kInf = std::numeric_limits<double>::infinity();
+  double lo_a = kInf, hi_a = -kInf, lo_b = kInf, hi_b = -kInf, lowest = kInf;
+  for (const SurfaceSample& s : samples) {
+    lo_a = std::min(lo_a, s.point.dot(a));
+    hi_a = std::max(hi_a, s.point.dot(a));
+    lo_b = std::min(lo_b, s.point.dot(b));
+    hi_b = std::max(hi_b, s.point.dot(b));
+    lowest = std::min(lowest, s.point.dot(plane.up));
+  }
+  const double grow_a = 0.5 * (hi_a - lo_a), grow_b = 0.5 * (hi_b - lo_b);
+  plane.origin = (lo_a - grow_a) * a + (lo_b - grow_b) * b + lowest * plane.up;
+  plane.span_a = (hi_a - lo_a + 2.0 * grow_a) * a;
+  plane.span_b = (hi_b - lo_b + 2.0 * grow_b) * b;
+  return plane;
+}
+
+}  // namespace
 
 std::optional<std::string> SyntheticScanOptions::validate() const {
   if (points == 0) return std::string("points: must be at least 1");
@@ -22,6 +57,15 @@ std::optional<std::string> SyntheticScanOptions::validate() const {
   }
   if (!(outlier_fraction >= 0.0 && outlier_fraction <= 1.0)) {
     return std::string("outliers: must be a fraction in [0, 1]");
+  }
+  if (!(fixture_fraction >= 0.0 && fixture_fraction <= 1.0)) {
+    return std::string("fixture: must be a fraction in [0, 1]");
+  }
+  if (!(outlier_fraction + fixture_fraction <= 1.0)) {
+    return std::string("outliers and fixture: together at most all the points");
+  }
+  if (!fixture_up.allFinite() || fixture_up.norm() == 0.0) {
+    return std::string("fixture up direction: must be a non-zero finite vector");
   }
   if (!(view_fraction > 0.0 && view_fraction <= 1.0)) {
     return std::string("view fraction: must be in (0, 1]");
@@ -67,12 +111,10 @@ SyntheticScan make_synthetic_scan(const Model& model, const SyntheticScanOptions
       kept.push_back(samples[i]);
     samples = std::move(kept);
   }
+  // The scan's box: the visible samples' (clutter fills the space around what the scanner sees).
   Aabb box;
-  for (const NurbsSurface& s : model.surfaces) {
-    for (const Vec3& p : s.control_points)
-      box.extend(p);
-  }
-  const Vec3 margin = Vec3::Constant(0.1 * box.diagonal());
+  for (const SurfaceSample& sample : samples)
+    box.extend(sample.point);
   std::mt19937_64 rng(options.seed ^ 0x9e3779b97f4a7c15ull);
   auto unit = [&rng] { return static_cast<double>(rng() >> 11) * 0x1.0p-53; };
 
@@ -102,13 +144,25 @@ SyntheticScan make_synthetic_scan(const Model& model, const SyntheticScanOptions
     }
   });
   nurbsreg::engine::stop_if_cancelled();
-  // Outliers replace evenly spaced samples so they are spread over the scan order.
-  for (std::size_t k = 0; k < outliers; ++k) {
-    const std::size_t i = k * n / outliers;
-    const Vec3 lo = box.lo - margin;
-    const Vec3 hi = box.hi + margin;
-    const Vec3 q(lo.x() + unit() * (hi.x() - lo.x()), lo.y() + unit() * (hi.y() - lo.y()),
-                 lo.z() + unit() * (hi.z() - lo.z()));
+  // Outliers and the fixture replace evenly spaced samples, so they are spread over the scan
+  // order; the fixture's share of those places is spread evenly among them.
+  const auto fixture = static_cast<std::size_t>(std::llround(options.fixture_fraction * n));
+  const std::size_t replaced = std::min(n, outliers + fixture);
+  const FixturePlane plane =
+      fixture > 0 ? fixture_plane(samples, options.fixture_up) : FixturePlane{};
+  std::normal_distribution<double> gauss(0.0, 1.0);
+  for (std::size_t k = 0; k < replaced; ++k) {
+    const std::size_t i = k * n / replaced;
+    const bool on_fixture = (k + 1) * fixture / replaced > k * fixture / replaced;
+    Vec3 q;
+    if (on_fixture) {
+      q = plane.origin + unit() * plane.span_a + unit() * plane.span_b;
+      if (options.noise_sigma > 0.0) q += options.noise_sigma * gauss(rng) * plane.up;
+    } else {
+      q = Vec3(box.lo.x() + unit() * (box.hi.x() - box.lo.x()),
+               box.lo.y() + unit() * (box.hi.y() - box.lo.y()),
+               box.lo.z() + unit() * (box.hi.z() - box.lo.z()));
+    }
     scan.points[i] = options.T_scan_model * q;
     scan.on_model[i] = false;
     scan.surface[i] = -1;
