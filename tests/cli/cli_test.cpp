@@ -5,6 +5,7 @@
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
+#include <filesystem>
 #include <map>
 #include <nlohmann/json.hpp>
 #include <sstream>
@@ -65,6 +66,14 @@ TEST(Cli, UsageErrorsExitTwo) {
                          dir.path())
                 .status,
             2);
+  // More clutter than points: named, and nothing written.
+  const CommandResult crowded =
+      run_nurbsreg("synth --model " + kPanel + " --points 10 --out " + (dir / "c.pcd") +
+                       " --outliers 0.6 --fixture 0.5",
+                   dir.path());
+  EXPECT_EQ(crowded.status, 2);
+  EXPECT_NE(crowded.err.find("outliers and fixture"), std::string::npos) << crowded.err;
+  EXPECT_FALSE(std::filesystem::exists(dir / "c.pcd"));
   const CommandResult r = run_nurbsreg(
       "project --model " + kPanel + " --points x.xyz --out " + (dir / "r.txt"), dir.path());
   EXPECT_EQ(r.status, 2);

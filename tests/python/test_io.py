@@ -98,22 +98,24 @@ def test_step_model_loads(tmp_path):
 
 def test_synth_is_the_cli_synth(panel, tmp_path):
     args = dict(noise=0.05, pose=(3, -2, 4, 3, -2, 2), seed=9, outliers=0.01,
-                view_fraction=0.7, view_direction=(0, 1, 1))
+                view_fraction=0.7, view_direction=(0, 1, 1), fixture=0.01, fixture_up=(0, 1, 0))
     scan = nurbsreg.synth(panel, 3000, **args)
     run_cli("synth", "--model", PANEL, "--points", 3000, "--noise", 0.05, "--pose",
             "3 -2 4 3 -2 2", "--seed", 9, "--outliers", 0.01, "--view-fraction", 0.7,
-            "--view-direction", "0 1 1", "--out", tmp_path / "s.xyz", "--out-pose",
-            tmp_path / "pose.txt")
+            "--view-direction", "0 1 1", "--fixture", 0.01, "--fixture-up", "0 1 0",
+            "--out", tmp_path / "s.xyz", "--out-pose", tmp_path / "pose.txt")
     # The CLI writes float32 coordinates (shortest text of each float).
     cli_points = nurbsreg.read_point_cloud(tmp_path / "s.xyz").points
     np.testing.assert_array_equal(scan.points.astype(np.float32), cli_points.astype(np.float32))
     np.testing.assert_array_equal(scan.T_model_scan, read_pose_file(tmp_path / "pose.txt"))
-    assert scan.on_model.dtype == bool and 0 < (~scan.on_model).sum() < 100
+    assert scan.on_model.dtype == bool and (~scan.on_model).sum() == 60
     assert scan.uv.shape == (len(scan.points), 2) and scan.surface.dtype == np.int32
     with pytest.raises(ValueError, match="pose: expected 6 numbers"):
         nurbsreg.synth(panel, 10, pose=(1, 2, 3))
     with pytest.raises(ValueError, match="points: must be > 0"):
         nurbsreg.synth(panel, 0)
+    with pytest.raises(ValueError, match="outliers and fixture"):
+        nurbsreg.synth(panel, 10, outliers=0.6, fixture=0.5)
 
 
 def test_a_face_beyond_its_surface_warns_as_the_cli(tmp_path):
