@@ -62,21 +62,6 @@ struct ScanKeypoints {
   std::vector<Vec3> normals;
 };
 
-// The voxel count of a typical point: half of the points lie in voxels holding at least this
-// many (a median over points, not voxels, which the clutter's many sparse voxels would decide).
-std::uint32_t typical_voxel_count(std::vector<std::uint32_t> counts) {
-  std::sort(counts.begin(), counts.end(), std::greater<>());
-  std::uint64_t total = 0;
-  for (const std::uint32_t c : counts)
-    total += c;
-  std::uint64_t seen = 0;
-  for (const std::uint32_t c : counts) {
-    seen += c;
-    if (2 * seen >= total) return c;
-  }
-  return 1;
-}
-
 // One point per voxel (the centroid: it averages the noise), kept where PCA finds a surface; a
 // seeded subset when a scene yields more than kMaxScanKeypoints.
 ScanKeypoints scan_keypoints(std::span<const Vec3> scan, const ModelFeatures& features) {
@@ -86,10 +71,9 @@ ScanKeypoints scan_keypoints(std::span<const Vec3> scan, const ModelFeatures& fe
   // Clutter spread through the scan's box leaves a point or two in most voxels around the part,
   // and those voxels' centroids outnumber the surface's within a normal's radius: the PCA then
   // finds no surface (NIST CTC-02 with 20% outliers in its box: 720 keypoints of about 2,800).
-  // A surface voxel holds about as many points as the scan's typical point does around it, so
-  // voxels far sparser than that are dropped (a sparse scan, a couple of points per voxel,
-  // keeps all).
-  const std::uint32_t min_count = std::max<std::uint32_t>(1, typical_voxel_count(vox.counts) / 4);
+  // So only the voxels about as full as a typical point's (a sparse scan, a couple of points per
+  // voxel, keeps all).
+  const std::uint32_t min_count = surface_voxel_count(vox.counts, 1);
   std::vector<Vec3> dense;
   dense.reserve(vox.centroids.size());
   for (std::size_t i = 0; i < vox.centroids.size(); ++i) {

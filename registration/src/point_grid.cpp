@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <functional>
 #include <numeric>
 
 namespace nurbsreg::registration::detail {
@@ -159,19 +160,36 @@ std::vector<std::pair<std::uint64_t, std::uint32_t>> voxel_keys(
 
 }  // namespace
 
-std::size_t voxels_with_at_least(std::span<const engine::Vec3> points, double voxel,
-                                 std::uint32_t count) {
-  if (points.empty()) return 0;
+std::vector<std::uint32_t> voxel_counts(std::span<const engine::Vec3> points, double voxel) {
+  std::vector<std::uint32_t> counts;
+  if (points.empty()) return counts;
   const std::vector<std::pair<std::uint64_t, std::uint32_t>> keyed = voxel_keys(points, voxel);
-  std::size_t voxels = 0;
   for (std::size_t k = 0; k < keyed.size();) {
     std::size_t e = k + 1;
     while (e < keyed.size() && keyed[e].first == keyed[k].first)
       ++e;
-    voxels += e - k >= count;
+    counts.push_back(static_cast<std::uint32_t>(e - k));
     k = e;
   }
-  return voxels;
+  return counts;
+}
+
+std::uint32_t surface_voxel_count(std::span<const std::uint32_t> counts, std::uint32_t floor) {
+  std::vector<std::uint32_t> sorted(counts.begin(), counts.end());
+  std::sort(sorted.begin(), sorted.end(), std::greater<>());
+  std::uint64_t total = 0;
+  for (const std::uint32_t c : sorted)
+    total += c;
+  std::uint64_t seen = 0;
+  std::uint32_t typical = 1;
+  for (const std::uint32_t c : sorted) {
+    seen += c;
+    if (2 * seen >= total) {
+      typical = c;
+      break;
+    }
+  }
+  return std::max(floor, typical / 2);
 }
 
 Voxelised voxelise(std::span<const engine::Vec3> points, double voxel) {

@@ -70,9 +70,15 @@ struct Voxelised {
   std::vector<std::uint32_t> counts;   // points per voxel
 };
 Voxelised voxelise(std::span<const engine::Vec3> points, double voxel);
-// How many voxels of voxelise(points, voxel) hold `count` points or more (its counts alone,
-// without the centroids).
-std::size_t voxels_with_at_least(std::span<const engine::Vec3> points, double voxel,
-                                 std::uint32_t count);
+// The points per voxel of voxelise(points, voxel) (its counts alone, without the centroids).
+std::vector<std::uint32_t> voxel_counts(std::span<const engine::Vec3> points, double voxel);
+// The fewest points a voxel of the scanned surface holds, as far as counts can tell: half the
+// voxel count of a typical point (half of the points lie in voxels holding at least that
+// many: a median over points, not voxels, which clutter's many sparse voxels would decide), and
+// at least `floor`. Clutter spread through a scan's box leaves one to three points in most
+// voxels around the part; a surface voxel holds about as many as the typical point's (NIST
+// CTC-02, 50,000 points, 30% outliers: a typical point's voxel holds 9, most clutter voxels 1-3;
+// a quarter of it, 2, kept a third of the clutter's voxels and 468 keypoints, too few).
+std::uint32_t surface_voxel_count(std::span<const std::uint32_t> counts, std::uint32_t floor);
 
 }  // namespace nurbsreg::registration::detail

@@ -96,12 +96,22 @@ TEST(PointGridOrder, VoxelsComeInKeyOrderWithTheComparisonSortsRepresentatives) 
     const auto [counts, nearest] = reference_voxels(points, voxel);
     EXPECT_EQ(v.counts, counts) << voxel;
     EXPECT_EQ(v.nearest, nearest) << voxel;
-    for (const std::uint32_t at_least : {1u, 2u, 5u}) {
-      const auto expected = static_cast<std::size_t>(std::count_if(
-          counts.begin(), counts.end(), [&](std::uint32_t c) { return c >= at_least; }));
-      EXPECT_EQ(voxels_with_at_least(points, voxel, at_least), expected) << voxel << at_least;
-    }
+    EXPECT_EQ(voxel_counts(points, voxel), counts) << voxel;
   }
+}
+
+// Half the voxel count of a typical point: a median over points, which clutter's many sparse
+// voxels do not decide. 100 surface voxels of 10 points and 400 clutter voxels of 1 or 2.
+TEST(PointGridOrder, TheSurfacesVoxelCountIsATypicalPointsNotATypicalVoxels) {
+  std::vector<std::uint32_t> counts;
+  for (int i = 0; i < 100; ++i)
+    counts.push_back(10);
+  for (int i = 0; i < 400; ++i)
+    counts.push_back(1 + static_cast<std::uint32_t>(i % 2));
+  EXPECT_EQ(surface_voxel_count(counts, 1), 5u);
+  EXPECT_EQ(surface_voxel_count(counts, 7), 7u);
+  // A sparse scan: everything kept.
+  EXPECT_EQ(surface_voxel_count(std::vector<std::uint32_t>(50, 1), 1), 1u);
 }
 
 TEST(PointGridOrder, NeighboursComeCellByCellInIndexOrder) {
