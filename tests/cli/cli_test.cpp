@@ -67,10 +67,9 @@ TEST(Cli, UsageErrorsExitTwo) {
                 .status,
             2);
   // More clutter than points: named, and nothing written.
-  const CommandResult crowded =
-      run_nurbsreg("synth --model " + kPanel + " --points 10 --out " + (dir / "c.pcd") +
-                       " --outliers 0.6 --fixture 0.5",
-                   dir.path());
+  const CommandResult crowded = run_nurbsreg("synth --model " + kPanel + " --points 10 --out " +
+                                                 (dir / "c.pcd") + " --outliers 0.6 --fixture 0.5",
+                                             dir.path());
   EXPECT_EQ(crowded.status, 2);
   EXPECT_NE(crowded.err.find("outliers and fixture"), std::string::npos) << crowded.err;
   EXPECT_FALSE(std::filesystem::exists(dir / "c.pcd"));
