@@ -52,11 +52,12 @@ constexpr BinomialTable<kMaxDegree> kBinomial;
     b2[i] = nn * (l2[i] - 2.0 * l2[i + 1] + l2[i + 2]);
 }
 
-// Fixed degree N: Bernstein values and derivatives with compile-time loop bounds (unrolled).
+// Fixed degree N: Bernstein values and derivatives with compile-time loop bounds (unrolled),
+// bit for bit bernstein_012(N, ...).
 template <int N>
 [[gnu::always_inline]] inline void bernstein_012_fixed(double t, double* b0, double* b1,
                                                        double* b2) {
-  static_assert(N >= 2 && N <= kMaxDegree);
+  static_assert(N >= 1 && N <= kMaxDegree);
   const double u = 1.0 - t;
   double tp[N + 1], up[N + 1];
   tp[0] = up[0] = 1.0;
@@ -72,12 +73,18 @@ template <int N>
     l1[i + 1] = kBinomial.c[N - 1][i] * tp[i] * up[N - 1 - i];
   for (int i = 0; i <= N; ++i)
     b1[i] = N * (l1[i] - l1[i + 1]);
-  double l2[N + 3];
-  l2[0] = l2[1] = l2[N + 1] = l2[N + 2] = 0.0;
-  for (int i = 0; i <= N - 2; ++i)
-    l2[i + 2] = kBinomial.c[N - 2][i] * tp[i] * up[N - 2 - i];
-  for (int i = 0; i <= N; ++i)
-    b2[i] = double(N * (N - 1)) * (l2[i] - 2.0 * l2[i + 1] + l2[i + 2]);
+  if constexpr (N < 2) {
+    // Linear: no second derivative (bernstein_012's zeros).
+    for (int i = 0; i <= N; ++i)
+      b2[i] = 0.0;
+  } else {
+    double l2[N + 3];
+    l2[0] = l2[1] = l2[N + 1] = l2[N + 2] = 0.0;
+    for (int i = 0; i <= N - 2; ++i)
+      l2[i + 2] = kBinomial.c[N - 2][i] * tp[i] * up[N - 2 - i];
+    for (int i = 0; i <= N; ++i)
+      b2[i] = double(N * (N - 1)) * (l2[i] - 2.0 * l2[i + 1] + l2[i + 2]);
+  }
 }
 
 }  // namespace

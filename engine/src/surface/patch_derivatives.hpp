@@ -175,6 +175,13 @@ template <int W>
   // Lofted sheets (blades, hulls): cubic across, degree 8 along the span.
   if (p == 3 && q == 8) return patch_derivatives_fixed<3, 8, W>(patch, s, t, out);
   if (p == 8 && q == 3) return patch_derivatives_fixed<8, 3, W>(patch, s, t, out);
+  // What most of a machined part's area is: planes (1, 1), cylinders and cones (rational (2, 1)),
+  // extrusions and fillets of a cubic profile (3, 1), ruled faces.
+  if (p == 1 && q == 1) return patch_derivatives_fixed<1, 1, W>(patch, s, t, out);
+  if (p == 2 && q == 1) return patch_derivatives_fixed<2, 1, W>(patch, s, t, out);
+  if (p == 1 && q == 2) return patch_derivatives_fixed<1, 2, W>(patch, s, t, out);
+  if (p == 3 && q == 1) return patch_derivatives_fixed<3, 1, W>(patch, s, t, out);
+  if (p == 1 && q == 3) return patch_derivatives_fixed<1, 3, W>(patch, s, t, out);
   double bu[3][kMaxDegree + 1], bv[3][kMaxDegree + 1];
   bernstein_012(p, s, bu[0], bu[1], bu[2]);
   bernstein_012(q, t, bv[0], bv[1], bv[2]);
@@ -242,6 +249,11 @@ bool patch_first_derivatives(const BezierPatch& patch, double s, double t, Vec3*
   if (p == 3 && q == 2) return patch_first_derivatives_fixed<3, 2>(patch, s, t, out), true;
   if (p == 3 && q == 8) return patch_first_derivatives_fixed<3, 8>(patch, s, t, out), true;
   if (p == 8 && q == 3) return patch_first_derivatives_fixed<8, 3>(patch, s, t, out), true;
+  if (p == 1 && q == 1) return patch_first_derivatives_fixed<1, 1>(patch, s, t, out), true;
+  if (p == 2 && q == 1) return patch_first_derivatives_fixed<2, 1>(patch, s, t, out), true;
+  if (p == 1 && q == 2) return patch_first_derivatives_fixed<1, 2>(patch, s, t, out), true;
+  if (p == 3 && q == 1) return patch_first_derivatives_fixed<3, 1>(patch, s, t, out), true;
+  if (p == 1 && q == 3) return patch_first_derivatives_fixed<1, 3>(patch, s, t, out), true;
   return false;
 }
 
