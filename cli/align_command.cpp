@@ -105,9 +105,15 @@ void run_align(const AlignArgs& args) {
   const registration::FitVerdict& fit = frame.fit;
   // Where the tolerance came from: a scan whose noise could not be estimated gets the model's
   // floor, and "3 x noise 0" would read as a bug.
+  // When the distances at the pose tightened the scan's own estimate, both are shown.
+  const std::string tightened =
+      fit.noise < fit.scan_noise
+          ? fmt::format(" of the distances; the scan's own estimate {:.3g}", fit.scan_noise)
+          : std::string();
   const std::string basis =
-      fit.noise > 0.0 ? fmt::format("{:.3g} x noise {:.3g}", fit.tolerance / fit.noise, fit.noise)
-                      : std::string("noise not estimated: the model's floor");
+      fit.noise > 0.0
+          ? fmt::format("{:.3g} x noise {:.3g}{}", fit.tolerance / fit.noise, fit.noise, tightened)
+          : std::string("noise not estimated: the model's floor");
   std::cout << fmt::format(
       "fit {}: {:.1f}% of the points within {:.3g} ({}), rms {:.3g}, model coverage {:.1f}%\n",
       fit.word(), 100.0 * fit.inlier_fraction, fit.tolerance, basis, fit.rms, 100.0 * fit.coverage);

@@ -111,7 +111,9 @@ std::string report_to_json(const AlignmentReport& r) {
                                    {"inlier_fraction", number_or_null(f.inlier_fraction)},
                                    {"rms", number_or_null(f.rms)},
                                    {"rms_over_noise", number_or_null(f.rms_ratio)},
-                                   {"coverage", number_or_null(f.coverage)}};
+                                   {"coverage", number_or_null(f.coverage)},
+                                   {"scan_noise", number_or_null(f.scan_noise)},
+                                   {"fit_noise", number_or_null(f.fit_noise)}};
   }
   if (r.has_coarse) {
     const CoarseRecord& c = r.coarse;
@@ -202,6 +204,8 @@ AlignmentReport parse_alignment_report(std::string_view text, const std::string&
       num("rms", r.fit.rms);
       num("rms_over_noise", r.fit.rms_ratio);
       num("coverage", r.fit.coverage);
+      num("scan_noise", r.fit.scan_noise);
+      num("fit_noise", r.fit.fit_noise);
     }
   }
   if (const Json* c = in.find(document, "coarse"); c && c->is_object()) {

@@ -27,8 +27,9 @@ AlignmentReport make_alignment_report(const registration::AlignmentResult& frame
   if (frame.fit.evaluated) {
     const registration::FitVerdict& f = frame.fit;
     report.has_fit = true;
-    report.fit = {std::string(f.word()), f.reason, f.noise,     f.tolerance,
-                  f.inlier_fraction,     f.rms,    f.rms_ratio, f.coverage};
+    report.fit = {std::string(f.word()), f.reason,   f.noise,     f.tolerance,
+                  f.inlier_fraction,     f.rms,      f.rms_ratio, f.coverage,
+                  f.scan_noise,          f.fit_noise};
   }
   if (const auto& c = frame.coarse) {
     const auto score = [](const registration::PoseScore& s) {

@@ -120,7 +120,8 @@ _ALIGN_DOC = """
     Returns an AlignmentResult: ``T_model_scan`` (4x4, model_point = T * scan_point),
     ``converged``, ``termination``, ``iterations``, ``rms``, ``inliers``, ``points``,
     ``fitness`` (inliers / points), ``fit`` (the verdict: a FitVerdict with ``fit`` "good" or
-    "poor", ``inlier_fraction``, ``rms``, ``noise``, ``rms_over_noise``, ``tolerance``,
+    "poor", ``inlier_fraction``, ``rms``, ``noise`` (the smaller of ``scan_noise`` and
+    ``fit_noise``), ``rms_over_noise``, ``tolerance``,
     ``coverage``, ``reason``), ``coarse`` (the global stage's CoarseReport: ``method``,
     ``hypotheses``, ``verified``, ``winner`` and ``runner_up`` PoseScores, symmetric
     ``alternatives``, ``seconds``; None when it did not run), ``covariance`` (6x6),

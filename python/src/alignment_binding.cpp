@@ -93,7 +93,12 @@ void bind_verdict(py::module_& m) {
           "fit", [](const FitVerdict& f) { return std::string(f.word()); }, "\"good\" or \"poor\".")
       .def_readonly("good", &FitVerdict::good)
       .def_readonly("noise", &FitVerdict::noise,
-                    "The scan's own noise estimate sigma (model units).")
+                    "The noise sigma of the tolerance (model units): the smaller of scan_noise "
+                    "and fit_noise.")
+      .def_readonly("scan_noise", &FitVerdict::scan_noise,
+                    "The scan's own noise estimate (local quadrics; independent of the pose).")
+      .def_readonly("fit_noise", &FitVerdict::fit_noise,
+                    "The noise of the exact distances at the pose (robust; 0: too few points).")
       .def_readonly("tolerance", &FitVerdict::tolerance,
                     "Inlier tolerance: 3 x noise (with a floor of 1e-5 x the scan's size).")
       .def_readonly("inlier_fraction", &FitVerdict::inlier_fraction,

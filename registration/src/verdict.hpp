@@ -19,6 +19,12 @@ namespace nurbsreg::registration::detail {
 double fit_tolerance(double noise, double scan_diagonal, double voxel,
                      const VerdictOptions& options);
 
+// A robust noise sigma from exact point-to-model distances: the median of those within `window`
+// over the median of |Z| for a standard normal Z truncated at 3 (the window is 3 x the scan's
+// noise estimate). 0 when fewer than kMinFitNoisePoints lie within the window.
+inline constexpr std::size_t kMinFitNoisePoints = 100;
+double fit_noise(std::span<const double> distances, double window);
+
 // The verdict on aligned scan points with their exact distances to the model (both in scan
 // order, all points), the scan's noise estimate and its bounding-box diagonal.
 FitVerdict judge_fit(std::span<const engine::Vec3> aligned, std::span<const double> distances,

@@ -35,6 +35,8 @@ struct FitRecord {
   std::string reason;
   double noise = 0.0, tolerance = 0.0, inlier_fraction = 0.0, rms = 0.0, rms_ratio = 0.0,
          coverage = 0.0;
+  // registration::FitVerdict's two noise estimates (noise is the smaller); optional in a report.
+  double scan_noise = 0.0, fit_noise = 0.0;
 };
 
 // One scored pose of the coarse stage.

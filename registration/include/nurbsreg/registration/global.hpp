@@ -78,7 +78,17 @@ struct VerdictOptions {
 struct FitVerdict {
   bool evaluated = false;  // false when there was no pose to judge (an ICP failure)
   bool good = false;
-  double noise = 0.0;            // the scan's own noise estimate sigma (model units)
+  // The noise sigma the tolerance is made of (model units): the scan's own estimate, or the
+  // residuals' at the pose when those are smaller (fit_noise below).
+  double noise = 0.0;
+  // The scan's own estimate, from local quadrics, independent of the model and the pose. Clutter
+  // near the surface and strong curvature inflate it.
+  double scan_noise = 0.0;
+  // From the exact distances at the final pose: 1.4826 x their median within the scan noise's
+  // tolerance, corrected for that truncation (0: too few points within it). Used only to tighten
+  // (noise = min(scan_noise, fit_noise)): a wrong pose has larger residuals, so it cannot widen
+  // its own tolerance.
+  double fit_noise = 0.0;
   double tolerance = 0.0;        // inlier tolerance
   double inlier_fraction = 0.0;  // of all scan points, exact distance <= tolerance
   double rms = 0.0;              // of the inliers' exact distances
