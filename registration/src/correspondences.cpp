@@ -24,23 +24,34 @@ std::vector<Match> match_descriptors(const DescriptorMatrix& scan, const ModelDe
   tbb::parallel_for(Eigen::Index{0}, blocks, [&](Eigen::Index b) {
     const Eigen::Index begin = b * kBlock;
     const Eigen::Index rows = std::min(kBlock, ns - begin);
+    // Column-major: a model descriptor's column holds the block's dot products contiguously, so
+    // the loops run over the block's rows inside and the model's columns outside (the other
+    // order read the product with a stride of a whole column per step). The same distances, the
+    // same first minima as a row-by-row scan (strict comparisons in ascending order).
     const Eigen::MatrixXf dot = scan.middleRows(begin, rows) * model.transpose();
+    float row_best[kBlock];
+    std::uint32_t row_best_j[kBlock];
+    std::fill(row_best, row_best + rows, std::numeric_limits<float>::infinity());
+    std::fill(row_best_j, row_best_j + rows, 0u);
+    const float* scan_sq_block = scan_sq.data() + begin;
     auto& best_scan = backward[static_cast<std::size_t>(b)];
-    best_scan.assign(static_cast<std::size_t>(nm), {std::numeric_limits<float>::infinity(), 0});
-    for (Eigen::Index r = 0; r < rows; ++r) {
-      float best = std::numeric_limits<float>::infinity();
-      std::uint32_t best_j = 0;
-      for (Eigen::Index j = 0; j < nm; ++j) {
-        const float d = scan_sq(begin + r) + model_sq(j) - 2.0f * dot(r, j);
-        if (d < best) {
-          best = d;
-          best_j = static_cast<std::uint32_t>(j);
+    best_scan.resize(static_cast<std::size_t>(nm));
+    for (Eigen::Index j = 0; j < nm; ++j) {
+      const float* column = dot.col(j).data();
+      const float model_sq_j = model_sq(j);
+      std::pair<float, std::uint32_t> best{std::numeric_limits<float>::infinity(), 0};
+      for (Eigen::Index r = 0; r < rows; ++r) {
+        const float d = scan_sq_block[r] + model_sq_j - 2.0f * column[r];
+        if (d < row_best[r]) {
+          row_best[r] = d;
+          row_best_j[r] = static_cast<std::uint32_t>(j);
         }
-        auto& bj = best_scan[static_cast<std::size_t>(j)];
-        if (d < bj.first) bj = {d, static_cast<std::uint32_t>(begin + r)};
+        if (d < best.first) best = {d, static_cast<std::uint32_t>(begin + r)};
       }
-      forward[static_cast<std::size_t>(begin + r)] = best_j;
+      best_scan[static_cast<std::size_t>(j)] = best;
     }
+    for (Eigen::Index r = 0; r < rows; ++r)
+      forward[static_cast<std::size_t>(begin + r)] = row_best_j[r];
   });
   nurbsreg::engine::stop_if_cancelled();
   out.reserve(static_cast<std::size_t>(ns + nm));
