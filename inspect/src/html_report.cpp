@@ -283,12 +283,18 @@ std::string alignment_section(const InspectionReport& r) {
     fact("termination", escape(a.termination));
     if (a.has_fit) {
       const io::FitRecord& f = a.fit;
-      fact("fit",
-           fmt::format("<span data-key=\"fit\">{}</span>: {:.1f} % of the points within "
-                       "{:.4g} {} (estimated noise {:.4g}), rms {:.4g}, model coverage {:.1f} %{}",
-                       escape(f.fit), 100.0 * f.inlier_fraction, f.tolerance, escape(r.units),
-                       f.noise, f.rms, 100.0 * f.coverage,
-                       f.reason.empty() ? "" : " &mdash; " + escape(f.reason)));
+      // The verdict's noise is the smaller of the scan's own estimate and the distances' at the
+      // pose (registration::FitVerdict): when the distances tightened it, both are named.
+      const std::string noise =
+          f.noise < f.scan_noise
+              ? fmt::format("noise {:.4g} of the distances; the scan's own estimate {:.4g}",
+                            f.noise, f.scan_noise)
+              : fmt::format("estimated noise {:.4g}", f.noise);
+      fact("fit", fmt::format("<span data-key=\"fit\">{}</span>: {:.1f} % of the points within "
+                              "{:.4g} {} ({}), rms {:.4g}, model coverage {:.1f} %{}",
+                              escape(f.fit), 100.0 * f.inlier_fraction, f.tolerance,
+                              escape(r.units), noise, f.rms, 100.0 * f.coverage,
+                              f.reason.empty() ? "" : " &mdash; " + escape(f.reason)));
     }
     if (a.has_coarse) {
       const io::CoarseRecord& c = a.coarse;
