@@ -302,6 +302,35 @@ TEST(Cli, AlignWithoutInitFindsThePoseFromAnywhere) {
   EXPECT_GT(report["coarse"]["winner"]["inlier_fraction"].get<double>(), 0.9);
 }
 
+// Clutter near the panel (30% outliers in its thin box) inflates the scan's own noise estimate:
+// the verdict's noise comes from the distances at the pose, and the align line, the report and
+// inspect's page name both estimates.
+TEST(Cli, UnderClutterTheVerdictNamesBothNoiseEstimates) {
+  ScratchDir dir("align_clutter_noise");
+  const std::string scan = synth_panel_scan(
+      dir, "cluttered.pcd", "--points 20000 --seed 3 --noise 0.0146 --outliers 0.3");
+  const CommandResult align = run_nurbsreg("-q align --threads 1 --model " + kPanel + " --scan " +
+                                               scan + " --report " + (dir / "report.json"),
+                                           dir.path());
+  ASSERT_EQ(align.status, 0) << align.err;
+  EXPECT_NE(align.out.find("of the distances; the scan's own estimate"), std::string::npos)
+      << align.out;
+  const auto details = nlohmann::json::parse(read_text(dir / "report.json"))["fit_details"];
+  const double scan_noise = details["scan_noise"].get<double>();
+  const double fit_noise = details["fit_noise"].get<double>();
+  EXPECT_GT(scan_noise, 1.3 * 0.0146);
+  EXPECT_NEAR(fit_noise, 0.0146, 0.0015);
+  EXPECT_EQ(details["noise"].get<double>(), fit_noise);
+  EXPECT_NEAR(details["tolerance"].get<double>(), 3.0 * fit_noise, 1e-12);
+  const CommandResult inspect =
+      run_nurbsreg("-q inspect --threads 1 --model " + kPanel + " --scan " + scan +
+                       " --tolerance 0.05 --out-dir " + (dir / "inspection"),
+                   dir.path());
+  ASSERT_EQ(inspect.status, 0) << inspect.err;
+  const std::string html = read_text(dir / "inspection/report.html");
+  EXPECT_NE(html.find("of the distances; the scan's own estimate"), std::string::npos);
+}
+
 // A wrong pose from --init is never a plain success: exit 1 with one line naming the scan and
 // the poor fit; --accept-poor writes it, reported "poor".
 TEST(Cli, APoorFitFailsUnlessAccepted) {
