@@ -1,5 +1,7 @@
 #include "nurbsreg/icp/certificate_atlas.hpp"
 
+#include "blocks.hpp"
+
 #include <array>
 #include <cmath>
 #include <cstdlib>
@@ -79,6 +81,30 @@ void CertificateAtlas::insert(const engine::ProjectionHint& hint) {
   }
   slots_[i] = Slot{k, static_cast<std::uint32_t>(hints_.size())};
   hints_.push_back(hint);
+}
+
+void CertificateAtlas::lookup_order(std::span<const engine::Vec3> points, bool parallel,
+                                    std::vector<std::uint32_t>& order,
+                                    std::vector<std::uint32_t>& bucket) const {
+  const std::size_t n = points.size();
+  // About eight points a bucket: a bucket holds one cell's points, or a few cells'.
+  std::size_t buckets = 1;
+  while (buckets < n / 8)
+    buckets *= 2;
+  const std::uint64_t mask = buckets - 1;
+  bucket.resize(n);
+  detail::for_each_block(n, parallel, [&](std::size_t begin, std::size_t end, std::size_t) {
+    for (std::size_t k = begin; k < end; ++k)
+      bucket[k] = static_cast<std::uint32_t>(mix(key(cell_of(points[k]))) & mask);
+  });
+  std::vector<std::uint32_t> start(buckets + 1, 0);
+  for (std::size_t k = 0; k < n; ++k)
+    ++start[bucket[k] + 1];
+  for (std::size_t b = 0; b < buckets; ++b)
+    start[b + 1] += start[b];
+  order.resize(n);
+  for (std::size_t k = 0; k < n; ++k)
+    order[start[bucket[k]]++] = static_cast<std::uint32_t>(k);
 }
 
 const engine::ProjectionHint* CertificateAtlas::find_in_cell(const engine::Vec3& p,

@@ -118,8 +118,12 @@ ModelCorrespondenceFinder::HintSource ModelCorrespondenceFinder::prepare_hints(
     const std::size_t n = query.points.size();
     borrowed_.resize(n);
     const std::span<const std::size_t> ids = query.scan_indices;
+    // In an order that keeps each atlas cell's points together (the lookups' probes then hit
+    // the cache); each point's lookup is its own, so the order changes no result.
+    atlas_.lookup_order(query.points, query.parallel, lookup_order_, lookup_bucket_);
     detail::for_each_block(n, query.parallel, [&](std::size_t begin, std::size_t end, std::size_t) {
-      for (std::size_t k = begin; k < end; ++k) {
+      for (std::size_t position = begin; position < end; ++position) {
+        const std::size_t k = lookup_order_[position];
         const engine::Vec3& p = query.points[k];
         const bool keeps_own =
             stopped_borrowing(ids.empty() ? k : ids[k]) || source.own(k).certificate.covers(p);

@@ -4,8 +4,12 @@
 // distances, while most full-resolution points really are answered through a certificate.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <array>
 #include <cmath>
+#include <map>
 #include <random>
+#include <vector>
 
 #include "nurbsreg/engine/prepared_model.hpp"
 #include "nurbsreg/engine/synthetic_scan.hpp"
@@ -105,6 +109,48 @@ const engine::PreparedModel& panel() {
   static const engine::PreparedModel model(
       io::read_model_json(nurbsreg::test::examples_dir() + "/panel.json"));
   return model;
+}
+
+// The order the finder looks points up in: every point once, and the points of one cell close
+// together (so that the first of them brings the cell's neighbourhood into the cache).
+TEST(CertificateAtlas, TheLookupOrderIsAPermutationThatKeepsEachCellClose) {
+  CertificateAtlas atlas;
+  atlas.reset(0.5);
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<double> u(-20.0, 20.0);
+  std::vector<Vec3> points(20000);
+  for (Vec3& p : points)
+    p = Vec3(u(rng), u(rng), u(rng));
+  for (const bool parallel : {false, true}) {
+    std::vector<std::uint32_t> order, bucket;
+    atlas.lookup_order(points, parallel, order, bucket);
+    ASSERT_EQ(order.size(), points.size());
+    std::vector<int> seen(points.size(), 0);
+    for (const std::uint32_t k : order)
+      ++seen[k];
+    EXPECT_EQ(std::count(seen.begin(), seen.end(), 1), static_cast<long>(points.size()));
+    // A cell's points lie within one run of its hash bucket (about eight points a bucket): the
+    // first and the last of them are a few positions apart, where the scan's own order spreads
+    // them over the whole frame.
+    const auto cell = [](const Vec3& p) {
+      return std::array<long, 3>{static_cast<long>(std::floor(p.x() / 0.5)),
+                                 static_cast<long>(std::floor(p.y() / 0.5)),
+                                 static_cast<long>(std::floor(p.z() / 0.5))};
+    };
+    std::map<std::array<long, 3>, std::pair<std::size_t, std::size_t>> span;
+    for (std::size_t i = 0; i < order.size(); ++i) {
+      auto [it, added] = span.try_emplace(cell(points[order[i]]), i, i);
+      if (!added) it->second.second = i;
+    }
+    std::size_t widest = 0;
+    for (const auto& [c, s] : span)
+      widest = std::max(widest, s.second - s.first);
+    EXPECT_LT(widest, 64u);
+  }
+  // The empty frame.
+  std::vector<std::uint32_t> order{7}, bucket;
+  atlas.lookup_order({}, true, order, bucket);
+  EXPECT_TRUE(order.empty());
 }
 
 TEST(ModelFinderCertificates, BorrowedAndCarriedCertificatesGiveTheExactFeet) {

@@ -13,6 +13,7 @@
 // nothing is inserted.
 
 #include <cstdint>
+#include <span>
 #include <vector>
 
 #include "nurbsreg/engine/projection.hpp"
@@ -31,6 +32,13 @@ class CertificateAtlas {
   // then corners) whose best covering one does, else the covering one with the most slack.
   const engine::ProjectionHint* find(const engine::Vec3& p) const;
   std::size_t size() const { return hints_.size(); }
+  // An order of `points` (indices into it) in which the points of one cell lie close together,
+  // within the run of one hash bucket of about eight points: a counting sort by a hash of the
+  // cell. A lookup probes up to 27 cells; in a random scan order each probe misses the cache, in
+  // this one the points after the first of a cell find its cells there. `bucket` is scratch (no
+  // allocation once grown).
+  void lookup_order(std::span<const engine::Vec3> points, bool parallel,
+                    std::vector<std::uint32_t>& order, std::vector<std::uint32_t>& bucket) const;
 
  private:
   struct Cell {

@@ -96,6 +96,8 @@ class ModelCorrespondenceFinder final : public CorrespondenceFinder {
   engine::FrameVector<std::uint32_t> previous_position_;
   // Per query point: the atlas certificate it borrows, or null (HintSource::borrowed).
   engine::FrameVector<const engine::ProjectionHint*> borrowed_;
+  // The atlas lookups' order and its scratch (CertificateAtlas::lookup_order).
+  std::vector<std::uint32_t> lookup_order_, lookup_bucket_;
   // Per scan point: 1 once a certificate it borrowed did not prove its answer (it borrows no
   // more until reset()); sized with previous_position_.
   engine::FrameVector<std::uint8_t> borrow_failed_;
