@@ -380,8 +380,8 @@ void write_surface_answer(const PreparedModel& model, const ProjectionOptions& o
   // marked as tried instead).
   OtherItems others;
   others.margin = 2.0 * certificate_cap;
-  // A certificate that could serve moves of less than this share of the cap is not worth its
-  // search (the walk gives up: OtherItems::gave_up).
+  // A certificate that could serve moves of less than this share of the cap is not worth
+  // making (OtherItems::gives_up).
   constexpr double kGiveUpShare = 1.0 / 32.0;
   others.give_up_margin = 2.0 * kGiveUpShare * certificate_cap;
   const bool certifying = options.certify && !point.proven && !tried_here &&
@@ -421,7 +421,7 @@ void write_surface_answer(const PreparedModel& model, const ProjectionOptions& o
     // make_certificate needs what the certifying search learnt (`others`).
     out.certificate[i] =
         tried_here ? hint->certificate
-        : certifying && !others.gave_up
+        : certifying && !others.gives_up(point.best.distance_sq)
             ? make_certificate(p, point.best, point.patch, point.edge, others, state)
             : tried_at(p);
   } else {

@@ -42,16 +42,16 @@ struct Projector::OtherItems {
   static constexpr std::int64_t kNone = std::numeric_limits<std::int64_t>::min();
   static constexpr int kSlots = 12;
   double margin = 0.0;
-  // The cheap failure path: the walk stops certifying (prunes as a plain search from then on) once
-  // two items that no box N can hold together both come within `give_up_margin` of the best
-  // distance: one of them would cap any certificate's clearance below that, so it would serve
-  // moves below half of it (thin walls, close sheets). Only a matter of cost: a point whose
-  // walk gave up gets no certificate (tried_at), its answer is the plain search's.
+  // The cheap failure path: an item that no box N about the best can hold (another face, an
+  // edge, a patch beyond the best's neighbours) caps every certificate's clearance at its minimum
+  // (cut_sq): the walk prunes there from then on, and the clearance is at most sqrt(cut_sq), since
+  // items pruned against it are known only to be beyond it. When that cap ends within
+  // `give_up_margin` of the final best distance (thin walls, close sheets, a foot by another
+  // face), a certificate would serve moves below half of it: none is made (gives_up; only a
+  // matter of cost, the answer is the search's). Judged against the final best, not the best at
+  // the time: early in a walk the best may be a far face's trim edge, and two pieces of that edge
+  // meeting at their minimum are "close" to it, while the answer later lies far nearer.
   double give_up_margin = 0.0;
-  bool gave_up = false;
-  // Such an item found farther out caps every certificate's clearance at its minimum: the walk
-  // prunes there from then on (cut_sq), and the clearance is at most sqrt(cut_sq), since items
-  // pruned against it are known only to be beyond it.
   double cut_sq = std::numeric_limits<double>::infinity();
   // Ascending by minimum; unused slots at the end (kNone, infinity).
   std::int64_t item[kSlots];
@@ -62,13 +62,12 @@ struct Projector::OtherItems {
     std::fill(std::begin(minimum), std::end(minimum), std::numeric_limits<double>::infinity());
   }
   double threshold(double best_sq) const {
-    if (gave_up) return best_sq;
     const double d = std::sqrt(best_sq) + margin;
     return std::min(d * d, std::max(cut_sq, best_sq));
   }
-  double give_up_sq(double best_sq) const {
+  bool gives_up(double best_sq) const {
     const double d = std::sqrt(best_sq) + give_up_margin;
-    return d * d;
+    return cut_sq < d * d;
   }
   void add(std::int64_t id, double value) {
     int k = 0;

@@ -38,9 +38,9 @@ void Projector::search_surfaces(const Vec3& p, SurfaceSearch& search, std::int64
         return best_sq;
       }
     };
-    // Certifying: would item `id` (its minimum `value`), next to the best so far, leave any
-    // certificate too little clearance (OtherItems::gave_up)? Not when a box N about the best's
-    // foot may hold it: the best's own patch and its grid neighbours on the same surface.
+    // Certifying: could item `id` (its minimum `value`), other than the best so far, be held by
+    // a box N about the best's foot? Yes for the best's own patch and its grid neighbours on the
+    // same surface; anything else caps the clearance (OtherItems::cut_sq).
     const auto blocking = [&](std::int64_t id) {
       if (id >= 0 && search.patch >= 0 && search.edge < 0) {
         const std::size_t k = static_cast<std::size_t>(id);
@@ -54,16 +54,11 @@ void Projector::search_surfaces(const Vec3& p, SurfaceSearch& search, std::int64
       }
       return true;
     };
-    // A blocking item gives up the certificate when it is that close, or else caps its clearance
-    // (OtherItems::cut_sq); `a` follows.
+    // A blocking item caps the clearance; `a` follows.
     const auto note = [&](std::int64_t id, double value, double& a) {
       if constexpr (kCertifying) {
-        if (others->gave_up || id == OtherItems::kNone || !blocking(id)) return;
-        if (value < others->give_up_sq(best.distance_sq)) {
-          others->gave_up = true;
-        } else {
-          others->cut_sq = std::min(others->cut_sq, value);
-        }
+        if (id == OtherItems::kNone || !blocking(id)) return;
+        others->cut_sq = std::min(others->cut_sq, value);
         a = threshold(best.distance_sq);
       }
     };

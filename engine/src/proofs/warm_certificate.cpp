@@ -239,30 +239,42 @@ void float_range(double center, double h, float& lo, float& hi, double lo_limit 
   hi = std::min(hi, static_cast<float>(hi_limit));
 }
 
-// The boxes certify_patch tries, as half-widths about the foot: 1/4 and 1/10 of P; on a trimmed
-// face, where only a smaller box may fit in the region, then the size a certificate needs (the
-// disc of surface points that may come within d + 2 r_max of a, about the foot, if the surface
-// curves away no faster than its tangent plane: sqrt((d + 2 r_max)^2 - d^2), half as wide
-// again, in P's local units along |S_s| and |S_t|) and its halves, down to an eighth.
+// The boxes certify_patch tries, as half-widths about the foot: the wider side 1/4 and 1/10 of
+// P; on a trimmed face, where only a smaller box may fit in the region, then the size a
+// certificate needs (the disc of surface points that may come within d + 2 r_max of a, about the
+// foot, if the surface curves away no faster than its tangent plane: sqrt((d + 2 r_max)^2 - d^2),
+// half as wide again) and its halves, down to an eighth, the wider side at most 1/10 of P.
+// Every box is as wide in space along s as along t (h_s |S_s| = h_t |S_t| at the foot, the ratio
+// kept within 1/32): on a long thin patch (a fillet's strip) a box square in P's parameters is
+// several times longer in space than wide, and the tiles beside it across its long side reach
+// back under the foot: their Bernstein bounds dip below zero and leave no clearance.
 struct Half {
   double s, t;
 };
 int candidate_halves(const PreparedPatch& pp, double s, double t, double d, double r_max,
                      bool trimmed, Half* halves) {
+  Vec3 der[6];
+  pp.patch.derivatives(s, t, der);
+  const double ls = der[1].norm(), lt = der[2].norm();
+  // h_t / h_s for a box square in space (1 where a tangent vanishes: a pole).
+  constexpr double kMaxAspect = 32.0;
+  const double aspect = ls > 0.0 && lt > 0.0 && std::isfinite(ls / lt)
+                            ? std::clamp(ls / lt, 1.0 / kMaxAspect, kMaxAspect)
+                            : 1.0;
+  // The box whose wider side is `widest`.
+  const auto square = [aspect](double widest) {
+    return aspect >= 1.0 ? Half{widest / aspect, widest} : Half{widest, widest * aspect};
+  };
   int count = 0;
-  halves[count++] = {0.25, 0.25};
-  halves[count++] = {0.1, 0.1};
+  halves[count++] = square(0.25);
+  halves[count++] = square(0.1);
   if (trimmed) {
-    Vec3 der[6];
-    pp.patch.derivatives(s, t, der);
     const double disc = 1.5 * std::sqrt(4.0 * r_max * (d + r_max));
-    const auto half = [disc](const Vec3& tangent) {
-      const double length = tangent.norm();
-      return length > 0.0 ? std::min(disc / length, 0.1) : 0.1;
-    };
-    const Half need{half(der[1]), half(der[2])};
+    // The needed box's wider side in P's units (along the shorter tangent), at most 1/10.
+    const double shorter = std::min(ls, lt);
+    const double need = shorter > 0.0 ? std::min(disc / shorter, 0.1) : 0.1;
     for (const double k : {1.0, 0.5, 0.25, 0.125})
-      halves[count++] = {k * need.s, k * need.t};
+      halves[count++] = square(k * need);
   }
   return count;
 }

@@ -278,7 +278,7 @@ TEST_P(WarmAnchorAnswers, EqualBruteForce) {
     ProjectionOptions options;
     options.certify = true;
     options.certificate_radius = GetParam() * diagonal;
-    const std::vector<Vec3> anchors = query_points(pm, 120, 9);
+    const std::vector<Vec3> anchors = query_points(pm, 240, 9);
     ProjectionResults first;
     projector.project(PointView::of(anchors), options, first);
     // Moved points: inside the radius (most), exactly on it, just beyond it, far beyond it; and
