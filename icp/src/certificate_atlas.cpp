@@ -2,6 +2,7 @@
 
 #include "blocks.hpp"
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstdlib>
@@ -22,10 +23,12 @@ std::uint64_t mix(std::uint64_t x) {
 
 }  // namespace
 
-void CertificateAtlas::reset(double cell) {
+void CertificateAtlas::reset(double cell, int per_cell) {
   inverse_cell_ = 1.0 / cell;
+  per_cell_ = static_cast<std::uint32_t>(std::clamp(per_cell, 1, kMaxPerCell));
   slots_.assign(1024, Slot{});
   hints_.clear();
+  count_ = 0;
 }
 
 CertificateAtlas::Cell CertificateAtlas::cell_of(const engine::Vec3& p) const {
@@ -65,22 +68,35 @@ void CertificateAtlas::insert(const engine::ProjectionHint& hint) {
   while (slots_[i].key != 0 && slots_[i].key != k)
     i = (i + 1) & mask;
   if (slots_[i].key == k) {
-    // The cell keeps the anchor with the larger clearance (the newer one on a tie): near a patch
-    // edge the clearance is short, and a borrowed certificate proves a query only when the
+    Slot& slot = slots_[i];
+    if (slot.count < per_cell_) {
+      hints_[slot.first + slot.count++] = hint;
+      ++count_;
+      return;
+    }
+    // A full cell keeps its anchors with the larger clearances (the newer one on a tie): near a
+    // patch edge clearances are short, and a borrowed certificate proves a query only when the
     // query's distance plus its distance from the anchor stays below it.
-    engine::ProjectionHint& kept = hints_[slots_[i].hint];
-    if (hint.certificate.clearance >= kept.certificate.clearance) kept = hint;
+    engine::ProjectionHint* shortest = &hints_[slot.first];
+    for (std::uint32_t j = 1; j < slot.count; ++j) {
+      engine::ProjectionHint& h = hints_[slot.first + j];
+      if (h.certificate.clearance <= shortest->certificate.clearance) shortest = &h;
+    }
+    if (hint.certificate.clearance >= shortest->certificate.clearance) *shortest = hint;
     return;
   }
-  if (2 * (hints_.size() + 1) > slots_.size()) {
+  if (2 * (cells() + 1) > slots_.size()) {
     grow();
     mask = slots_.size() - 1;
     i = mix(k) & mask;
     while (slots_[i].key != 0)
       i = (i + 1) & mask;
   }
-  slots_[i] = Slot{k, static_cast<std::uint32_t>(hints_.size())};
-  hints_.push_back(hint);
+  // A new cell reserves room for per_cell_ hints, side by side (a lookup reads them together).
+  slots_[i] = Slot{k, static_cast<std::uint32_t>(hints_.size()), 1};
+  hints_.resize(hints_.size() + per_cell_);
+  hints_[slots_[i].first] = hint;
+  ++count_;
 }
 
 void CertificateAtlas::lookup_order(std::span<const engine::Vec3> points, bool parallel,
@@ -114,12 +130,20 @@ const engine::ProjectionHint* CertificateAtlas::find_in_cell(const engine::Vec3&
   const std::size_t mask = slots_.size() - 1;
   for (std::size_t i = mix(k) & mask; slots_[i].key != 0; i = (i + 1) & mask) {
     if (slots_[i].key != k) continue;
-    const engine::ProjectionHint& h = hints_[slots_[i].hint];
-    // WarmCertificate::covers and the slack from one distance (a root, computed once).
-    const double d = h.certificate.distance_to_anchor(p);
-    if (!(h.certificate.radius > 0.0f && d <= h.certificate.radius)) return nullptr;
-    slack = static_cast<double>(h.certificate.clearance) - d;
-    return &h;
+    // The covering hint with the most slack (clearance - |p - anchor|; WarmCertificate::covers and
+    // the slack from one distance, a root computed once).
+    const engine::ProjectionHint* best = nullptr;
+    for (std::uint32_t j = 0; j < slots_[i].count; ++j) {
+      const engine::ProjectionHint& h = hints_[slots_[i].first + j];
+      const double d = h.certificate.distance_to_anchor(p);
+      if (!(h.certificate.radius > 0.0f && d <= h.certificate.radius)) continue;
+      const double s = static_cast<double>(h.certificate.clearance) - d;
+      if (best == nullptr || s > slack) {
+        best = &h;
+        slack = s;
+      }
+    }
+    return best;
   }
   return nullptr;
 }

@@ -15,12 +15,12 @@ ModelCorrespondenceFinder::ModelCorrespondenceFinder(const engine::PreparedModel
     // The cap is a share of the model's size: that of its trimmed faces (geometry_bounds), not
     // of their untrimmed control nets, which can be many times larger on CAD parts.
     : projector_(model), certificate_radius_(1e-2 * model.geometry_bounds().box.diagonal()) {
-  atlas_.reset(cell_side());
+  atlas_.reset(cell_side(), kAtlasHintsPerCell);
 }
 
 // Atlas cells of half the radius cap: any point of a cell is within 0.87 cap of an anchor in the
-// same cell, inside most certificates' radius, and a 10% subsample of a scan leaves about one
-// anchor per cell (quarter-cap cells left most of them empty: CertificateAtlas::find).
+// same cell, inside most certificates' radius, and a 10% subsample of a scan leaves one to three
+// anchors per cell (quarter-cap cells left most of them empty: CertificateAtlas::find).
 double ModelCorrespondenceFinder::cell_side() const {
   return certificate_radius_ > 0.0 ? 0.5 * certificate_radius_ : 1.0;
 }
@@ -30,7 +30,7 @@ void ModelCorrespondenceFinder::reset(std::size_t scan_size) {
   has_previous_ = false;
   previous_position_.assign(scan_size, kNoPosition);
   borrow_failed_.assign(scan_size, 0);
-  if (!keep_certificates_) atlas_.reset(cell_side());
+  if (!keep_certificates_) atlas_.reset(cell_side(), kAtlasHintsPerCell);
 }
 
 bool ModelCorrespondenceFinder::repeats_previous_query(const CorrespondenceQuery& query) const {

@@ -86,6 +86,47 @@ TEST(CertificateAtlas, PrefersCertificatesWithMoreSlack) {
   EXPECT_EQ(atlas.find(Vec3(0.1, 0.1, 0.1))->certificate.patch, 7);
 }
 
+// Several hints a cell: the first `per_cell` anchors are all kept and each covers its own
+// neighbourhood (small certificates, a cell of several anchors); of two that cover a point the one
+// with more slack answers; a full cell then replaces its shortest clearance by a longer (or equal,
+// newer) one, never a longer one by a shorter.
+TEST(CertificateAtlas, KeepsSeveralAnchorsACellEachForItsOwnPoints) {
+  CertificateAtlas atlas;
+  atlas.reset(1.0, 4);
+  // Three small certificates in cell (0, 0, 0), apart by more than their radius.
+  atlas.insert(hint_at(Vec3(0.2, 0.5, 0.5), 0.1, 1, 0.5));
+  atlas.insert(hint_at(Vec3(0.5, 0.5, 0.5), 0.1, 2, 0.3));
+  atlas.insert(hint_at(Vec3(0.8, 0.5, 0.5), 0.1, 3, 0.4));
+  EXPECT_EQ(atlas.size(), 3u);
+  EXPECT_EQ(atlas.find(Vec3(0.22, 0.5, 0.5))->certificate.patch, 1);
+  EXPECT_EQ(atlas.find(Vec3(0.5, 0.52, 0.5))->certificate.patch, 2);
+  EXPECT_EQ(atlas.find(Vec3(0.8, 0.5, 0.47))->certificate.patch, 3);
+  EXPECT_EQ(atlas.find(Vec3(0.35, 0.5, 0.5)), nullptr);  // between them: none covers it
+  // A fourth beside the second: at (0.5, 0.5, 0.5) both cover, the slacks 0.3 and 0.33.
+  atlas.insert(hint_at(Vec3(0.52, 0.5, 0.5), 0.1, 4, 0.35));
+  EXPECT_EQ(atlas.size(), 4u);
+  EXPECT_EQ(atlas.find(Vec3(0.5, 0.5, 0.5))->certificate.patch, 4);
+  EXPECT_EQ(atlas.find(Vec3(0.41, 0.5, 0.5))->certificate.patch, 2);  // beyond the fourth's ball
+  // Full: a shorter clearance than every kept one is dropped, a longer one replaces the
+  // shortest (patch 2, 0.3).
+  atlas.insert(hint_at(Vec3(0.45, 0.5, 0.5), 0.1, 5, 0.2));
+  EXPECT_EQ(atlas.size(), 4u);
+  EXPECT_EQ(atlas.find(Vec3(0.41, 0.5, 0.5))->certificate.patch, 2);
+  atlas.insert(hint_at(Vec3(0.21, 0.5, 0.5), 0.1, 6, 0.5));
+  EXPECT_EQ(atlas.size(), 4u);
+  EXPECT_EQ(atlas.find(Vec3(0.41, 0.5, 0.5)), nullptr);  // patch 2 gave way
+  EXPECT_EQ(atlas.find(Vec3(0.8, 0.5, 0.5))->certificate.patch, 3);
+  EXPECT_EQ(atlas.find(Vec3(0.52, 0.5, 0.5))->certificate.patch, 4);
+  // With one a cell the same inserts keep only the longest clearance, the newest of equals.
+  atlas.reset(1.0);
+  atlas.insert(hint_at(Vec3(0.2, 0.5, 0.5), 0.1, 1, 0.5));
+  atlas.insert(hint_at(Vec3(0.8, 0.5, 0.5), 0.1, 3, 0.4));
+  EXPECT_EQ(atlas.size(), 1u);
+  EXPECT_EQ(atlas.find(Vec3(0.8, 0.5, 0.5)), nullptr);
+  atlas.insert(hint_at(Vec3(0.21, 0.5, 0.5), 0.1, 6, 0.5));
+  EXPECT_EQ(atlas.find(Vec3(0.2, 0.5, 0.5))->certificate.patch, 6);
+}
+
 TEST(CertificateAtlas, GrowsAndFindsEveryAnchor) {
   CertificateAtlas atlas;
   atlas.reset(0.1);

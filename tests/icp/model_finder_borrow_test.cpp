@@ -101,9 +101,9 @@ TEST_F(ModelFinderBorrow, FailedBorrowersKeepTheirOwnHintsOthersStillLookUp) {
   EXPECT_GT(find(finder, coarse, certifying, small).certificates_made, coarse.size() / 2);
 
   // The oracle's atlas: the finder inserts a certifying query's certificates anchored at its
-  // points, in query order, into cells of half the radius cap.
+  // points, in query order, into cells of half the radius cap, kAtlasHintsPerCell a cell.
   CertificateAtlas atlas;
-  atlas.reset(0.5 * finder.certificate_radius());
+  atlas.reset(0.5 * finder.certificate_radius(), ModelCorrespondenceFinder::kAtlasHintsPerCell);
   const auto insert_made = [&](const engine::ProjectionResults& made,
                                const std::vector<Vec3>& points) {
     for (std::size_t k = 0; k < points.size(); ++k) {

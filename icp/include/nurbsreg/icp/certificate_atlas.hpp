@@ -5,12 +5,14 @@
 // coarse-to-fine schedule makes certificates on a subsample and the full-resolution pass borrows
 // them (ModelCorrespondenceFinder).
 //
-// A hash table over a cubic grid (open addressing, linear probing) keeping, per cell, the hint
-// (foot and certificate) of the anchor inserted there with the largest clearance (the newest of
-// equals): near a patch edge clearances are short, and a borrowed certificate proves a query only
-// when the query's distance plus its distance from the anchor stays below the clearance. Built and
-// read by the owner's thread; `find` is const and may be called from many threads at once while
-// nothing is inserted.
+// A hash table over a cubic grid (open addressing, linear probing) keeping, per cell, the hints
+// (foot and certificate) of up to `per_cell` anchors inserted there: the first ones, then those
+// with the largest clearances (a newer one replaces the shortest of equal or shorter clearance):
+// near a patch edge clearances are short, and a borrowed certificate proves a query only when the
+// query's distance plus its distance from the anchor stays below the clearance. More than one a
+// cell where certificates are small against the cell (convexity caps their radius on small bores
+// and tori): each covers only the points near its own anchor. Built and read by the owner's
+// thread; `find` is const and may be called from many threads at once while nothing is inserted.
 
 #include <cstdint>
 #include <span>
@@ -22,16 +24,19 @@ namespace nurbsreg::icp {
 
 class CertificateAtlas {
  public:
-  // Forget everything; cells of side `cell` (> 0) from now on.
-  void reset(double cell);
+  static constexpr int kMaxPerCell = 8;
+  // Forget everything; cells of side `cell` (> 0), each keeping up to `per_cell` hints (1 ..
+  // kMaxPerCell), from now on.
+  void reset(double cell, int per_cell = 1);
   // Adds a hint whose certificate has radius > 0 (others are ignored).
   void insert(const engine::ProjectionHint& hint);
   // A hint kept for p's cell or one of its 26 neighbours whose certificate covers p
-  // (|p - anchor| <= radius), else null: p's own cell's when it leaves at least half a cell side
-  // of slack (clearance - |p - anchor|), else the first ring of neighbours (faces, then edges,
-  // then corners) whose best covering one does, else the covering one with the most slack.
+  // (|p - anchor| <= radius), else null: p's own cell's covering one with the most slack
+  // (clearance - |p - anchor|) when that is at least half a cell side, else the first ring of
+  // neighbours (faces, then edges, then corners) whose best covering one does, else the covering
+  // one with the most slack.
   const engine::ProjectionHint* find(const engine::Vec3& p) const;
-  std::size_t size() const { return hints_.size(); }
+  std::size_t size() const { return count_; }  // hints kept
   // An order of `points` (indices into it) in which the points of one cell lie close together,
   // within the run of one hash bucket of about eight points: a counting sort by a hash of the
   // cell. A lookup probes up to 27 cells; in a random scan order each probe misses the cache, in
@@ -51,12 +56,17 @@ class CertificateAtlas {
   const engine::ProjectionHint* find_in_cell(const engine::Vec3& p, const Cell& cell,
                                              double& slack) const;
   void grow();
+  std::size_t cells() const { return per_cell_ > 0 ? hints_.size() / per_cell_ : 0; }
   struct Slot {
-    std::uint64_t key = 0;  // 0: empty (keys are never 0, see key())
-    std::uint32_t hint = 0;
+    std::uint64_t key = 0;    // 0: empty (keys are never 0, see key())
+    std::uint32_t first = 0;  // the cell's hints: hints_[first, first + count)
+    std::uint32_t count = 0;
   };
   double inverse_cell_ = 1.0;
   std::vector<Slot> slots_;  // size a power of two, at most half full
+  std::uint32_t per_cell_ = 1;
+  std::size_t count_ = 0;  // hints kept
+  // per_cell_ entries a cell, in the order of the cells' first insertions.
   std::vector<engine::ProjectionHint> hints_;
 };
 

@@ -61,6 +61,11 @@ class ModelCorrespondenceFinder final : public CorrespondenceFinder {
   // model's bounding-box diagonal, so that a certificate made on a 10% subsample usually covers
   // the points between.
   double certificate_radius() const { return certificate_radius_; }
+  // Certificates the atlas keeps per cell (CertificateAtlas::reset): where convexity limits
+  // certificates to a fraction of the cap (small bores and tori, rational), one anchor a cell
+  // covers only the points within that fraction of it (the cells hold one to three anchors of a
+  // 10% subsample).
+  static constexpr int kAtlasHintsPerCell = 4;
 
  private:
   bool beyond_edge(std::size_t k, const engine::Vec3& p, const Correspondence& c) const;
