@@ -280,6 +280,69 @@ int candidate_halves(const PreparedPatch& pp, double s, double t, double d, doub
 }
 constexpr int kMaxHalves = 6;
 
+// rational_box_differences (warm_certificate.hpp) on grids the caller provides: ep, E' by
+// component; re and rd, scratch for the restricted grids.
+BoxDifferences box_differences(const double* const ep[3], const double* dd, int rows, int cols,
+                               const LocalBox& box, double* re[3], double* rd, double* work,
+                               double* strip) {
+  const int size = rows * cols;
+  for (int c = 0; c < 3; ++c)
+    restrict_grid(ep[c], re[c], work, strip, rows, cols, box);
+  restrict_grid(dd, rd, work, strip, rows, cols, box);
+  double e_largest = 0.0, d_largest = 0.0;
+  for (int k = 0; k < size; ++k) {
+    e_largest = std::max(e_largest, std::abs(re[0][k]) + std::abs(re[1][k]) + std::abs(re[2][k]));
+    d_largest = std::max(d_largest, std::abs(rd[k]));
+  }
+  BoxDifferences b;
+  // Second difference at (i, j) with steps (di1, dj1) and (di2, dj2): x(i + di1 + di2, j + dj1 +
+  // dj2) - x(i + di1, j + dj1) - x(i + di2, j + dj2) + x(i, j).
+  const auto difference = [&](const double* x, int i, int j, int di1, int dj1, int di2, int dj2) {
+    return x[(i + di1 + di2) * cols + j + dj1 + dj2] - x[(i + di1) * cols + j + dj1] -
+           x[(i + di2) * cols + j + dj2] + x[i * cols + j];
+  };
+  const auto vector_norm = [&](int i, int j, int di1, int dj1, int di2, int dj2) {
+    const double x = difference(re[0], i, j, di1, dj1, di2, dj2);
+    const double y = difference(re[1], i, j, di1, dj1, di2, dj2);
+    const double z = difference(re[2], i, j, di1, dj1, di2, dj2);
+    return std::sqrt(x * x + y * y + z * z);
+  };
+  for (int i = 0; i < rows; ++i) {
+    for (int j = 0; j < cols; ++j) {
+      if (i + 2 < rows) {
+        b.e_ss = std::max(b.e_ss, vector_norm(i, j, 1, 0, 1, 0));
+        b.d_ss = std::max(b.d_ss, std::abs(difference(rd, i, j, 1, 0, 1, 0)));
+      }
+      if (j + 2 < cols) {
+        b.e_tt = std::max(b.e_tt, vector_norm(i, j, 0, 1, 0, 1));
+        b.d_tt = std::max(b.d_tt, std::abs(difference(rd, i, j, 0, 1, 0, 1)));
+      }
+      if (i + 1 < rows && j + 1 < cols) {
+        b.e_st = std::max(b.e_st, vector_norm(i, j, 1, 0, 0, 1));
+        b.d_st = std::max(b.d_st, std::abs(difference(rd, i, j, 1, 0, 0, 1)));
+      }
+    }
+  }
+  const double e_round = 1e-12 * e_largest, d_round = 1e-12 * d_largest;
+  b.e_ss += e_round;
+  b.e_tt += e_round;
+  b.e_st += e_round;
+  b.d_ss += d_round;
+  b.d_tt += d_round;
+  b.d_st += d_round;
+  return b;
+}
+
+// E' = E - (a - o) D by component, into ep.
+void e_prime(const PreparedPatch& pp, const Vec3& a, double* const ep[3]) {
+  const Vec3 ao = a - pp.origin;
+  const int size = pp.rows * pp.cols;
+  for (int k = 0; k < size; ++k) {
+    for (int c = 0; c < 3; ++c)
+      ep[c][k] = pp.e[static_cast<std::size_t>(k)][c] - ao[c] * pp.d[static_cast<std::size_t>(k)];
+  }
+}
+
 // certify_patch for a rational patch, F = N / D. For q = a + delta (|delta| <= r) and a value m,
 // G = N_q - m D = H + k D - 2 delta . E' with H = N_a - d^2 D, E' = E - (a - o) D (o the
 // patch's origin) and k = d^2 - m + |delta|^2. A query's proof (newton_on_certificate) has m, its
@@ -287,9 +350,8 @@ constexpr int kMaxHalves = 6;
 // the proof needs sqrt(m) <= clearance <= d + 2 r), so |k| <= 4 r (d + r). If every such G is
 // strictly convex on N, a KKT point x* of F on N with F(x*) = m is one of G_m (grad F = grad G_m
 // / D there), hence G_m's minimum, 0: F >= m on N (f_derivatives' argument). The test: H's
-// second-derivative ranges on N widened by 2 r |E'| + 4 r (d + r) |D| differences (bounded by the
-// whole patch's, scaled by N's widths: restriction takes convex combinations). Interior feet
-// only (no edge proof).
+// second-derivative ranges on N widened by 2 r |E'| + 4 r (d + r) |D| differences, those of E'
+// and D restricted to N (rational_box_differences). Interior feet only (no edge proof).
 PatchCertificate certify_rational_patch(const PreparedPatch& pp, const Vec3& a, double s, double t,
                                         double d, double r_max, SurfaceScratch& scratch,
                                         const TrimRegion* region) {
@@ -309,22 +371,29 @@ PatchCertificate certify_rational_patch(const PreparedPatch& pp, const Vec3& a, 
   for (int k = 0; k < size; ++k)
     h[k] = full[k] - d2 * dd[k];
   const double ao = (a - pp.origin).norm();
+  // E' = E - (a - o) D by component, and scratch for the boxes' restricted grids.
+  double* ep[3] = {td + SurfaceScratch::kGridCapacity, td + 2 * SurfaceScratch::kGridCapacity,
+                   td + 3 * SurfaceScratch::kGridCapacity};
+  double* re[3] = {td + 4 * SurfaceScratch::kGridCapacity, td + 5 * SurfaceScratch::kGridCapacity,
+                   td + 6 * SurfaceScratch::kGridCapacity};
+  double* rd = td + 7 * SurfaceScratch::kGridCapacity;
+  e_prime(pp, a, ep);
   // The rounding of d^2 against the true F_a(foot) (relative), on k's bound.
   const double fixed = 1e-12 * (d + r_max) * (d + r_max);
-  const auto widening = [&](double ws, double wt) {
-    const double ss = ws * ws, tt = wt * wt, st = ws * wt;
-    return Widening{ss * (2.0 * (pp.e_ss + ao * pp.d_ss) + 4.0 * d * pp.d_ss),
-                    tt * (2.0 * (pp.e_tt + ao * pp.d_tt) + 4.0 * d * pp.d_tt),
-                    st * (2.0 * (pp.e_st + ao * pp.d_st) + 4.0 * d * pp.d_st),
-                    ss * 4.0 * pp.d_ss,
-                    tt * 4.0 * pp.d_tt,
-                    st * 4.0 * pp.d_st,
-                    ss * fixed * pp.d_ss,
-                    tt * fixed * pp.d_tt,
-                    st * fixed * pp.d_st};
+  const auto widening = [&](const LocalBox& box) {
+    const BoxDifferences b = box_differences(ep, dd, rows, cols, box, re, rd, work, strip);
+    return Widening{2.0 * b.e_ss + 4.0 * d * b.d_ss,
+                    2.0 * b.e_tt + 4.0 * d * b.d_tt,
+                    2.0 * b.e_st + 4.0 * d * b.d_st,
+                    4.0 * b.d_ss,
+                    4.0 * b.d_tt,
+                    4.0 * b.d_st,
+                    fixed * b.d_ss,
+                    fixed * b.d_tt,
+                    fixed * b.d_st};
   };
   if (box_in_region(region, pp.patch, 0.0, 1.0, 0.0, 1.0)) {
-    c.radius = grid_convexity_radius_widened(h, rows, cols, widening(1.0, 1.0), r_max);
+    c.radius = grid_convexity_radius_widened(h, rows, cols, widening({0.0, 1.0, 0.0, 1.0}), r_max);
     if (c.radius > 0.0) {
       c.outside_sq = std::numeric_limits<double>::infinity();
       return c;
@@ -341,7 +410,8 @@ PatchCertificate certify_rational_patch(const PreparedPatch& pp, const Vec3& a, 
     if (!(ws > 0.0) || !(wt > 0.0)) continue;
     if (!box_in_region(region, pp.patch, c.s0, c.s1, c.t0, c.t1)) continue;
     restrict_grid(h, grid, work, strip, rows, cols, {c.s0, c.s1, c.t0, c.t1});
-    c.radius = grid_convexity_radius_widened(grid, rows, cols, widening(ws, wt), r_max);
+    c.radius =
+        grid_convexity_radius_widened(grid, rows, cols, widening({c.s0, c.s1, c.t0, c.t1}), r_max);
     if (c.radius > 0.0) {
       const double target = (d + 2.0 * c.radius) * (d + 2.0 * c.radius);
       c.outside_sq = outside_lower_bound_rational(full, dd, tn, td, work, strip, rows, cols,
@@ -353,6 +423,17 @@ PatchCertificate certify_rational_patch(const PreparedPatch& pp, const Vec3& a, 
 }
 
 }  // namespace
+
+BoxDifferences rational_box_differences(const PreparedPatch& pp, const Vec3& a, double s0,
+                                        double s1, double t0, double t1, SurfaceScratch& scratch) {
+  double* g = scratch.grids.data();
+  constexpr int kCap = SurfaceScratch::kGridCapacity;
+  double* ep[3] = {g, g + kCap, g + 2 * kCap};
+  double* re[3] = {g + 3 * kCap, g + 4 * kCap, g + 5 * kCap};
+  e_prime(pp, a, ep);
+  return box_differences(ep, pp.d.data(), pp.rows, pp.cols, {s0, s1, t0, t1}, re, g + 6 * kCap,
+                         g + 7 * kCap, g + 8 * kCap);
+}
 
 bool box_in_region(const TrimRegion* region, const BezierPatch& bp, double s0, double s1, double t0,
                    double t1) {

@@ -36,6 +36,20 @@ PatchCertificate certify_patch(const PreparedPatch& pp, const Vec3& a, double s,
                                double r_max, SurfaceScratch& scratch,
                                const TrimRegion* region = nullptr);
 
+// How G = N_q - m D of a rational patch moves with the query on a box N (certify_patch's rational
+// proof): bounds on the norms of the second differences of E' = E - (a - o) D and of D on N's own
+// grids (each restricted to N: its Bernstein coefficients there), for an anchor a. Restricting
+// first matters: on a long cylinder strip (NIST's and linkrods' bores, hundreds of mm long against
+// radii of a few) E' is w (P - a), whose second differences along the arc carry the control rows'
+// axial offset from the anchor: the whole patch's, scaled by N's widths, carry the strip's full
+// length, N's rows only N's. Rounding: the restricted values are sums of the grid's coefficients,
+// good to a few ulps of the largest one; 1e-12 of it is added. Uses the scratch's first nine grids.
+struct BoxDifferences {
+  double e_ss = 0.0, e_tt = 0.0, e_st = 0.0, d_ss = 0.0, d_tt = 0.0, d_st = 0.0;
+};
+BoxDifferences rational_box_differences(const PreparedPatch& pp, const Vec3& a, double s0,
+                                        double s1, double t0, double t1, SurfaceScratch& scratch);
+
 // Is every point of patch pp's local box [s0, s1] x [t0, t1] in the region (proven: the
 // region's classify, on the box's parameters widened by their rounding)? True without a region.
 bool box_in_region(const TrimRegion* region, const BezierPatch& bp, double s0, double s1, double t0,

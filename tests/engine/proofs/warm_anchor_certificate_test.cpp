@@ -495,6 +495,87 @@ TEST(WarmAnchorCertificate, RationalSurfacesCertifiedAndExact) {
     EXPECT_NEAR(warm.distance[i], std::abs((points[i] - centre).norm() - radius), 1e-9) << i;
 }
 
+// A quarter of a cylinder of radius 5, 400 long: one rational (2, 1) patch, like the bores of
+// NIST CTC-02 and linkrods.
+NurbsSurface cylinder_strip(double radius, double length) {
+  NurbsSurface s;
+  s.name = "strip";
+  s.degree_u = 2;
+  s.degree_v = 1;
+  s.count_u = 3;
+  s.count_v = 2;
+  s.knots_u = {0, 0, 0, 1, 1, 1};
+  s.knots_v = {0, 0, 1, 1};
+  const Vec3 arc[3] = {{radius, 0, 0}, {radius, radius, 0}, {0, radius, 0}};
+  const double w[3] = {1.0, std::sqrt(0.5), 1.0};
+  for (int i = 0; i < 3; ++i) {
+    for (int j = 0; j < 2; ++j) {
+      s.control_points.push_back(arc[i] + Vec3(0, 0, (j - 0.5) * length));
+      s.weights.push_back(w[i]);
+    }
+  }
+  return s;
+}
+
+// On a long rational strip a certificate's radius comes from how G = N_q - m D moves with the
+// query over the box N: bounded with the second differences of E' = w (P - a) and D restricted to
+// N, it is about a tenth of the cylinder's radius (0.48 here); bounded with the whole patch's,
+// scaled by N's widths, E' carried the strip's length (the control rows 200 from a mid-strip
+// anchor along the axis) and it was 0.017. Checked: moves of 0.5, 0.99 and 1.5 times what each
+// certificate serves and 0.9 of its radius give the brute-force answer (SurfaceReference); the
+// certificates are made and prove answers.
+TEST(WarmAnchorCertificate, LongRationalStripsGetWideCertificatesThatHold) {
+  const double radius = 5.0, length = 400.0;
+  const NurbsSurface strip = cylinder_strip(radius, length);
+  const PreparedModel pm{model_of({strip})};
+  ASSERT_TRUE(pm.patch(0).rational);
+  const test::SurfaceReference reference(strip);
+  // Points off the surface by up to 0.05 on both sides, away from the strip's ends.
+  std::mt19937_64 rng(61);
+  std::vector<Vec3> points;
+  for (int k = 0; k < 120; ++k) {
+    const double angle = uniform(rng, 0.15, 0.5 * M_PI - 0.15);
+    const double rho = radius + uniform(rng, -0.05, 0.05);
+    points.emplace_back(rho * std::cos(angle), rho * std::sin(angle),
+                        uniform(rng, -0.4, 0.4) * length);
+  }
+  Projector projector(pm);
+  ProjectionOptions options;
+  options.certify = true;
+  options.certificate_radius = 20.0;  // ICP's cap on a part a hundred times the bore
+  ProjectionResults made;
+  projector.project(PointView::of(points), options, made);
+  std::vector<double> radii;
+  std::vector<ProjectionHint> hints;
+  std::vector<Vec3> moved;
+  const double factors[3] = {0.5, 0.99, 1.5};
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    const WarmCertificate& w = made.certificate[i];
+    radii.push_back(w.radius);
+    const double serves =
+        std::min<double>(w.radius, 0.5 * (double(w.clearance) - made.distance[i]));
+    const double step = !(w.radius > 0.0f) ? 0.1
+                        : i % 4 == 3       ? 0.9 * w.radius
+                                           : factors[i % 4] * serves;
+    moved.push_back(points[i] + step * random_direction(rng));
+    hints.push_back(made.hint(i));
+  }
+  std::nth_element(radii.begin(), radii.begin() + radii.size() / 2, radii.end());
+  const double median = radii[radii.size() / 2];
+  std::printf("[ report ] rational strip: median certificate radius %.3g (cylinder radius %.3g)\n",
+              median, radius);
+  EXPECT_GE(median, 0.05 * radius);
+  ProjectionCounters counters;
+  ProjectionResults warm;
+  projector.project(PointView::of(moved), ProjectionOptions{}, warm, hints, &counters);
+  EXPECT_GT(counters.certified, moved.size() / 4);
+  for (std::size_t i = 0; i < moved.size(); ++i) {
+    ASSERT_EQ(warm.status[i], ProjectionStatus::ok);
+    EXPECT_NEAR(warm.distance[i], std::sqrt(reference.closest(moved[i]).distance_sq), 1e-9)
+        << "point " << i << ", certificate radius " << made.certificate[i].radius;
+  }
+}
+
 TEST(WarmAnchorCertificate, MaxDistanceStillApplies) {
   const Model model = test_models().front();
   const PreparedModel pm{Model(model)};
