@@ -287,8 +287,10 @@ AlignmentResult Aligner::finish(std::span<const engine::Vec3> scan, AlignmentRes
         far_points_.push_back(aligned[i]);
       }
     }
-    completed_projections_ = icp_pass;
+    // With no point to add, ICP's pass itself is last_projections() (a copy of every point's
+    // answer would cost a pass over fresh memory).
     if (!far_ids_.empty()) {
+      completed_projections_ = icp_pass;
       correspondences_.resize(far_ids_.size());
       icp::CorrespondenceQuery query;
       query.points = far_points_;
@@ -296,8 +298,8 @@ AlignmentResult Aligner::finish(std::span<const engine::Vec3> scan, AlignmentRes
       query.max_distance = bound;
       finder_.find(query, correspondences_);
       completed_projections_.scatter_from(finder_.last_results(), far_ids_);
+      completed_ = true;
     }
-    completed_ = true;
   } else {
     correspondences_.resize(scan.size());
     icp::CorrespondenceQuery query;

@@ -137,9 +137,9 @@ class Aligner {
   icp::IcpSolver solver_;
   // finish()'s correspondences when it projects itself (kept: no frame-sized allocation each).
   std::vector<icp::Correspondence> correspondences_;
-  // From any pose, when finish() projects only the points ICP's bounded last pass left
-  // unanswered: that pass's answers with theirs (completed_ true), the far points and their
-  // indices (kept like correspondences_).
+  // From any pose, when finish() projects the points ICP's bounded last pass left unanswered:
+  // that pass's answers with theirs (completed_ true; with none to add the pass is read in place),
+  // the far points and their indices (kept like correspondences_).
   engine::ProjectionResults completed_projections_;
   bool completed_ = false;
   std::vector<engine::Vec3> far_points_;
