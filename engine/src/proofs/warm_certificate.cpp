@@ -350,8 +350,9 @@ void e_prime(const PreparedPatch& pp, const Vec3& a, double* const ep[3]) {
 // the proof needs sqrt(m) <= clearance <= d + 2 r), so |k| <= 4 r (d + r). If every such G is
 // strictly convex on N, a KKT point x* of F on N with F(x*) = m is one of G_m (grad F = grad G_m
 // / D there), hence G_m's minimum, 0: F >= m on N (f_derivatives' argument). The test: H's
-// second-derivative ranges on N widened by 2 r |E'| + 4 r (d + r) |D| differences, those of E'
-// and D restricted to N (rational_box_differences). Interior feet only (no edge proof).
+// second-derivative ranges on N widened by 2 r |E'| + 4 r (d + r) |D| differences: the whole
+// patch's scaled by N's widths, and where that falls short of the cap those of E' and D
+// restricted to N (rational_box_differences). Interior feet only (no edge proof).
 PatchCertificate certify_rational_patch(const PreparedPatch& pp, const Vec3& a, double s, double t,
                                         double d, double r_max, SurfaceScratch& scratch,
                                         const TrimRegion* region) {
@@ -380,6 +381,21 @@ PatchCertificate certify_rational_patch(const PreparedPatch& pp, const Vec3& a, 
   e_prime(pp, a, ep);
   // The rounding of d^2 against the true F_a(foot) (relative), on k's bound.
   const double fixed = 1e-12 * (d + r_max) * (d + r_max);
+  // The quick widening first: the whole patch's differences scaled by the box's widths, with
+  // |a - o| D bounding a's part (O(1)); when it already proves the cap, N's own grids (four
+  // restrictions) cannot prove more. Both bound the same differences, so the larger radius holds.
+  const auto quick = [&](double ws, double wt) {
+    const double ss = ws * ws, tt = wt * wt, st = ws * wt;
+    return Widening{ss * (2.0 * (pp.e_ss + ao * pp.d_ss) + 4.0 * d * pp.d_ss),
+                    tt * (2.0 * (pp.e_tt + ao * pp.d_tt) + 4.0 * d * pp.d_tt),
+                    st * (2.0 * (pp.e_st + ao * pp.d_st) + 4.0 * d * pp.d_st),
+                    ss * 4.0 * pp.d_ss,
+                    tt * 4.0 * pp.d_tt,
+                    st * 4.0 * pp.d_st,
+                    ss * fixed * pp.d_ss,
+                    tt * fixed * pp.d_tt,
+                    st * fixed * pp.d_st};
+  };
   const auto widening = [&](const LocalBox& box) {
     const BoxDifferences b = box_differences(ep, dd, rows, cols, box, re, rd, work, strip);
     return Widening{2.0 * b.e_ss + 4.0 * d * b.d_ss,
@@ -392,8 +408,14 @@ PatchCertificate certify_rational_patch(const PreparedPatch& pp, const Vec3& a, 
                     fixed * b.d_tt,
                     fixed * b.d_st};
   };
+  const auto radius_on = [&](const double* g, const LocalBox& box) {
+    const double r = grid_convexity_radius_widened(g, rows, cols,
+                                                   quick(box.s1 - box.s0, box.t1 - box.t0), r_max);
+    if (r >= r_max) return r;
+    return std::max(r, grid_convexity_radius_widened(g, rows, cols, widening(box), r_max));
+  };
   if (box_in_region(region, pp.patch, 0.0, 1.0, 0.0, 1.0)) {
-    c.radius = grid_convexity_radius_widened(h, rows, cols, widening({0.0, 1.0, 0.0, 1.0}), r_max);
+    c.radius = radius_on(h, {0.0, 1.0, 0.0, 1.0});
     if (c.radius > 0.0) {
       c.outside_sq = std::numeric_limits<double>::infinity();
       return c;
@@ -410,8 +432,7 @@ PatchCertificate certify_rational_patch(const PreparedPatch& pp, const Vec3& a, 
     if (!(ws > 0.0) || !(wt > 0.0)) continue;
     if (!box_in_region(region, pp.patch, c.s0, c.s1, c.t0, c.t1)) continue;
     restrict_grid(h, grid, work, strip, rows, cols, {c.s0, c.s1, c.t0, c.t1});
-    c.radius =
-        grid_convexity_radius_widened(grid, rows, cols, widening({c.s0, c.s1, c.t0, c.t1}), r_max);
+    c.radius = radius_on(grid, {c.s0, c.s1, c.t0, c.t1});
     if (c.radius > 0.0) {
       const double target = (d + 2.0 * c.radius) * (d + 2.0 * c.radius);
       c.outside_sq = outside_lower_bound_rational(full, dd, tn, td, work, strip, rows, cols,

@@ -99,6 +99,23 @@ PreparedPatch prepare_patch(const BezierPatch& patch) {
     for (int c = 0; c < 3; ++c)
       pp.e_soa[static_cast<std::size_t>(c * count + k)] = pp.e[k][c];
   }
+  if (pp.rational) {
+    const auto w = [&](int i, int j) { return pp.d[static_cast<std::size_t>(i * pp.cols + j)]; };
+    for (int i = 0; i < pp.rows; ++i) {
+      for (int j = 0; j < pp.cols; ++j) {
+        if (i + 2 < pp.rows) {
+          pp.d_ss = std::max(pp.d_ss, std::abs(w(i + 2, j) - 2.0 * w(i + 1, j) + w(i, j)));
+        }
+        if (j + 2 < pp.cols) {
+          pp.d_tt = std::max(pp.d_tt, std::abs(w(i, j + 2) - 2.0 * w(i, j + 1) + w(i, j)));
+        }
+        if (i + 1 < pp.rows && j + 1 < pp.cols) {
+          pp.d_st =
+              std::max(pp.d_st, std::abs(w(i + 1, j + 1) - w(i + 1, j) - w(i, j + 1) + w(i, j)));
+        }
+      }
+    }
+  }
   const auto at = [&](int i, int j) { return pp.e[static_cast<std::size_t>(i * pp.cols + j)]; };
   for (int i = 0; i < pp.rows; ++i) {
     for (int j = 0; j < pp.cols; ++j) {

@@ -68,6 +68,10 @@ struct PreparedPatch {
   double e_ss = 0.0, e_tt = 0.0, e_st = 0.0;
   // The same for E's first differences in s and in t (the certificates' monotone edge test).
   double e_s = 0.0, e_t = 0.0;
+  // Largest absolute second differences of D in s, in t and mixed (0 for polynomial patches):
+  // the rational certificates' quick widening, tried before the one on the box's own grids
+  // (warm_certificate.cpp).
+  double d_ss = 0.0, d_tt = 0.0, d_st = 0.0;
 
   const BezierPatch& bezier() const { return patch; }
   // N_ij for the point p into out[rows * cols].
