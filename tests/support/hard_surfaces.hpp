@@ -1,7 +1,7 @@
 #pragma once
 // Surfaces that make projection hard, shared by the warm-certificate and reach-bound tests: a
-// hairpin (two layers close together), the same fold inside one patch, and wavy sheets whose
-// patches are C2 or C1 across their edges.
+// hairpin (two layers close together), the same fold inside one patch, wavy sheets whose
+// patches are C2 or C1 across their edges, and a long rational cylinder strip.
 
 #include <cmath>
 #include <vector>
@@ -84,6 +84,28 @@ inline NurbsSurface wavy_sheet(int n, int multiplicity) {
     for (int j = 0; j < n; ++j) {
       s.control_points.emplace_back(
           i, 1.1 * j, 0.6 * std::sin(0.9 * i + 0.3 * j) * std::cos(0.7 * j - 0.2 * i));
+    }
+  }
+  return s;
+}
+
+// A quarter of a cylinder about the z axis, `length` long: one rational (2, 1) patch, like the
+// bores of NIST CTC-02 and linkrods (a few mm of radius, hundreds long).
+inline NurbsSurface cylinder_strip(double radius, double length) {
+  NurbsSurface s;
+  s.name = "cylinder strip";
+  s.degree_u = 2;
+  s.degree_v = 1;
+  s.count_u = 3;
+  s.count_v = 2;
+  s.knots_u = {0, 0, 0, 1, 1, 1};
+  s.knots_v = {0, 0, 1, 1};
+  const Vec3 arc[3] = {{radius, 0, 0}, {radius, radius, 0}, {0, radius, 0}};
+  const double w[3] = {1.0, std::sqrt(0.5), 1.0};
+  for (int i = 0; i < 3; ++i) {
+    for (int j = 0; j < 2; ++j) {
+      s.control_points.push_back(arc[i] + Vec3(0, 0, (j - 0.5) * length));
+      s.weights.push_back(w[i]);
     }
   }
   return s;

@@ -18,6 +18,7 @@
 #include "nurbsreg/engine/decompose.hpp"
 #include "nurbsreg/engine/surface_projection.hpp"
 #include "proofs/warm_certificate.hpp"
+#include "support/hard_surfaces.hpp"
 #include "support/random_entities.hpp"
 
 namespace nurbsreg::engine {
@@ -131,22 +132,8 @@ TEST(RationalBoxDifferences, BoundTheSecondDerivativesOfTheQuerysChange) {
 // A quarter cylinder of radius 5, 400 long (NIST's and linkrods' bores): a box of a few degrees
 // and a few mm about a mid-strip anchor.
 TEST(RationalBoxDifferences, HoldOnALongCylinderStripAndAreItsOwnSize) {
-  NurbsSurface s;
-  s.degree_u = 2;
-  s.degree_v = 1;
-  s.count_u = 3;
-  s.count_v = 2;
-  s.knots_u = {0, 0, 0, 1, 1, 1};
-  s.knots_v = {0, 0, 1, 1};
   const double radius = 5.0, length = 400.0;
-  const Vec3 arc[3] = {{radius, 0, 0}, {radius, radius, 0}, {0, radius, 0}};
-  const double w[3] = {1.0, std::sqrt(0.5), 1.0};
-  for (int i = 0; i < 3; ++i) {
-    for (int j = 0; j < 2; ++j) {
-      s.control_points.push_back(arc[i] + Vec3(0, 0, (j - 0.5) * length));
-      s.weights.push_back(w[i]);
-    }
-  }
+  const NurbsSurface s = test::cylinder_strip(radius, length);
   const PreparedPatch pp = prepare_patch(decompose(s).front());
   ASSERT_TRUE(pp.rational);
   std::mt19937_64 rng(89);

@@ -495,28 +495,6 @@ TEST(WarmAnchorCertificate, RationalSurfacesCertifiedAndExact) {
     EXPECT_NEAR(warm.distance[i], std::abs((points[i] - centre).norm() - radius), 1e-9) << i;
 }
 
-// A quarter of a cylinder of radius 5, 400 long: one rational (2, 1) patch, like the bores of
-// NIST CTC-02 and linkrods.
-NurbsSurface cylinder_strip(double radius, double length) {
-  NurbsSurface s;
-  s.name = "strip";
-  s.degree_u = 2;
-  s.degree_v = 1;
-  s.count_u = 3;
-  s.count_v = 2;
-  s.knots_u = {0, 0, 0, 1, 1, 1};
-  s.knots_v = {0, 0, 1, 1};
-  const Vec3 arc[3] = {{radius, 0, 0}, {radius, radius, 0}, {0, radius, 0}};
-  const double w[3] = {1.0, std::sqrt(0.5), 1.0};
-  for (int i = 0; i < 3; ++i) {
-    for (int j = 0; j < 2; ++j) {
-      s.control_points.push_back(arc[i] + Vec3(0, 0, (j - 0.5) * length));
-      s.weights.push_back(w[i]);
-    }
-  }
-  return s;
-}
-
 // On a long rational strip a certificate's radius comes from how G = N_q - m D moves with the
 // query over the box N: bounded with the second differences of E' = w (P - a) and D restricted to
 // N, it is about a tenth of the cylinder's radius (0.48 here); bounded with the whole patch's,
@@ -526,7 +504,7 @@ NurbsSurface cylinder_strip(double radius, double length) {
 // certificates are made and prove answers.
 TEST(WarmAnchorCertificate, LongRationalStripsGetWideCertificatesThatHold) {
   const double radius = 5.0, length = 400.0;
-  const NurbsSurface strip = cylinder_strip(radius, length);
+  const NurbsSurface strip = test::cylinder_strip(radius, length);
   const PreparedModel pm{model_of({strip})};
   ASSERT_TRUE(pm.patch(0).rational);
   const test::SurfaceReference reference(strip);
