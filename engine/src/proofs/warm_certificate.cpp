@@ -378,7 +378,7 @@ PatchCertificate certify_rational_patch(const PreparedPatch& pp, const Vec3& a, 
   double* re[3] = {td + 4 * SurfaceScratch::kGridCapacity, td + 5 * SurfaceScratch::kGridCapacity,
                    td + 6 * SurfaceScratch::kGridCapacity};
   double* rd = td + 7 * SurfaceScratch::kGridCapacity;
-  e_prime(pp, a, ep);
+  bool have_ep = false;  // E' is formed the first time the quick widening falls short
   // The rounding of d^2 against the true F_a(foot) (relative), on k's bound.
   const double fixed = 1e-12 * (d + r_max) * (d + r_max);
   // The quick widening first: the whole patch's differences scaled by the box's widths, with
@@ -397,6 +397,10 @@ PatchCertificate certify_rational_patch(const PreparedPatch& pp, const Vec3& a, 
                     st * fixed * pp.d_st};
   };
   const auto widening = [&](const LocalBox& box) {
+    if (!have_ep) {
+      e_prime(pp, a, ep);
+      have_ep = true;
+    }
     const BoxDifferences b = box_differences(ep, dd, rows, cols, box, re, rd, work, strip);
     return Widening{2.0 * b.e_ss + 4.0 * d * b.d_ss,
                     2.0 * b.e_tt + 4.0 * d * b.d_tt,
