@@ -24,6 +24,19 @@ void split_rows(double* low, double* high, int rows, int cols) {
   }
 }
 
+NURBSREG_HOT_CLONES
+void split_rows_at(double* low, double* high, int rows, int cols, double x) {
+  const int n = rows - 1;
+  const double y = 1.0 - x;
+  std::memcpy(high, low, sizeof(double) * rows * cols);
+  for (int r = 1; r <= n; ++r) {
+    const int count = (n - r + 1) * cols;
+    for (int k = 0; k < count; ++k)
+      high[k] = y * high[k] + x * high[k + cols];
+    std::memcpy(low + r * cols, high, sizeof(double) * cols);
+  }
+}
+
 // split_line on every row, all rows at once: the grid is copied column-major into `work` (column
 // j at work + j * rows, so that work's "row" j holds work[j] of every grid row) and halved as
 // split_rows halves, one contiguous pass per level over all the grid's rows; each level's two

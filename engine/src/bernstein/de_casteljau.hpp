@@ -45,6 +45,9 @@ template <class T>
 // The clipping's grids (rows x cols, row-major, in place: `low` keeps [s0, mid] of the split
 // direction, `high` gets [mid, s1]). Along s (rows):
 void split_rows(double* low, double* high, int rows, int cols);
+// Along s at any x in (0, 1): `low` keeps [0, x], `high` gets [x, 1] (mix (1 - x) a + x b: the
+// certificates' tilings, where N's sides fall anywhere).
+void split_rows_at(double* low, double* high, int rows, int cols, double x);
 // One contiguous row of `count` values (along t):
 void split_line(double* low, double* high, int count);
 

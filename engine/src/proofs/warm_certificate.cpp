@@ -4,6 +4,7 @@
 #include <cmath>
 #include <limits>
 
+#include "bernstein/de_casteljau.hpp"
 #include "surface/derivative_bounds.hpp"
 #include "surface/patch_newton.hpp"
 
@@ -76,95 +77,92 @@ void restrict_grid(const double* in, double* out, double* work, double* strip, i
   transpose(work, out, cols, rows);
 }
 
-// Lower bound of F on P \ N: the eight tiles of P around N (the 3 x 3 tiling by N's sides, less
-// N), each bounded by its restricted grid's smallest coefficient (convex hull property); a tile
-// whose bound is below target_sq is halved once along its longer side and bounded again. Each
-// column of tiles shares one restriction in s, kept transposed (`strip`) so that the tiles'
-// restrictions in t run on whole rows too; only their smallest coefficient is needed, which the
-// transpose does not change. `work` and `tile` are scratch grids.
-double outside_lower_bound(const double* full, double* strip, double* work, double* tile, int rows,
-                           int cols, const LocalBox& n, double target_sq, double rounding) {
-  const double s_cuts[4] = {0.0, n.s0, n.s1, 1.0};
-  const double t_cuts[4] = {0.0, n.t0, n.t1, 1.0};
-  const int size = rows * cols;
-  // The smallest coefficient of `from` (transposed: cols x rows) restricted to [t0, t1] in t.
-  const auto smallest = [&](const double* from, double t0, double t1) {
-    restrict_s(from, tile, cols, rows, t0, t1);
-    return smallest_of(tile, size) - rounding;
-  };
-  double bound = target_sq;
-  for (int a = 0; a < 3; ++a) {
-    if (!(s_cuts[a + 1] > s_cuts[a])) continue;
-    restrict_s(full, work, rows, cols, s_cuts[a], s_cuts[a + 1]);
-    transpose(work, strip, rows, cols);
-    for (int b = 0; b < 3; ++b) {
-      if (a == 1 && b == 1) continue;
-      const double t0 = t_cuts[b], t1 = t_cuts[b + 1];
-      if (!(t1 > t0)) continue;
-      double value = smallest(strip, t0, t1);
-      if (value < bound) {
-        // Halved, each half restricted from the full grid, as the tile was: a tile beside N
-        // across N's own range (about the foot, where F's coefficients along that range dip
-        // below its values: a side tile of a small N stayed near d^2 whatever its distance),
-        // a corner tile along its longer side.
-        const double s0 = s_cuts[a], s1 = s_cuts[a + 1];
-        if (a == 1 || (b != 1 && s1 - s0 >= t1 - t0)) {
-          const double mid = 0.5 * (s0 + s1);
-          double* half = work;  // the strip is transposed: `work` is free
-          restrict_s(full, tile, rows, cols, s0, mid);
-          transpose(tile, half, rows, cols);
-          value = smallest(half, t0, t1);
-          restrict_s(full, tile, rows, cols, mid, s1);
-          transpose(tile, half, rows, cols);
-          value = std::min(value, smallest(half, t0, t1));
-        } else {
-          const double mid = 0.5 * (t0 + t1);
-          value = std::min(smallest(strip, t0, mid), smallest(strip, mid, t1));
-        }
-      }
-      bound = std::min(bound, value);
-    }
+// The grid (rows x cols, s along rows) cut at c0 < c1 along s into [0, c0], [c0, c1] and [c1, 1]:
+// pieces[0] holds the grid on entry; a piece of zero width ([0, 0] or [1, 1]) is left as is.
+// Two de Casteljau splits, the second at c1's place within [c0, 1].
+void cut_in_three(double* const pieces[3], int rows, int cols, double c0, double c1) {
+  if (c0 > 0.0) {
+    split_rows_at(pieces[0], pieces[1], rows, cols, c0);
+  } else {
+    std::copy(pieces[0], pieces[0] + rows * cols, pieces[1]);
   }
-  return std::max(bound, 0.0);
+  if (c1 < 1.0) split_rows_at(pieces[1], pieces[2], rows, cols, (c1 - c0) / (1.0 - c0));
 }
 
-// outside_lower_bound for a rational patch, F = N / D: the same tiles and halvings, each bounded
-// by the smallest ratio of its restricted grids' coefficients (N and D restricted alike; D > 0),
-// less the rounding allowance. Each tile is restricted from the full grids on its own (certificates
-// on rational patches are made rarely; this keeps one simple path). `tn`, `td`, `work` and
-// `strip` are scratch grids.
-double outside_lower_bound_rational(const double* full_n, const double* full_d, double* tn,
-                                    double* td, double* work, double* strip, int rows, int cols,
-                                    const LocalBox& n, double target_sq, double rounding) {
-  const double s_cuts[4] = {0.0, n.s0, n.s1, 1.0};
-  const double t_cuts[4] = {0.0, n.t0, n.t1, 1.0};
+// Lower bound of F on P \ N: the eight tiles of P around N (the 3 x 3 tiling by N's sides, less
+// N), each bounded by its grid's smallest coefficient (convex hull property), for a rational patch
+// F = N / D its smallest ratio of coefficients (D > 0), less the rounding allowance; a tile whose
+// bound is below target_sq is halved once and its halves bounded: a tile beside N across N's own
+// range (about the foot, where F's coefficients along that range dip below its values: a side
+// tile of a small N stayed near d^2 whatever its distance) and a corner tile wider in s along s,
+// the others along t. The tiles come from splits, not from restrictions of the whole grid one by
+// one: the grid cut in three along s at N's sides, each column transposed and cut in three along
+// t, a tile halved in place (8 split passes a grid, against up to 32 for the restrictions). The
+// splits are convex combinations, good to a few ulps of the largest coefficient, far inside the
+// allowance. `grids`: 2 x 8 scratch grids (numerator's, then the denominator's).
+template <bool kRational>
+double tiled_lower_bound(const double* full_n, const double* full_d, int rows, int cols,
+                         const LocalBox& box, double target_sq, double rounding, double* grids) {
+  constexpr int kCap = SurfaceScratch::kGridCapacity;
+  constexpr int kGrids = kRational ? 2 : 1;
+  const double* full[2] = {full_n, full_d};
+  double* column[2][3];
+  double* tile[2][3];
+  double* half[2];
+  for (int g = 0; g < kGrids; ++g) {
+    double* base = grids + g * 8 * kCap;
+    for (int k = 0; k < 3; ++k) {
+      column[g][k] = base + k * kCap;
+      tile[g][k] = base + (3 + k) * kCap;
+    }
+    half[g] = base + 6 * kCap;
+  }
   const int size = rows * cols;
-  const auto smallest = [&](const LocalBox& b) {
-    restrict_grid(full_n, tn, work, strip, rows, cols, b);
-    restrict_grid(full_d, td, work, strip, rows, cols, b);
-    double least = std::numeric_limits<double>::infinity();
-    for (int k = 0; k < size; ++k)
-      least = std::min(least, (tn[k] - rounding) / td[k]);
-    return least;
+  // The smallest coefficient (ratio) of the tile grids at `n` (and `d`).
+  const auto smallest = [&](const double* n, const double* d) {
+    if constexpr (kRational) {
+      double least = std::numeric_limits<double>::infinity();
+      for (int k = 0; k < size; ++k)
+        least = std::min(least, (n[k] - rounding) / d[k]);
+      return least;
+    } else {
+      (void)d;
+      return smallest_of(n, size) - rounding;
+    }
   };
+  const double s_cuts[4] = {0.0, box.s0, box.s1, 1.0};
+  const double t_cuts[4] = {0.0, box.t0, box.t1, 1.0};
+  for (int g = 0; g < kGrids; ++g) {
+    std::copy(full[g], full[g] + size, column[g][0]);
+    cut_in_three(column[g], rows, cols, box.s0, box.s1);
+  }
   double bound = target_sq;
   for (int a = 0; a < 3; ++a) {
     const double s0 = s_cuts[a], s1 = s_cuts[a + 1];
     if (!(s1 > s0)) continue;
+    // The column's tiles, transposed (cols x rows, t along rows): the smallest coefficient
+    // does not change.
+    for (int g = 0; g < kGrids; ++g) {
+      transpose(column[g][a], tile[g][0], rows, cols);
+      cut_in_three(tile[g], cols, rows, box.t0, box.t1);
+    }
     for (int b = 0; b < 3; ++b) {
       if (a == 1 && b == 1) continue;
       const double t0 = t_cuts[b], t1 = t_cuts[b + 1];
       if (!(t1 > t0)) continue;
-      double value = smallest({s0, s1, t0, t1});
+      double value = smallest(tile[0][b], tile[kGrids - 1][b]);
       if (value < bound) {
-        // Halved as outside_lower_bound halves.
-        if (a == 1 || (b != 1 && s1 - s0 >= t1 - t0)) {
-          const double mid = 0.5 * (s0 + s1);
-          value = std::min(smallest({s0, mid, t0, t1}), smallest({mid, s1, t0, t1}));
-        } else {
-          const double mid = 0.5 * (t0 + t1);
-          value = std::min(smallest({s0, s1, t0, mid}), smallest({s0, s1, mid, t1}));
+        const bool along_s = a == 1 || (b != 1 && s1 - s0 >= t1 - t0);
+        for (int g = 0; g < kGrids; ++g) {
+          // Transposed: s runs along the tile's columns.
+          if (along_s) {
+            split_cols(tile[g][b], half[g], cols, rows);
+          } else {
+            split_rows(tile[g][b], half[g], cols, rows);
+          }
         }
+        value = std::min(smallest(tile[0][b], tile[kGrids - 1][b]),
+                         smallest(half[0], half[kGrids - 1]));
       }
       bound = std::min(bound, value);
     }
@@ -364,8 +362,7 @@ PatchCertificate certify_rational_patch(const PreparedPatch& pp, const Vec3& a, 
   double* grid = h + SurfaceScratch::kGridCapacity;
   double* strip = grid + SurfaceScratch::kGridCapacity;
   double* work = strip + SurfaceScratch::kGridCapacity;
-  double* tn = work + SurfaceScratch::kGridCapacity;
-  double* td = tn + SurfaceScratch::kGridCapacity;
+  double* td = work + SurfaceScratch::kGridCapacity;  // (the grids after it: E', ...)
   const double* dd = pp.d.data();
   pp.numerator(a, full);
   const double d2 = d * d;
@@ -378,6 +375,7 @@ PatchCertificate certify_rational_patch(const PreparedPatch& pp, const Vec3& a, 
   double* re[3] = {td + 4 * SurfaceScratch::kGridCapacity, td + 5 * SurfaceScratch::kGridCapacity,
                    td + 6 * SurfaceScratch::kGridCapacity};
   double* rd = td + 7 * SurfaceScratch::kGridCapacity;
+  double* tiles = rd + SurfaceScratch::kGridCapacity;  // tiled_lower_bound's 16
   bool have_ep = false;  // E' is formed the first time the quick widening falls short
   // The rounding of d^2 against the true F_a(foot) (relative), on k's bound.
   const double fixed = 1e-12 * (d + r_max) * (d + r_max);
@@ -439,8 +437,8 @@ PatchCertificate certify_rational_patch(const PreparedPatch& pp, const Vec3& a, 
     c.radius = radius_on(grid, {c.s0, c.s1, c.t0, c.t1});
     if (c.radius > 0.0) {
       const double target = (d + 2.0 * c.radius) * (d + 2.0 * c.radius);
-      c.outside_sq = outside_lower_bound_rational(full, dd, tn, td, work, strip, rows, cols,
-                                                  {c.s0, c.s1, c.t0, c.t1}, target, rounding);
+      c.outside_sq = tiled_lower_bound<true>(full, dd, rows, cols, {c.s0, c.s1, c.t0, c.t1}, target,
+                                             rounding, tiles);
       return c;
     }
   }
@@ -523,8 +521,9 @@ PatchCertificate certify_patch(const PreparedPatch& pp, const Vec3& a, double s,
     }
     if (c.radius > 0.0) {
       const double target = (d + 2.0 * c.radius) * (d + 2.0 * c.radius);
-      c.outside_sq = outside_lower_bound(full, strip, work, grid, rows, cols,
-                                         {c.s0, c.s1, c.t0, c.t1}, target, rounding);
+      c.outside_sq =
+          tiled_lower_bound<false>(full, nullptr, rows, cols, {c.s0, c.s1, c.t0, c.t1}, target,
+                                   rounding, work + SurfaceScratch::kGridCapacity);
       return c;
     }
   }
@@ -688,8 +687,9 @@ SpanCertificate certify_span(const PreparedModel& model, std::size_t patch, cons
     const double reach = pp.sphere.radius + (a - pp.origin).norm();
     pp.numerator(a, full);
     c.outside_sq =
-        std::min(c.outside_sq, outside_lower_bound(full, strip, work, grid, pp.rows, pp.cols, b,
-                                                   target, 1e-14 * reach * reach));
+        std::min(c.outside_sq, tiled_lower_bound<false>(full, nullptr, pp.rows, pp.cols, b, target,
+                                                        1e-14 * reach * reach,
+                                                        work + SurfaceScratch::kGridCapacity));
     if (!(c.outside_sq > (d + 2.0 * floor) * (d + 2.0 * floor))) return SpanCertificate{};
   }
   return c;
