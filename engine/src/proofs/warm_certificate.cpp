@@ -362,7 +362,7 @@ PatchCertificate certify_rational_patch(const PreparedPatch& pp, const Vec3& a, 
   double* grid = h + SurfaceScratch::kGridCapacity;
   double* strip = grid + SurfaceScratch::kGridCapacity;
   double* work = strip + SurfaceScratch::kGridCapacity;
-  double* td = work + SurfaceScratch::kGridCapacity;  // (the grids after it: E', ...)
+  constexpr int kCap = SurfaceScratch::kGridCapacity;
   const double* dd = pp.d.data();
   pp.numerator(a, full);
   const double d2 = d * d;
@@ -370,13 +370,11 @@ PatchCertificate certify_rational_patch(const PreparedPatch& pp, const Vec3& a, 
     h[k] = full[k] - d2 * dd[k];
   const double ao = (a - pp.origin).norm();
   // E' = E - (a - o) D by component, and scratch for the boxes' restricted grids.
-  double* ep[3] = {td + SurfaceScratch::kGridCapacity, td + 2 * SurfaceScratch::kGridCapacity,
-                   td + 3 * SurfaceScratch::kGridCapacity};
-  double* re[3] = {td + 4 * SurfaceScratch::kGridCapacity, td + 5 * SurfaceScratch::kGridCapacity,
-                   td + 6 * SurfaceScratch::kGridCapacity};
-  double* rd = td + 7 * SurfaceScratch::kGridCapacity;
-  double* tiles = rd + SurfaceScratch::kGridCapacity;  // tiled_lower_bound's 16
-  bool have_ep = false;  // E' is formed the first time the quick widening falls short
+  double* ep[3] = {work + kCap, work + 2 * kCap, work + 3 * kCap};
+  double* re[3] = {work + 4 * kCap, work + 5 * kCap, work + 6 * kCap};
+  double* rd = work + 7 * kCap;
+  double* tiles = rd + kCap;  // tiled_lower_bound's 16
+  bool have_ep = false;       // E' is formed the first time the quick widening falls short
   // The rounding of d^2 against the true F_a(foot) (relative), on k's bound.
   const double fixed = 1e-12 * (d + r_max) * (d + r_max);
   // The quick widening first: the whole patch's differences scaled by the box's widths, with

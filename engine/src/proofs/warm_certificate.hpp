@@ -27,7 +27,7 @@ struct PatchCertificate {
 // convex along it: edge_radius in the .cpp) is kept, with radius <= r_max, and P outside it is
 // bounded against (d + 2 radius)^2 where d = |S(s, t) - a|. A rational patch: interior feet only,
 // convexity of G = N_q - m D for every value m a query's proof can meet (the .cpp). Uses the
-// scratch's first seven grids; no heap allocation.
+// scratch's first 28 grids (a polynomial patch: 11); no heap allocation.
 // On a trimmed face (region not null) only boxes N that the region proves inside it are tried
 // (box_in_region), down to half-width 1/25: every point of N is then a point of the face, so
 // N's minimum is the face's there, and P outside N is bounded as untrimmed (a lower bound of
@@ -89,7 +89,7 @@ struct SpanCertificate {
 // surface's own edge or corner, F_q increasing away from it on every piece and convex along it.
 // Gives up (radius 0) as soon as it cannot serve moves beyond `floor`: radius <= floor, or the
 // overlapped patches within d + 2 floor of a. Polynomial patches only; on a trimmed face every
-// piece of N must be proven inside the region (box_in_region). Uses the scratch's first four
+// piece of N must be proven inside the region (box_in_region). Uses the scratch's first 11
 // grids; no heap allocation.
 SpanCertificate certify_span(const PreparedModel& model, std::size_t patch, const Vec3& a, double s,
                              double t, double d, double r_max, double half_s, double half_t,
