@@ -12,9 +12,10 @@
 namespace nurbsreg::icp {
 
 ModelCorrespondenceFinder::ModelCorrespondenceFinder(const engine::PreparedModel& model)
-    // The cap is a share of the model's size: that of its trimmed faces (geometry_bounds), not
-    // of their untrimmed control nets, which can be many times larger on CAD parts.
-    : projector_(model), certificate_radius_(1e-2 * model.geometry_bounds().box.diagonal()) {
+    : projector_(model),
+      share_cap_(certificate_radius_for(model, 0)),
+      width_cap_(std::min(share_cap_, patch_width_cap(model))) {
+  certificate_radius_ = share_cap_;
   atlas_.reset(cell_side(), kAtlasHintsPerCell);
 }
 
@@ -30,7 +31,13 @@ void ModelCorrespondenceFinder::reset(std::size_t scan_size) {
   has_previous_ = false;
   previous_position_.assign(scan_size, kNoPosition);
   borrow_failed_.assign(scan_size, 0);
-  if (!keep_certificates_) atlas_.reset(cell_side(), kAtlasHintsPerCell);
+  // The same as certificate_radius_for(model, scan_size), without its pass over the patches.
+  const double cap = scan_size >= kWidthCapPoints ? width_cap_ : share_cap_;
+  // A new cap changes the atlas' cells: kept certificates are dropped then too.
+  if (!keep_certificates_ || cap != certificate_radius_) {
+    certificate_radius_ = cap;
+    atlas_.reset(cell_side(), kAtlasHintsPerCell);
+  }
 }
 
 bool ModelCorrespondenceFinder::repeats_previous_query(const CorrespondenceQuery& query) const {

@@ -28,6 +28,20 @@
 
 namespace nurbsreg::icp {
 
+// The radius cap of the certificates a finder makes on `model` for a scan of `scan_size` points:
+// 1% of the diagonal of its trimmed faces, so that a certificate made on a 10% subsample usually
+// covers the points between. For scans of kWidthCapPoints points and more, at most
+// kCertificateWidths times the narrow width of the patches where half of the model's area lies
+// (certificate_radius.cpp: a certificate reaches no further than the patches about its anchor;
+// on smaller scans the certificates that this lets the subsamples make cost more than the few
+// full-resolution passes save).
+inline constexpr double kCertificateWidths = 4.0;
+inline constexpr std::size_t kWidthCapPoints = 500000;
+double certificate_radius_for(const engine::PreparedModel& model, std::size_t scan_size);
+// The patches' cap alone: kCertificateWidths times their area-weighted median narrow width
+// (infinity for a model without patches).
+double patch_width_cap(const engine::PreparedModel& model);
+
 class ModelCorrespondenceFinder final : public CorrespondenceFinder {
  public:
   // `model` must outlive the finder. The finder is not thread-safe itself (it keeps the hints);
@@ -57,9 +71,8 @@ class ModelCorrespondenceFinder final : public CorrespondenceFinder {
   bool stopped_borrowing(std::size_t s) const {
     return s < borrow_failed_.size() && borrow_failed_[s] != 0;
   }
-  // Radius cap of the certificates (engine::ProjectionOptions::certificate_radius): 1% of the
-  // model's bounding-box diagonal, so that a certificate made on a 10% subsample usually covers
-  // the points between.
+  // Radius cap of the certificates (engine::ProjectionOptions::certificate_radius):
+  // certificate_radius_for(model, the scan size of the last reset(); before any, 0).
   double certificate_radius() const { return certificate_radius_; }
   // Certificates the atlas keeps per cell (CertificateAtlas::reset): where convexity limits
   // certificates to a fraction of the cap (small bores and tori, rational), one anchor a cell
@@ -86,6 +99,8 @@ class ModelCorrespondenceFinder final : public CorrespondenceFinder {
   engine::ProjectionResults results_;
   engine::ProjectionCounters counters_;
   double certificate_radius_ = 0.0;
+  // certificate_radius_for's two caps (1% of the diagonal; the patches' widths), computed once.
+  double share_cap_ = 0.0, width_cap_ = 0.0;
   std::size_t scan_size_ = 0;
   // The scan points of the previous query since reset(): all of them in order
   // (previous_all_), or previous_indices_.
