@@ -13,7 +13,7 @@ namespace nurbsreg::icp {
 // within the ball caps its clearance). A cap far beyond that costs certifying searches that give
 // up: the IEA blade's faces are 2,744 Bezier strips each, about 5 cm wide against a cap of 1% of
 // its 117 m diagonal, and 73% of its certifying searches gave up (bench/README.md, issue 26's
-// tenth pass). So the cap is also held to a few widths of the patches where most of the surface
+// ninth pass). So the cap is also held to a few widths of the patches where most of the surface
 // lies: the narrow width of a patch taken as the shorter of |S_s| and |S_t| at its centre (its
 // local parameters span [0, 1]), weighted by |S_s x S_t| there (its area, about). On parts whose
 // faces are single patches this is far above 1% of the diagonal and changes nothing. Only for
