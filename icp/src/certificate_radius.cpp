@@ -50,7 +50,9 @@ double patch_width_cap(const engine::PreparedModel& model) {
 
 double certificate_radius_for(const engine::PreparedModel& model, std::size_t scan_size) {
   const double share = share_cap(model);
-  return scan_size >= kWidthCapPoints ? std::min(share, patch_width_cap(model)) : share;
+  return scan_size >= kWidthCapPoints
+             ? certificate_radius_for(scan_size, share, patch_width_cap(model))
+             : share;
 }
 
 }  // namespace nurbsreg::icp

@@ -14,7 +14,7 @@ namespace nurbsreg::icp {
 ModelCorrespondenceFinder::ModelCorrespondenceFinder(const engine::PreparedModel& model)
     : projector_(model),
       share_cap_(certificate_radius_for(model, 0)),
-      width_cap_(std::min(share_cap_, patch_width_cap(model))) {
+      width_cap_(patch_width_cap(model)) {
   certificate_radius_ = share_cap_;
   atlas_.reset(cell_side(), kAtlasHintsPerCell);
 }
@@ -31,8 +31,8 @@ void ModelCorrespondenceFinder::reset(std::size_t scan_size) {
   has_previous_ = false;
   previous_position_.assign(scan_size, kNoPosition);
   borrow_failed_.assign(scan_size, 0);
-  // The same as certificate_radius_for(model, scan_size), without its pass over the patches.
-  const double cap = scan_size >= kWidthCapPoints ? width_cap_ : share_cap_;
+  // certificate_radius_for(model, scan_size) from the caps computed once.
+  const double cap = certificate_radius_for(scan_size, share_cap_, width_cap_);
   // A new cap changes the atlas' cells: kept certificates are dropped then too.
   if (!keep_certificates_ || cap != certificate_radius_) {
     certificate_radius_ = cap;

@@ -38,6 +38,10 @@ namespace nurbsreg::icp {
 inline constexpr double kCertificateWidths = 4.0;
 inline constexpr std::size_t kWidthCapPoints = 500000;
 double certificate_radius_for(const engine::PreparedModel& model, std::size_t scan_size);
+// The rule itself, given the two caps (1% of the diagonal; patch_width_cap).
+inline double certificate_radius_for(std::size_t scan_size, double share_cap, double width_cap) {
+  return scan_size >= kWidthCapPoints && width_cap < share_cap ? width_cap : share_cap;
+}
 // The patches' cap alone: kCertificateWidths times their area-weighted median narrow width
 // (infinity for a model without patches).
 double patch_width_cap(const engine::PreparedModel& model);
