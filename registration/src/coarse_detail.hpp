@@ -25,9 +25,11 @@ struct Match {
 
 // Nearest neighbours in descriptor space both ways: every scan descriptor's nearest model
 // descriptor and every model descriptor's nearest scan descriptor (the union, sorted, without
-// duplicates; mutual nearest neighbours appear once). Brute force by blocks of a float matrix
-// product (|a|^2 + |b|^2 - 2 a.b): a few thousand rows each side take tens of milliseconds, and
-// the answer is exact and deterministic (ties go to the lower index).
+// duplicates; mutual nearest neighbours appear once). Brute force, exact and deterministic:
+// distances |a|^2 + |b|^2 - 2 a.b in float with every sum in index order, the model's
+// descriptors in vector lanes (AVX2 where the CPU has it: the same bits as the SSE2 version),
+// ties to the lower index. Both matrices have kDescriptorSize columns (std::invalid_argument
+// otherwise).
 std::vector<Match> match_descriptors(const DescriptorMatrix& scan, const ModelDescriptors& model);
 
 // Sample consensus guided by pairwise consistency (the idea behind maximum-consistent-set

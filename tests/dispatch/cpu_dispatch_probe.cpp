@@ -8,7 +8,8 @@
 // rational biquadratic patches, trimmed faces and their edges, Newton) and the certified warm
 // path of ICP (hints with certificates, on the untrimmed polynomial models:
 // newton_to_proven_point). Hard cases: points on the surface and off it on both sides, near the
-// trim loops, far away.
+// trim loops, far away. With the registration module, also its dispatched kernel: the coarse
+// stage's descriptor matching (each model descriptor a vector lane, 4 or 8 a vector).
 
 #include <cstdint>
 #include <cstdio>
@@ -21,6 +22,9 @@
 #include "nurbsreg/engine/shapes.hpp"
 #include "support/example_surface.hpp"
 #include "support/polygon_loop.hpp"
+#if NURBSREG_PROBE_REGISTRATION
+#include "../../registration/src/coarse_detail.hpp"
+#endif
 
 namespace {
 
@@ -109,6 +113,33 @@ void run(const char* name, const Model& model, std::size_t n, std::uint64_t seed
               static_cast<unsigned long long>(d.h));
 }
 
+#if NURBSREG_PROBE_REGISTRATION
+// Random descriptors with ties (duplicated rows) and a model count that leaves the last panel
+// part empty; the digest of every match.
+void run_matching() {
+  using nurbsreg::registration::detail::DescriptorMatrix;
+  using nurbsreg::registration::detail::kDescriptorSize;
+  std::mt19937_64 rng(6);
+  std::uniform_real_distribution<float> bin(0.0f, 10.0f);
+  DescriptorMatrix scan(1500, kDescriptorSize), model(1237, kDescriptorSize);
+  for (DescriptorMatrix* m : {&scan, &model})
+    for (Eigen::Index r = 0; r < m->rows(); ++r)
+      for (Eigen::Index c = 0; c < m->cols(); ++c)
+        (*m)(r, c) = bin(rng);
+  model.row(900) = model.row(12);
+  scan.row(700) = model.row(12);
+  scan.row(701) = scan.row(700);
+  const auto matches = nurbsreg::registration::detail::match_descriptors(scan, model);
+  Digest d;
+  for (const auto& m : matches) {
+    d.add(&m.scan, sizeof m.scan);
+    d.add(&m.model, sizeof m.model);
+  }
+  std::printf("descriptor matches: %zu, digest %016llx\n", matches.size(),
+              static_cast<unsigned long long>(d.h));
+}
+#endif
+
 }  // namespace
 
 int main() {
@@ -123,5 +154,8 @@ int main() {
       polygon_loop({{0.15, 0.08}, {0.6, 0.08}, {0.6, 0.47}, {0.15, 0.47}}));
   trimmed.trim_loops.push_back(polygon_loop({{0.3, 0.2}, {0.45, 0.25}, {0.35, 0.35}}));
   run("trimmed sphere", single(trimmed), 3000, 5);
+#if NURBSREG_PROBE_REGISTRATION
+  run_matching();
+#endif
   return 0;
 }
