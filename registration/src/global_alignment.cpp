@@ -39,6 +39,11 @@ constexpr std::size_t kMaxVerified = 6;
 // iterations before a clearly worse hypothesis may be rejected.
 constexpr int kVerifyStep = 4;
 constexpr int kRejectAfter = 8;
+// The short ICPs' iterations before the rejection check run on the glance points (a fifth of
+// the verification subsample), the later ones on the whole subsample, on which every pose is
+// scored: most hypotheses verified end as duplicates or rejected by then, and a wrong one cost
+// as much as the rest of the stage on the whole subsample.
+constexpr int kGlanceIterations = kRejectAfter;
 // The short ICPs' first iterations weigh the correspondences with a Tukey scale of one voxel (the
 // sample consensus' accuracy), the later ones with the scale estimated from the residuals. A
 // hypothesis that fits a part's large plane but not its small features (an assembly's base
@@ -338,7 +343,8 @@ CoarseOutcome coarse_align(std::span<const Vec3> scan, const ModelFeatures& feat
     // scored (converging_onto) converges there (it stops: a duplicate), and one that, after
     // kRejectAfter iterations, puts less than half as many glance points within the tolerance as
     // the best scored pose does is clearly worse (it stops: rejected). The rest run to convergence
-    // or to `iterations`, and are scored on the whole verification subsample.
+    // or to `iterations` (on the whole verification subsample after kGlanceIterations), and are
+    // scored on the whole verification subsample.
     for (const auto& [h, near] : promising) {
       if (past_deadline(fmt::format("after verifying {} hypotheses", r.verified))) return false;
       ++r.verified;
@@ -349,7 +355,8 @@ CoarseOutcome coarse_align(std::span<const Vec3> scan, const ModelFeatures& feat
         // The first step is short: a duplicate is usually on its pose after two iterations.
         vo.max_iterations = std::min(done == 0 ? 2 : kVerifyStep, iterations - done);
         vo.kernel_scale = done < kWideScaleIterations ? v : 0.0;
-        const icp::IcpResult res = icp::IcpSolver(vo).align(continuing, sub, T);
+        const std::vector<Vec3>& points = done < kGlanceIterations ? glance : sub;
+        const icp::IcpResult res = icp::IcpSolver(vo).align(continuing, points, T);
         if (res.termination == icp::IcpTermination::too_few_correspondences ||
             res.termination == icp::IcpTermination::numerical_failure ||
             res.termination == icp::IcpTermination::invalid_input) {
