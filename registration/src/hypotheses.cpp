@@ -19,6 +19,7 @@ using engine::Vec3;
 
 constexpr int kChunks = 32;
 constexpr std::size_t kSupportSample = 256;
+constexpr std::size_t kSupportRun = 32;
 constexpr int kThirdAttempts = 64;
 constexpr std::size_t kOverlapProbes = 256;
 
@@ -156,14 +157,67 @@ void keep_best(std::vector<Hypothesis>& kept, const Hypothesis& h, const RansacP
   if (kept.size() > static_cast<std::size_t>(p.keep)) kept.pop_back();
 }
 
-std::size_t support_of(const Eigen::Isometry3d& T, std::span<const Vec3> scan,
-                       std::span<const Vec3> model, std::span<const Match> matches, double d2max,
+// Point pairs (scan, model) as columns of doubles: T * s - m for every pair in one loop the
+// compiler vectorises, each component with the same operations in the same order as Eigen's
+// T * s (the rotation's columns times s's coordinates, summed in order, then the translation).
+class PairColumns {
+ public:
+  void clear() {
+    for (auto* v : {&sx_, &sy_, &sz_, &mx_, &my_, &mz_})
+      v->clear();
+  }
+  void push_back(const Vec3& s, const Vec3& m) {
+    sx_.push_back(s.x());
+    sy_.push_back(s.y());
+    sz_.push_back(s.z());
+    mx_.push_back(m.x());
+    my_.push_back(m.y());
+    mz_.push_back(m.z());
+  }
+  std::size_t size() const { return sx_.size(); }
+  // How many of the pairs [begin, end) T brings within sqrt(d2max).
+  std::size_t within(const Eigen::Isometry3d& T, double d2max, std::size_t begin,
+                     std::size_t end) const {
+    const Eigen::Matrix3d& R = T.linear();
+    const Vec3& t = T.translation();
+    const double r00 = R(0, 0), r01 = R(0, 1), r02 = R(0, 2);
+    const double r10 = R(1, 0), r11 = R(1, 1), r12 = R(1, 2);
+    const double r20 = R(2, 0), r21 = R(2, 1), r22 = R(2, 2);
+    const double tx = t.x(), ty = t.y(), tz = t.z();
+    const double* sx = sx_.data();
+    const double* sy = sy_.data();
+    const double* sz = sz_.data();
+    const double* mx = mx_.data();
+    const double* my = my_.data();
+    const double* mz = mz_.data();
+    // A count in a double (exact: whole numbers far below 2^53), which SSE2 vectorises with the
+    // comparisons; a 64-bit integer count it does not.
+    double count = 0.0;
+    for (std::size_t k = begin; k < end; ++k) {
+      const double dx = r00 * sx[k] + r01 * sy[k] + r02 * sz[k] + tx - mx[k];
+      const double dy = r10 * sx[k] + r11 * sy[k] + r12 * sz[k] + ty - my[k];
+      const double dz = r20 * sx[k] + r21 * sy[k] + r22 * sz[k] + tz - mz[k];
+      count += dx * dx + dy * dy + dz * dz <= d2max ? 1.0 : 0.0;
+    }
+    return static_cast<std::size_t>(count);
+  }
+  bool within_one(const Eigen::Isometry3d& T, double d2max, std::size_t k) const {
+    return within(T, d2max, k, k + 1) != 0;
+  }
+
+ private:
+  std::vector<double> sx_, sy_, sz_, mx_, my_, mz_;
+};
+
+// How many matches T brings within sqrt(d2max); their indices into `supporters` if given.
+std::size_t support_of(const Eigen::Isometry3d& T, const PairColumns& pairs, double d2max,
                        std::vector<std::uint32_t>* supporters) {
+  if (!supporters) return pairs.within(T, d2max, 0, pairs.size());
   std::size_t count = 0;
-  for (std::uint32_t k = 0; k < matches.size(); ++k) {
-    if ((T * scan[matches[k].scan] - model[matches[k].model]).squaredNorm() <= d2max) {
+  for (std::uint32_t k = 0; k < pairs.size(); ++k) {
+    if (pairs.within_one(T, d2max, k)) {
       ++count;
-      if (supporters) supporters->push_back(k);
+      supporters->push_back(k);
     }
   }
   return count;
@@ -227,6 +281,9 @@ std::vector<Hypothesis> ransac_hypotheses(std::span<const Vec3> scan, std::span<
            std::min(ls, lm) >= p.edge_similarity * std::max(ls, lm);
   };
   const MatchPoints points(scan, model, matches);
+  PairColumns all_pairs;
+  for (const Match& k : matches)
+    all_pairs.push_back(scan[k.scan], model[k.model]);
   std::vector<Vec3> probes;
   const std::size_t probe_step = std::max<std::size_t>(1, scan.size() / kOverlapProbes);
   for (std::size_t i = 0; i < scan.size(); i += probe_step)
@@ -236,31 +293,33 @@ std::vector<Hypothesis> ransac_hypotheses(std::span<const Vec3> scan, std::span<
   std::vector<std::vector<Hypothesis>> chunk_best(chunks);
   tbb::parallel_for(std::size_t{0}, chunks, [&](std::size_t chunk) {
     std::vector<Hypothesis>& best = chunk_best[chunk];
-    std::vector<std::uint32_t> with_a;
+    std::vector<std::uint32_t> with_a(m);
     std::vector<std::uint8_t> mask;
-    std::vector<Vec3> sampled_scan, sampled_model;
+    PairColumns sampled;
     for (std::size_t si = chunk; si < seeds.size(); si += chunks) {
       const std::uint32_t a = seeds[si];
       // The matches consistent with a: if a is right, every right match is among them.
       points.consistent_with(a, p, mask);
-      with_a.clear();
+      // Compacted without a branch (the mask is random: a branch per match mispredicted).
+      with_a.resize(m);
+      std::size_t consistent = 0;
       for (std::uint32_t b = 0; b < m; ++b) {
-        if (mask[b] && b != a) with_a.push_back(b);
+        with_a[consistent] = b;
+        consistent += static_cast<std::size_t>(mask[b] & static_cast<std::uint8_t>(b != a));
       }
+      with_a.resize(consistent);
       if (with_a.size() < 2) continue;
       std::mt19937_64 rng(p.seed * 0x9E3779B97F4A7C15ull + a);
       Hypothesis seed_best;
       // Support is counted on at most kSupportSample of a's consistent matches (evenly spread),
       // their points gathered once for all of a's draws.
       const std::size_t step = std::max<std::size_t>(1, with_a.size() / kSupportSample);
-      sampled_scan.clear();
-      sampled_model.clear();
+      sampled.clear();
       for (std::size_t i = 0; i < with_a.size(); i += step) {
         const Match& k = matches[with_a[i]];
-        sampled_scan.push_back(scan[k.scan]);
-        sampled_model.push_back(model[k.model]);
+        sampled.push_back(scan[k.scan], model[k.model]);
       }
-      const std::size_t sampled = sampled_scan.size();
+      const std::size_t sample_size = sampled.size();
       for (int draw = 0; draw < p.draws_per_seed; ++draw) {
         const std::uint32_t b = with_a[static_cast<std::size_t>(rng() % with_a.size())];
         // c: consistent with a (drawn from with_a) and with b (rejection: a few tries).
@@ -284,10 +343,11 @@ std::vector<Hypothesis> ransac_hypotheses(std::span<const Vec3> scan, std::span<
         // Support among a's consistent matches (where every right match lies), cheap. Only a
         // draw with more support than the seed's best so far is kept: once even all the matches
         // left could not give it more, the count stops (the same draw wins as with a full count).
+        // Counted in runs of kSupportRun (vectorised), the stop tested between runs.
         std::size_t support = 1;
-        for (std::size_t i = 0; i < sampled; ++i) {
-          if (support + (sampled - i) <= seed_best.support) break;
-          support += (T * sampled_scan[i] - sampled_model[i]).squaredNorm() <= d2max;
+        for (std::size_t i = 0; i < sample_size; i += kSupportRun) {
+          if (support + (sample_size - i) <= seed_best.support) break;
+          support += sampled.within(T, d2max, i, std::min(sample_size, i + kSupportRun));
         }
         if (support > seed_best.support) seed_best = {T, support, 0};
       }
@@ -300,7 +360,7 @@ std::vector<Hypothesis> ransac_hypotheses(std::span<const Vec3> scan, std::span<
           seed_best.overlap < best.back().overlap) {
         continue;
       }
-      seed_best.support = support_of(seed_best.T_model_scan, scan, model, matches, d2max, nullptr);
+      seed_best.support = support_of(seed_best.T_model_scan, all_pairs, d2max, nullptr);
       keep_best(best, seed_best, p);
     }
   });
@@ -317,7 +377,7 @@ std::vector<Hypothesis> ransac_hypotheses(std::span<const Vec3> scan, std::span<
     Hypothesis r = h;
     for (int round = 0; round < 2; ++round) {
       supporters.clear();
-      support_of(r.T_model_scan, scan, model, matches, d2max, &supporters);
+      support_of(r.T_model_scan, all_pairs, d2max, &supporters);
       src.clear();
       dst.clear();
       for (std::uint32_t k : supporters) {
@@ -326,7 +386,7 @@ std::vector<Hypothesis> ransac_hypotheses(std::span<const Vec3> scan, std::span<
       }
       Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
       if (!fit_rigid(src, dst, T)) break;
-      const std::size_t support = support_of(T, scan, model, matches, d2max, nullptr);
+      const std::size_t support = support_of(T, all_pairs, d2max, nullptr);
       const std::size_t overlap = overlap_of(T, probes, occupancy);
       if (support < r.support || overlap < r.overlap) break;
       r = {T, support, overlap};
