@@ -158,8 +158,8 @@ void keep_best(std::vector<Hypothesis>& kept, const Hypothesis& h, const RansacP
 }
 
 // Point pairs (scan, model) as columns of doubles: T * s - m for every pair in one loop the
-// compiler vectorises, each component with the same operations in the same order as Eigen's
-// T * s (the rotation's columns times s's coordinates, summed in order, then the translation).
+// compiler vectorises, each component summed left to right (the rotation's row times s, then
+// the translation, then less m), as a per-pair Eigen expression would.
 class PairColumns {
  public:
   void clear() {
