@@ -162,13 +162,15 @@ TEST(ModelSymmetry, TheSixfoldPartsReportNamesItsTurnsReadably) {
 
 // A real assembly that a half turn about its vertical axis maps onto itself: from a random pose
 // with clutter, the sample consensus finds one of the two poses; the report must name the
-// other instead of returning one silently.
+// other instead of returning one silently. 50,000 points: at 20,000 (15% of them clutter) the
+// right pose came only from the exhaustive second round, and with clang's rounding of the
+// descriptors not at all (poor fit, exit 1: the sample consensus' edge, not the report's).
 TEST(ModelSymmetry, ASymmetricAssemblyReportsTheOtherPose) {
   const testing::Part& p = testing::part(testing::kSymmetricAssembly);
   const std::vector<double> turns = turn_degrees(*p.features);
   ASSERT_EQ(turns.size(), 1u);
   EXPECT_NEAR(turns[0], 180.0, 1e-6);
-  const engine::SyntheticScan scan = testing::cluttered_assembly_scan(20000);
+  const engine::SyntheticScan scan = testing::cluttered_assembly_scan(50000);
   Aligner aligner(*p.model, icp::IcpOptions{}, {}, p.features);
   const AlignmentResult r = aligner.align(scan.points);
   ASSERT_TRUE(r.ok()) << *r.failure;
