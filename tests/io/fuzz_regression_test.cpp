@@ -226,9 +226,15 @@ TEST(FuzzRegression, CadImportTimeoutAndMemoryLimitsAreReported) {
   const ScopedEnv timeout("NURBSREG_CAD_TIMEOUT", "1");
   // From the model cache the import would not run at all.
   const ScopedEnv no_cache("NURBSREG_NO_CACHE", "1");
-  EXPECT_HAS(error_of([&] { read_model_file(nist); }),
-             "STEP import did not finish within 1 s and was stopped (raise the limit with "
-             "NURBSREG_CAD_TIMEOUT=<s>)");
+  // The limit is both a wall-clock deadline (the parent stops the import) and the child's CPU
+  // limit (RLIMIT_CPU, SIGXCPU): a single-threaded import on an idle core reaches both at about
+  // 1 s, either first. Both messages name the limit and how to raise it.
+  const std::string message = error_of([&] { read_model_file(nist); });
+  EXPECT_TRUE(message.find("STEP import did not finish within 1 s and was stopped (raise the "
+                           "limit with NURBSREG_CAD_TIMEOUT=<s>)") != std::string::npos ||
+              message.find("STEP import used more than 1 s of CPU time and was stopped "
+                           "(NURBSREG_CAD_TIMEOUT=<s>)") != std::string::npos)
+      << message;
 }
 
 // ---- JSON models -------------------------------------------------------------------------
