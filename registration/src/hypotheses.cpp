@@ -293,7 +293,7 @@ std::vector<Hypothesis> ransac_hypotheses(std::span<const Vec3> scan, std::span<
   std::vector<std::vector<Hypothesis>> chunk_best(chunks);
   tbb::parallel_for(std::size_t{0}, chunks, [&](std::size_t chunk) {
     std::vector<Hypothesis>& best = chunk_best[chunk];
-    std::vector<std::uint32_t> with_a(m);
+    std::vector<std::uint32_t> consistent_with_a(m);  // room for every match, written per seed
     std::vector<std::uint8_t> mask;
     PairColumns sampled;
     for (std::size_t si = chunk; si < seeds.size(); si += chunks) {
@@ -301,13 +301,12 @@ std::vector<Hypothesis> ransac_hypotheses(std::span<const Vec3> scan, std::span<
       // The matches consistent with a: if a is right, every right match is among them.
       points.consistent_with(a, p, mask);
       // Compacted without a branch (the mask is random: a branch per match mispredicted).
-      with_a.resize(m);
       std::size_t consistent = 0;
       for (std::uint32_t b = 0; b < m; ++b) {
-        with_a[consistent] = b;
+        consistent_with_a[consistent] = b;
         consistent += static_cast<std::size_t>(mask[b] & static_cast<std::uint8_t>(b != a));
       }
-      with_a.resize(consistent);
+      const std::span<const std::uint32_t> with_a(consistent_with_a.data(), consistent);
       if (with_a.size() < 2) continue;
       std::mt19937_64 rng(p.seed * 0x9E3779B97F4A7C15ull + a);
       Hypothesis seed_best;
