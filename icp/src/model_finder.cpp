@@ -234,6 +234,7 @@ void ModelCorrespondenceFinder::find(const CorrespondenceQuery& query,
   options.max_distance = query.max_distance;
   options.certify = certify;
   options.certificate_radius = certificate_radius_;
+  options.certificate_span = certificate_span_for(scan_size_);
   // Feet and normals straight into the answers (no copy, 48 bytes a point less in results_).
   options.foot_sink = {out.data(), [](void* data, std::size_t k, const engine::Vec3& foot,
                                       const engine::Vec3& normal) {

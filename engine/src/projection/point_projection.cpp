@@ -380,6 +380,7 @@ void write_surface_answer(const PreparedModel& model, const ProjectionOptions& o
   // marked as tried instead).
   OtherItems others;
   others.margin = 2.0 * certificate_cap;
+  others.span = options.certificate_span;
   // A certificate that could serve moves of less than this share of the cap is not worth
   // making (OtherItems::gives_up).
   constexpr double kGiveUpShare = 1.0 / 32.0;

@@ -94,6 +94,11 @@ namespace {
 // them, certificates only when the frame can have some (it certifies, or hints carry them).
 void prepare_results(PointView points, const ProjectionOptions& options, HintView hints,
                      ProjectionResults& out) {
+  if (options.certificate_span < 1 || options.certificate_span > kMaxCertificateSpan) {
+    throw std::invalid_argument("Projector: certificate_span must be 1 .. " +
+                                std::to_string(kMaxCertificateSpan) + " (got " +
+                                std::to_string(options.certificate_span) + ")");
+  }
   if (!hints.empty() && hints.size() != points.size()) {
     throw std::invalid_argument("Projector: " + std::to_string(hints.size()) + " hints for " +
                                 std::to_string(points.size()) + " points");

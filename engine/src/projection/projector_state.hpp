@@ -37,11 +37,15 @@ struct Projector::Impl {
 // either with its exact minimum recorded or proven at least (d_final + margin)^2 away (pruned, or
 // clipped without a point below the threshold, which never falls below the final one). Kept:
 // the kSlots smallest minima of distinct items (patch index, or -1 - edge piece), enough for "the
-// nearest item other than those of a certificate's box N" (N spans up to 3 x 3 patches).
+// nearest item other than those of a certificate's box N" (N spans up to 3 x 3 patches at the
+// default span; with more, slots full of N's patches leave the last one's minimum as the bound).
 struct Projector::OtherItems {
   static constexpr std::int64_t kNone = std::numeric_limits<std::int64_t>::min();
   static constexpr int kSlots = 12;
   double margin = 0.0;
+  // ProjectionOptions::certificate_span: a patch of the best's surface within this many grid
+  // steps of the best's patch may lie in a box N about its foot (it does not cap the clearance).
+  int span = 1;
   // The cheap failure path: an item that no box N about the best can hold (another face, an
   // edge, a patch beyond the best's neighbours) caps every certificate's clearance at its minimum
   // (cut_sq): the walk prunes there from then on, and the clearance is at most sqrt(cut_sq), since

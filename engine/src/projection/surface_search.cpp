@@ -39,8 +39,9 @@ void Projector::search_surfaces(const Vec3& p, SurfaceSearch& search, std::int64
       }
     };
     // Certifying: could item `id` (its minimum `value`), other than the best so far, be held by
-    // a box N about the best's foot? Yes for the best's own patch and its grid neighbours on the
-    // same surface; anything else caps the clearance (OtherItems::cut_sq).
+    // a box N about the best's foot? Yes for the best's own patch and the patches of the same
+    // surface within OtherItems::span grid steps of it; anything else caps the clearance
+    // (OtherItems::cut_sq).
     const auto blocking = [&](std::int64_t id) {
       if (id >= 0 && search.patch >= 0 && search.edge < 0) {
         const std::size_t k = static_cast<std::size_t>(id);
@@ -49,7 +50,8 @@ void Projector::search_surfaces(const Vec3& p, SurfaceSearch& search, std::int64
           const PreparedModel::SpanCell a = model_.patch_span(k);
           const PreparedModel::SpanCell b =
               model_.patch_span(static_cast<std::size_t>(search.patch));
-          if (std::abs(a.a - b.a) <= 1 && std::abs(a.b - b.b) <= 1) return false;
+          const int reach = others->span;
+          if (std::abs(a.a - b.a) <= reach && std::abs(a.b - b.b) <= reach) return false;
         }
       }
       return true;
@@ -200,21 +202,22 @@ WarmCertificate Projector::make_certificate(const Vec3& p, const SurfaceHit& bes
   // the clearance. It must hold every surface point that may come within d + 2 radius of p: about
   // the foot, on a surface that curves away no faster than its tangent plane, a disc of radius
   // sqrt((d + 2 cap)^2 - d^2); N is half as wide again, in the patch's local units (|S_s| and
-  // |S_t| at the foot). A smaller N (convexity may fail on the first) is tried once.
+  // |S_t| at the foot), at most OtherItems::span patches beyond P. A smaller N (convexity may
+  // fail on the first) is tried once.
   const bool spans = model_.surface_c1(model_.patch_surface(k));
   const auto try_span = [&] {
     Vec3 der[6];
     model_.patch(k).patch.derivatives(best.s, best.t, der);
     const double disc = 1.5 * std::sqrt(4.0 * radius_cap * (d + radius_cap));
-    const auto half = [disc](const Vec3& tangent) {
+    const auto half = [disc, &others](const Vec3& tangent) {
       const double length = tangent.norm();
-      return length > 0.0 ? std::clamp(disc / length, 0.05, 1.0) : 1.0;
+      return length > 0.0 ? std::clamp(disc / length, 0.05, double(others.span)) : 1.0;
     };
     const double half_s = half(der[1]), half_t = half(der[2]);
     for (const double shrink : {1.0, 0.5}) {
       const SpanCertificate span = certify_span(
           model_, k, p, best.s, best.t, d, radius_cap, shrink * half_s, shrink * half_t,
-          std::max(0.0, serves(radius, clearance)), state.surface_scratch);
+          std::max(0.0, serves(radius, clearance)), others.span, state.surface_scratch);
       if (!(span.radius > 0.0)) continue;
       const double reach = (d + 2.0 * span.radius) * (d + 2.0 * span.radius);
       const double others_sq = others.excluding([&span](std::int64_t id) {

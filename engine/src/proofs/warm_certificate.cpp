@@ -548,7 +548,8 @@ double newton_on_certificate_box(const PreparedModel& model, std::int64_t anchor
   if (!settled) return f;
   // A side counts as touched within 1e-9 of the piece (Newton settles to ~1e-10 of it).
   constexpr double kTouch = 1e-9;
-  for (int moves = 0; moves < 8; ++moves) {
+  // Enough moves to cross N from corner to corner (2 kReach + 1 pieces a side), and more.
+  for (int moves = 0; moves < 4 * SpanCertificate::kReach + 4; ++moves) {
     // The neighbouring pieces that touch the point: across a side N continues over.
     int di = 0, dj = 0;
     const auto overlaps = [&](int pi, int pj) {
@@ -615,17 +616,25 @@ double newton_on_certificate_box(const PreparedModel& model, std::int64_t anchor
 
 SpanCertificate certify_span(const PreparedModel& model, std::size_t patch, const Vec3& a, double s,
                              double t, double d, double r_max, double half_s, double half_t,
-                             double floor, SurfaceScratch& scratch) {
+                             double floor, int reach, SurfaceScratch& scratch) {
   SpanCertificate c;
   const int surface = model.patch_surface(patch);
   if (!a.allFinite() || !(r_max > 0.0) || !model.surface_c1(surface)) return c;
   const PreparedModel::SpanCell at = model.patch_span(patch);
-  // N's limits: the surface's grid, and at most one patch beyond P on every side.
+  reach = std::clamp(reach, 1, SpanCertificate::kReach);
+  // N's limits: the surface's grid, and at most `reach` patches beyond P on every side.
   const auto exists = [&](int i, int j) {
     return model.patch_at(surface, at.a + i, at.b + j) >= 0;
   };
-  const double s_lo = exists(-1, 0) ? -1.0 : 0.0, s_hi = exists(1, 0) ? 2.0 : 1.0;
-  const double t_lo = exists(0, -1) ? -1.0 : 0.0, t_hi = exists(0, 1) ? 2.0 : 1.0;
+  // How many patches follow P in direction (di, dj) before the grid ends, up to `reach`.
+  const auto run = [&](int di, int dj) {
+    int n = 0;
+    while (n < reach && exists((n + 1) * di, (n + 1) * dj))
+      ++n;
+    return static_cast<double>(n);
+  };
+  const double s_lo = -run(-1, 0), s_hi = 1.0 + run(1, 0);
+  const double t_lo = -run(0, -1), t_hi = 1.0 + run(0, 1);
   float_range(s, half_s, c.s0, c.s1, s_lo, s_hi);
   float_range(t, half_t, c.t0, c.t1, t_lo, t_hi);
   // A foot on the surface's own edge or corner (a patch edge shared with a neighbour is inside N).
@@ -640,8 +649,8 @@ SpanCertificate certify_span(const PreparedModel& model, std::size_t patch, cons
     LocalBox box;
   };
   Piece pieces[SpanCertificate::kMaxPatches];
-  for (int i = -1; i <= 1; ++i) {
-    for (int j = -1; j <= 1; ++j) {
+  for (int i = -reach; i <= reach; ++i) {
+    for (int j = -reach; j <= reach; ++j) {
       LocalBox box;
       if (!span_piece(c.s0, c.s1, c.t0, c.t1, i, j, box.s0, box.s1, box.t0, box.t1)) continue;
       const std::int64_t k = model.patch_at(surface, at.a + i, at.b + j);

@@ -8,6 +8,7 @@
 #include <cstdint>
 
 #include "nurbsreg/engine/prepared_model.hpp"
+#include "nurbsreg/engine/projection.hpp"
 #include "nurbsreg/engine/surface_projection.hpp"
 
 namespace nurbsreg::engine {
@@ -74,7 +75,9 @@ inline bool span_piece(float s0, float s1, float t0, float t1, int i, int j, dou
 }
 
 struct SpanCertificate {
-  static constexpr int kMaxPatches = 9;
+  // The most patches N may reach beyond P on each side (ProjectionOptions::certificate_span).
+  static constexpr int kReach = kMaxCertificateSpan;
+  static constexpr int kMaxPatches = (2 * kReach + 1) * (2 * kReach + 1);
   float s0 = 0.0f, s1 = 1.0f, t0 = 0.0f, t1 = 1.0f;  // N in P's grid coordinates
   double radius = 0.0;                               // 0: no certificate
   // Lower bound of F_a on the overlapped patches outside N, at most (d + 2 radius)^2.
@@ -83,8 +86,9 @@ struct SpanCertificate {
   std::int64_t patches[kMaxPatches] = {};
 };
 
-// certify_patch's proof on a box N of half-widths half_s, half_t (in P's local units, at most 1)
-// around the foot (s, t), clipped to the surface's grid: F_q strictly convex on every piece of N
+// certify_patch's proof on a box N of half-widths half_s, half_t (in P's local units, at most
+// `reach`) around the foot (s, t), clipped to the surface's grid (the patches that exist, at most
+// `reach` <= kReach beyond P on each side): F_q strictly convex on every piece of N
 // for every q within the radius of a (then on N: the surface is C1), or, for a foot on the
 // surface's own edge or corner, F_q increasing away from it on every piece and convex along it.
 // Gives up (radius 0) as soon as it cannot serve moves beyond `floor`: radius <= floor, or the
@@ -93,7 +97,7 @@ struct SpanCertificate {
 // grids; no heap allocation.
 SpanCertificate certify_span(const PreparedModel& model, std::size_t patch, const Vec3& a, double s,
                              double t, double d, double r_max, double half_s, double half_t,
-                             double floor, SurfaceScratch& scratch);
+                             double floor, int reach, SurfaceScratch& scratch);
 
 // The minimum of F_p over a certificate's box N (WarmCertificate: anchor patch `anchor_patch`,
 // N = [s0, s1] x [t0, t1] in its grid coordinates), by Newton piece by piece: from (s, t) on the

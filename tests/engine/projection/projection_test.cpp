@@ -339,6 +339,26 @@ TEST_F(ProjectionTest, HintCountMustMatchThePoints) {
                std::invalid_argument);
 }
 
+TEST_F(ProjectionTest, CertificateSpanOutsideItsRangeIsRejected) {
+  Projector projector(prepared_);
+  ProjectionResults out;
+  for (const int span : {0, kMaxCertificateSpan + 1}) {
+    ProjectionOptions options;
+    options.certify = true;
+    options.certificate_span = span;
+    try {
+      projector.project(PointView::of(points_), options, out);
+      ADD_FAILURE() << "span " << span << " accepted";
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find("certificate_span"), std::string::npos) << e.what();
+    }
+  }
+  ProjectionOptions widest;
+  widest.certify = true;
+  widest.certificate_span = kMaxCertificateSpan;
+  EXPECT_NO_THROW(projector.project(PointView::of(points_), widest, out));
+}
+
 TEST_F(ProjectionTest, NonFinitePointsAreSkippedAndCounted) {
   std::vector<Vec3> points(points_.begin(), points_.begin() + 10);
   points[3].x() = std::numeric_limits<double>::quiet_NaN();

@@ -26,6 +26,7 @@
 #include "nurbsreg/engine/projection.hpp"
 #include "nurbsreg/engine/sampling.hpp"
 #include "nurbsreg/engine/shapes.hpp"
+#include "proofs/warm_certificate.hpp"
 #include "support/hard_surfaces.hpp"
 #include "support/hessian_check.hpp"
 #include "support/random_entities.hpp"
@@ -94,8 +95,11 @@ std::vector<Piece> pieces_of(const PreparedModel& pm, const WarmCertificate& c) 
   std::vector<Piece> pieces;
   const int surface = pm.patch_surface(static_cast<std::size_t>(c.patch));
   const auto at = pm.patch_span(static_cast<std::size_t>(c.patch));
-  for (int i = -2; i <= 2; ++i) {
-    for (int j = -2; j <= 2; ++j) {
+  // One patch further than N may reach (SpanCertificate::kReach), so that a box that overran
+  // its limit would show as a piece here.
+  constexpr int kLook = SpanCertificate::kReach + 1;
+  for (int i = -kLook; i <= kLook; ++i) {
+    for (int j = -kLook; j <= kLook; ++j) {
       const double s0 = std::max(0.0, double(c.s0) - i), s1 = std::min(1.0, double(c.s1) - i);
       const double t0 = std::max(0.0, double(c.t0) - j), t1 = std::min(1.0, double(c.t1) - j);
       if (!(s0 < s1) || !(t0 < t1)) continue;
@@ -137,19 +141,26 @@ const Piece& piece_holding(const std::vector<Piece>& pieces, double u, double v)
   return pieces.front();
 }
 
-class WarmAnchorClaims : public ::testing::TestWithParam<double> {};
+// The radius cap as a fraction of the model's diagonal (0: the default) and
+// ProjectionOptions::certificate_span.
+struct Claim {
+  double cap;
+  int span;
+};
+class WarmAnchorClaims : public ::testing::TestWithParam<Claim> {};
 
-// Parameter: the radius cap as a fraction of the model's diagonal (0: the default). With the
-// wide cap the radius is set by the convexity test itself, so the ball's sphere is where the
-// Hessian is closest to losing definiteness.
+// With the wide cap the radius is set by the convexity test itself, so the ball's sphere is where
+// the Hessian is closest to losing definiteness; with the widest span the boxes reach across
+// several patches of the test models' narrow grids.
 TEST_P(WarmAnchorClaims, ConvexityAndClearanceHoldAgainstSampling) {
-  int checked = 0, edge_feet = 0, spanning = 0;
+  int checked = 0, edge_feet = 0, spanning = 0, wide = 0;
   for (const Model& model : test_models()) {
     const PreparedModel pm{Model(model)};
     Projector projector(pm);
     ProjectionOptions options;
     options.certify = true;
-    options.certificate_radius = GetParam() * pm.bounds().diagonal();
+    options.certificate_radius = GetParam().cap * pm.bounds().diagonal();
+    options.certificate_span = GetParam().span;
     const std::vector<Vec3> points = query_points(pm, 80, 5);
     ProjectionResults results;
     projector.project(PointView::of(points), options, results);
@@ -187,6 +198,8 @@ TEST_P(WarmAnchorClaims, ConvexityAndClearanceHoldAgainstSampling) {
       const std::vector<Piece> pieces = pieces_of(pm, c);
       ASSERT_FALSE(pieces.empty());
       spanning += pieces.size() > 1;
+      wide += std::any_of(pieces.begin(), pieces.end(),
+                          [](const Piece& p) { return std::abs(p.i) > 1 || std::abs(p.j) > 1; });
       // The foot in grid coordinates: inside N, or on N's side (an edge foot's proof).
       const Piece& foot_piece = piece_holding(pieces, results.u[i], results.v[i]);
       const double foot_s = foot_piece.i + foot_piece.pp->patch.param_u.to_local(results.u[i]);
@@ -256,17 +269,21 @@ TEST_P(WarmAnchorClaims, ConvexityAndClearanceHoldAgainstSampling) {
   EXPECT_GT(checked, 100) << "too few certificates to check";
   EXPECT_GT(edge_feet, 10) << "too few certificates for feet on an edge";
   EXPECT_GT(spanning, 10) << "too few certificates whose box spans patches";
+  if (GetParam().span > 1) {
+    EXPECT_GT(wide, 10) << "too few certificates whose box reaches beyond the foot's neighbours";
+  }
   std::printf(
       "[ report ] %d certificates checked, %d with the foot on N's side, %d spanning "
-      "patches\n",
-      checked, edge_feet, spanning);
+      "patches, %d of them beyond the patches next to the foot's\n",
+      checked, edge_feet, spanning, wide);
 }
 
-INSTANTIATE_TEST_SUITE_P(RadiusCaps, WarmAnchorClaims, ::testing::Values(0.0, 0.2));
+INSTANTIATE_TEST_SUITE_P(RadiusCaps, WarmAnchorClaims,
+                         ::testing::Values(Claim{0.0, 1}, Claim{0.2, 1},
+                                           Claim{0.2, kMaxCertificateSpan}));
 
-class WarmAnchorAnswers : public ::testing::TestWithParam<double> {};
+class WarmAnchorAnswers : public ::testing::TestWithParam<Claim> {};
 
-// Parameter: the radius cap as a fraction of the model's diagonal (0: the default).
 TEST_P(WarmAnchorAnswers, EqualBruteForce) {
   for (const Model& model : test_models()) {
     const PreparedModel pm{Model(model)};
@@ -277,7 +294,8 @@ TEST_P(WarmAnchorAnswers, EqualBruteForce) {
     Projector projector(pm);
     ProjectionOptions options;
     options.certify = true;
-    options.certificate_radius = GetParam() * diagonal;
+    options.certificate_radius = GetParam().cap * diagonal;
+    options.certificate_span = GetParam().span;
     const std::vector<Vec3> anchors = query_points(pm, 240, 9);
     ProjectionResults first;
     projector.project(PointView::of(anchors), options, first);
@@ -318,7 +336,9 @@ TEST_P(WarmAnchorAnswers, EqualBruteForce) {
   }
 }
 
-INSTANTIATE_TEST_SUITE_P(RadiusCaps, WarmAnchorAnswers, ::testing::Values(0.0, 0.03));
+INSTANTIATE_TEST_SUITE_P(RadiusCaps, WarmAnchorAnswers,
+                         ::testing::Values(Claim{0.0, 1}, Claim{0.03, 1},
+                                           Claim{0.03, kMaxCertificateSpan}));
 
 // One bicubic patch, flat along x for most of it, then ramping up 6 units over its last third:
 // F is not convex over the whole patch for points above the ramp's bowl, so their certificates'

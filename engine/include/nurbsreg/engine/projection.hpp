@@ -61,6 +61,8 @@ enum class ProjectionStatus : std::uint8_t {
 // times the denominator, for every m a proof can meet (proofs/warm_certificate.cpp).
 // radius == 0: none (patch == kTried: a certificate was sought at
 // `anchor` and could not be made; the projector does not retry within the radius cap of it).
+inline constexpr int kMaxCertificateSpan = 3;  // ProjectionOptions::certificate_span
+
 struct WarmCertificate {
   static constexpr std::int32_t kTried = -2;
   // Single precision keeps hints small (frames of millions of points): the anchor is the query
@@ -71,7 +73,7 @@ struct WarmCertificate {
   float clearance = 0.0f;
   std::int32_t patch = -1;  // PreparedModel patch index
   // N in P's grid coordinates: P is [0, 1]^2, the patch i spans after it in u and j in v
-  // [i, i + 1] x [j, j + 1] (i, j in -1 .. 1).
+  // [i, i + 1] x [j, j + 1] (|i|, |j| at most ProjectionOptions::certificate_span).
   float s0 = 0.0f, s1 = 1.0f, t0 = 0.0f, t1 = 1.0f;
   std::uint32_t model = 0;  // PreparedModel::serial() of the model that made it
 
@@ -168,6 +170,12 @@ struct ProjectionOptions {
   // Largest anchor radius sought (the certificate's radius is also limited by convexity); <= 0:
   // 0.1% of the model's bounding-box diagonal.
   double certificate_radius = 0.0;
+  // How many patches beyond the foot's, on each side, a certificate's box may reach on a surface
+  // of several patches (1 .. kMaxCertificateSpan). Wider boxes serve larger balls where the
+  // patches are narrow against the radius sought (the IEA blade's 5 cm strips), but cost more to
+  // make and widen the certifying search: worth it when each certificate serves many later
+  // queries (ICP on a million points borrows a subsample's; ModelCorrespondenceFinder).
+  int certificate_span = 1;
   // Prove answers with the model's reach bounds where they can (PreparedModel::ReachCell: one
   // Newton from the hint or the cold seed, no search), when the model has them
   // (PreparedModel::prepare_reach_bounds). false: only certificates and the search (to measure

@@ -42,6 +42,16 @@ double certificate_radius_for(const engine::PreparedModel& model, std::size_t sc
 inline double certificate_radius_for(std::size_t scan_size, double share_cap, double width_cap) {
   return scan_size >= kWidthCapPoints && width_cap < share_cap ? width_cap : share_cap;
 }
+// How many patches beyond its foot's a certificate's box may reach on each side
+// (engine::ProjectionOptions::certificate_span), for a scan of `scan_size` points: the most for
+// scans of kWidthCapPoints and more, where each certificate a subsample makes serves about ten
+// points of every full-resolution pass (on the IEA blade's 5 cm strips, one patch beyond the
+// foot's held the radius to a fraction of the scan's spacing); one otherwise: on a
+// 50,000-point scan the wider boxes cost the blade's certifying passes more than its two
+// full-resolution passes save (bench/README.md, issue 26's tenth pass).
+inline int certificate_span_for(std::size_t scan_size) {
+  return scan_size >= kWidthCapPoints ? engine::kMaxCertificateSpan : 1;
+}
 // The patches' cap alone: kCertificateWidths times their area-weighted median narrow width
 // (infinity for a model without patches).
 double patch_width_cap(const engine::PreparedModel& model);
