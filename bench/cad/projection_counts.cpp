@@ -1,9 +1,9 @@
 // projection_counts: a small, deterministic run of one model for instruction counts (callgrind)
 // on a shared machine (issue 26): load a JSON model (e.g. from `nurbsreg convert`), prepare it,
-// project N near points (a synthetic scan, noise 0.5% of the trimmed diagonal) and N mixed points
-// (half near, half anywhere in the box enlarged by 10% of its diagonal; the same recipe and
-// seeds as real_models_bench), optionally align an --align-point scan (3 degrees and 2% of the
-// diagonal off). Prints load / prepare CPU seconds, the per-point counters and a checksum of
+// project N near points (a synthetic scan, noise 0.5% of the trimmed diagonal or --noise) and N
+// mixed points (half near, half anywhere in the box enlarged by 10% of its diagonal; the same
+// recipe and seeds as real_models_bench), optionally align an --align-point scan (3 degrees and 2%
+// of the diagonal off). Prints load / prepare CPU seconds, the per-point counters and a checksum of
 // every answer (status, distance, entity, u, v bit for bit), so that a change can be shown not
 // to move a single result. See bench/README.md, "Real CAD models" (issue 26).
 //
@@ -229,6 +229,16 @@ int main(int argc, char** argv) {
                  "callgrind runs) and exit");
   bool verbose = false;
   app.add_flag("-v,--verbose", verbose, "log every ICP pass (the finder's debug lines)");
+  double noise = 0.005;
+  app.add_option("--noise", noise, "the near points' noise, a fraction of the trimmed diagonal")
+      ->check(CLI::NonNegativeNumber);
+  engine::ProjectionOptions certify;
+  certify.certify = true;
+  app.add_option("--certificate-radius", certify.certificate_radius,
+                 "the warm set's certificate radius cap (model units; 0: the engine's default)");
+  app.add_option("--certificate-span", certify.certificate_span,
+                 "the warm set's ProjectionOptions::certificate_span")
+      ->check(CLI::Range(1, engine::kMaxCertificateSpan));
   CLI11_PARSE(app, argc, argv);
   if (verbose) spdlog::set_level(spdlog::level::debug);
 
@@ -260,7 +270,7 @@ int main(int argc, char** argv) {
 
   engine::SyntheticScanOptions synth;
   synth.points = points;
-  synth.noise_sigma = 0.005 * diagonal;
+  synth.noise_sigma = noise * diagonal;
   synth.seed = 26;
   const std::vector<Vec3> near = engine::make_synthetic_scan(model, synth).points;
   const std::vector<Vec3>& near_ref = near;
@@ -292,8 +302,6 @@ int main(int argc, char** argv) {
   if (sets.find("warm") != std::string::npos) {
     // A tracking frame: the near points certified (a frame made with certify), then the same
     // points moved by 1e-4 of the diagonal, hinted by the first frame's answers.
-    engine::ProjectionOptions certify;
-    certify.certify = true;
     engine::ProjectionResults first, out;
     engine::ProjectionCounters made, counters;
     std::vector<Vec3> moved(near);
