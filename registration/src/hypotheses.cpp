@@ -123,8 +123,9 @@ class MatchPoints {
       const float ls2 = dx * dx + dy * dy + dz * dz;
       const float lm2 = ex * ex + ey * ey + ez * ez;
       const float ls = std::sqrt(ls2), lm = std::sqrt(lm2);
-      const bool ok = (ls2 >= min_edge2) & (std::abs(ls - lm) <= tol) &
-                      (std::min(ls, lm) >= sim * std::max(ls, lm));
+      // Bitwise on ints, not && on bools: no branch, so the loop vectorises.
+      const int ok = int(ls2 >= min_edge2) & int(std::abs(ls - lm) <= tol) &
+                     int(std::min(ls, lm) >= sim * std::max(ls, lm));
       out[b] = static_cast<std::uint8_t>(ok);
     }
   }
