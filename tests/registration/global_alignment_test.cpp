@@ -117,6 +117,19 @@ TEST(GlobalAlignment, NistRotatedHalfATurnGivesTheRightPoseOrFails) {
   }
 }
 
+// A scan made with `o` aligns from any pose with default options: a good fit, within 0.05 degrees
+// and 5e-4 of the part's size.
+void expect_right_pose(const testing::Part& p, const engine::SyntheticScanOptions& o) {
+  const engine::SyntheticScan scan = engine::make_synthetic_scan(p.model->model(), o);
+  Aligner aligner(*p.model, icp::IcpOptions{}, {}, p.features);
+  const AlignmentResult r = aligner.align(scan.points);
+  ASSERT_TRUE(r.ok()) << *r.failure;
+  EXPECT_TRUE(r.fit.good);
+  const Errors e = pose_error(scan.T_model_scan, r.icp.T_model_scan);
+  EXPECT_LT(e.degrees, 0.05);
+  EXPECT_LT(e.translation, 5e-4 * p.size);
+}
+
 // Outliers in the scan's own box (1.4 a voxel around NIST CTC-02): the voxels they alone fill
 // outnumbered the surface's within a keypoint's normal radius, and the PCA kept 720 of about
 // 2,800 keypoints, too few to find the pose (exit 1 on 3 of 10 such scans).
@@ -129,14 +142,7 @@ TEST(GlobalAlignment, NistWithOutliersFillingItsBox) {
   o.seed = 3;
   o.T_scan_model = engine::pose_from_euler_degrees(98.879089, 104.808221, 93.336660,
                                                    Vec3(-985.771348, -373.252453, -1109.161607));
-  const engine::SyntheticScan scan = engine::make_synthetic_scan(p.model->model(), o);
-  Aligner aligner(*p.model, icp::IcpOptions{}, {}, p.features);
-  const AlignmentResult r = aligner.align(scan.points);
-  ASSERT_TRUE(r.ok()) << *r.failure;
-  EXPECT_TRUE(r.fit.good);
-  const Errors e = pose_error(scan.T_model_scan, r.icp.T_model_scan);
-  EXPECT_LT(e.degrees, 0.05);
-  EXPECT_LT(e.translation, 5e-4 * p.size);
+  expect_right_pose(p, o);
 }
 
 // A 1 M-point half view of NIST CTC-02 (issue 25's benchmark, `run.py --points 1000000`, a
@@ -152,14 +158,7 @@ TEST(GlobalAlignment, ALastRoundWithFreshDrawsWhenTwoRoundsMiss) {
   o.seed = 5;
   o.T_scan_model = engine::pose_from_euler_degrees(102.630705, -73.797681, 96.757834,
                                                    Vec3(496.168793, 329.592719, -1352.954413));
-  const engine::SyntheticScan scan = engine::make_synthetic_scan(p.model->model(), o);
-  Aligner aligner(*p.model, icp::IcpOptions{}, {}, p.features);
-  const AlignmentResult r = aligner.align(scan.points);
-  ASSERT_TRUE(r.ok()) << *r.failure;
-  EXPECT_TRUE(r.fit.good);
-  const Errors e = pose_error(scan.T_model_scan, r.icp.T_model_scan);
-  EXPECT_LT(e.degrees, 0.05);
-  EXPECT_LT(e.translation, 5e-4 * p.size);
+  expect_right_pose(p, o);
 }
 
 // Clustered clutter: a fixture plane under the part holding 30% of the points.
