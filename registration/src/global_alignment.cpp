@@ -458,6 +458,9 @@ CoarseOutcome coarse_align(std::span<const Vec3> scan, const ModelFeatures& feat
         if (other.points.size() >= kMinScanKeypoints) {
           keys = std::move(other);
           matches = matches_of(keys);
+          // The report speaks of the keypoints and matches the last round drew from.
+          r.scan_keypoints = keys.points.size();
+          r.matches = matches.size();
           if (past_deadline("after the scan's features")) return out;
         }
       }
