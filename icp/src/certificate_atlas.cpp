@@ -181,12 +181,14 @@ constexpr std::array<Ring, 3> kRings = {{{0, 6}, {6, 18}, {18, 26}}};
 
 const engine::ProjectionHint* CertificateAtlas::find(const engine::Vec3& p) const {
   if (hints_.empty()) return nullptr;
-  // Enough slack for the query's own distance (about the scan's noise, far below half a cell):
-  // take it. Otherwise (p's cell is empty, or its anchor's foot is near a patch edge) the 26
-  // neighbours, nearest first (faces, edges, corners), until one leaves that much. Cells of half
-  // the radius cap hold about one anchor of a 10% subsample each, so many are empty: the own
-  // cell and its faces alone left half of a full scan's points without a certificate.
-  const double enough = 0.5 / inverse_cell_;
+  // Enough slack for the query's own distance (about the scan's noise, far below a quarter of a
+  // cell, an eighth of the radius cap): take it. Otherwise (p's cell is empty, or its anchor's
+  // foot is near a patch edge) the 26 neighbours, nearest first (faces, edges, corners), until
+  // one leaves that much. Cells of half the radius cap hold about one anchor of a 10% subsample
+  // each, so many are empty: the own cell and its faces alone left half of a full scan's points
+  // without a certificate. Half a cell as "enough" sent more lookups into the rings (a 1 M-point
+  // pass probed 11.4 M cells instead of 9.5 M) for the same certificates in the end.
+  const double enough = 0.25 / inverse_cell_;
   const Cell c = cell_of(p);
   // What a covering certificate leaves for p's own distance (it proves p's answer when that
   // distance is at most clearance - |p - anchor|), kept with the best hint so far instead of

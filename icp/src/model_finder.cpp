@@ -128,13 +128,19 @@ ModelCorrespondenceFinder::HintSource ModelCorrespondenceFinder::prepare_hints(
     // In an order that keeps each atlas cell's points together (the lookups' probes then hit
     // the cache); each point's lookup is its own, so the order changes no result.
     atlas_.lookup_order(query.points, query.parallel, lookup_order_, lookup_bucket_);
+    // Which points keep their own hint, in index order (the previous answers and the points are
+    // read in sequence: in the cell order each read was a cache miss).
+    needs_lookup_.resize(n);
+    detail::for_each_block(n, query.parallel, [&](std::size_t begin, std::size_t end, std::size_t) {
+      for (std::size_t k = begin; k < end; ++k) {
+        needs_lookup_[k] = !stopped_borrowing(ids.empty() ? k : ids[k]) &&
+                           !source.own(k).certificate.covers(query.points[k]);
+      }
+    });
     detail::for_each_block(n, query.parallel, [&](std::size_t begin, std::size_t end, std::size_t) {
       for (std::size_t position = begin; position < end; ++position) {
         const std::size_t k = lookup_order_[position];
-        const engine::Vec3& p = query.points[k];
-        const bool keeps_own =
-            stopped_borrowing(ids.empty() ? k : ids[k]) || source.own(k).certificate.covers(p);
-        borrowed_[k] = keeps_own ? nullptr : atlas_.find(p);
+        borrowed_[k] = needs_lookup_[k] ? atlas_.find(query.points[k]) : nullptr;
       }
     });
     source.borrowed = borrowed_.data();

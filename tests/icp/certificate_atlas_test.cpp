@@ -79,6 +79,12 @@ TEST(CertificateAtlas, PrefersCertificatesWithMoreSlack) {
   // Enough slack in the own cell (long clearance): kept without looking further.
   atlas.insert(hint_at(Vec3(0.21, 0.1, 0.1), 0.4, 6, 0.7));
   EXPECT_EQ(atlas.find(Vec3(0.2, 0.1, 0.1))->certificate.patch, 6);
+  // "Enough" is a quarter of a cell (0.0625 here): an own-cell slack of 0.1 is kept although a
+  // neighbour offers more (the query's own distance, about the scan's noise, is far below it).
+  atlas.reset(0.25);
+  atlas.insert(hint_at(Vec3(0.2, 0.1, 0.1), 0.4, 10, 0.1));
+  atlas.insert(hint_at(Vec3(0.3, 0.1, 0.1), 0.4, 11, 0.9));
+  EXPECT_EQ(atlas.find(Vec3(0.2, 0.1, 0.1))->certificate.patch, 10);
   // The neighbour does not cover the point: the own cell's certificate even with little slack.
   atlas.reset(0.25);
   atlas.insert(hint_at(Vec3(0.2, 0.1, 0.1), 0.4, 7, 0.1));

@@ -32,8 +32,8 @@ class CertificateAtlas {
   void insert(const engine::ProjectionHint& hint);
   // A hint kept for p's cell or one of its 26 neighbours whose certificate covers p
   // (|p - anchor| <= radius), else null: p's own cell's covering one with the most slack
-  // (clearance - |p - anchor|) when that is at least half a cell side, else the first ring of
-  // neighbours (faces, then edges, then corners) whose best covering one does, else the covering
+  // (clearance - |p - anchor|) when that is at least a quarter of a cell side, else the first ring
+  // of neighbours (faces, then edges, then corners) whose best covering one does, else the covering
   // one with the most slack.
   const engine::ProjectionHint* find(const engine::Vec3& p) const;
   std::size_t size() const { return count_; }  // hints kept

@@ -132,6 +132,8 @@ class ModelCorrespondenceFinder final : public CorrespondenceFinder {
   engine::FrameVector<const engine::ProjectionHint*> borrowed_;
   // The atlas lookups' order and its scratch (CertificateAtlas::lookup_order).
   std::vector<std::uint32_t> lookup_order_, lookup_bucket_;
+  // Per query point: 1 when it has no certificate of its own that covers it (and may borrow).
+  std::vector<std::uint8_t> needs_lookup_;
   // Per scan point: 1 once a certificate it borrowed did not prove its answer (it borrows no
   // more until reset()); sized with previous_position_.
   engine::FrameVector<std::uint8_t> borrow_failed_;
