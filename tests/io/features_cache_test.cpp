@@ -194,6 +194,23 @@ TEST_F(FeaturesCacheTest, RoundTripIsBitExact) {
   EXPECT_EQ(decoded->options().seed, options_.seed);
 }
 
+// from_parts builds nothing: the accessors give the parts as given (a changed descriptor and
+// no symmetries stay so), never a fresh build over them.
+TEST_F(FeaturesCacheTest, FromPartsGivesThePartsAsGiven) {
+  registration::ModelFeatureParts parts;
+  parts.surface_area = fresh_saddle().surface_area();
+  parts.voxel = fresh_saddle().voxel();
+  parts.keypoints = fresh_saddle().keypoints();
+  parts.descriptors = fresh_saddle().descriptors();
+  parts.descriptors(0, 0) += 1.0f;
+  const auto f = ModelFeatures::from_parts(saddle(), options_, parts);
+  EXPECT_EQ(f->descriptors()(0, 0), parts.descriptors(0, 0));
+  EXPECT_TRUE(f->symmetries().empty());  // the saddle's three turns were not searched for
+  f->build_all();
+  EXPECT_EQ(f->descriptors()(0, 0), parts.descriptors(0, 0));
+  EXPECT_TRUE(f->symmetries().empty());
+}
+
 TEST_F(FeaturesCacheTest, HitAfterMissGivesTheSameAlignmentToTheBit) {
   CacheOutcome outcome{};
   const auto built = load(panel(), &outcome);
