@@ -17,6 +17,7 @@
 #include <limits>
 #include <random>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "nurbsreg/engine/synthetic_scan.hpp"
@@ -394,6 +395,22 @@ TEST_F(FeaturesCacheTest, DisabledOrUnwritableCacheStillGivesTheFeatures) {
   ASSERT_EQ(warnings.size(), 1u);
   EXPECT_NE(warnings[0].find("could not store"), std::string::npos) << warnings[0];
   expect_same_bits(*f, fresh_saddle());
+}
+
+// Processes (here threads) that miss at once each build and rename a complete entry into
+// place: all get the same features, and the entry left is whole.
+TEST_F(FeaturesCacheTest, ConcurrentLoadsAgree) {
+  std::vector<std::shared_ptr<const ModelFeatures>> got(4);
+  std::vector<std::thread> threads;
+  for (std::size_t k = 0; k < got.size(); ++k)
+    threads.emplace_back([&, k] { got[k] = load_model_features(saddle(), options_, settings_); });
+  for (std::thread& t : threads)
+    t.join();
+  for (const auto& f : got)
+    expect_same_bits(*f, fresh_saddle());
+  CacheOutcome outcome{};
+  expect_same_bits(*load(saddle(), &outcome), fresh_saddle());
+  EXPECT_EQ(outcome, CacheOutcome::hit);
 }
 
 }  // namespace

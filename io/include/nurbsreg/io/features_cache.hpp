@@ -2,7 +2,7 @@
 // The model-features cache: the global alignment's model features (registration::ModelFeatures:
 // surface area, keypoints with exact normals, descriptors, discrete symmetries) are built once
 // per model and options; later runs on the same model read them from a compact binary file
-// (milliseconds instead of the half second or more the build takes on a real part).
+// instead of building them again (on a real part the build can cost more than the alignment).
 //
 // Key: the model's exact content (hash_model: every number's bits, so a .json model is keyed as
 // well as a converted STEP/IGES file), every registration::FeatureOptions field (bit for bit),

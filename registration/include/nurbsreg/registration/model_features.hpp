@@ -70,8 +70,9 @@ class ModelFeatures {
   explicit ModelFeatures(const engine::PreparedModel& model, FeatureOptions options = {});
   ModelFeatures(const engine::PreparedModel&& model, FeatureOptions options = {}) = delete;
 
-  // The features of `model` and `options` from their stored parts (as parts() gave them for the
-  // same model and options): nothing is built, every accessor returns the parts as given.
+  // The features of `model` and `options` from their stored parts (as the accessors gave them
+  // after build_all() for the same model and options): nothing is built, every accessor
+  // returns the parts as given.
   // Checked: the model has surfaces, the area is finite and positive and the voxel the one it
   // gives with options.keypoints, one normal and one descriptor row of kFeatureDescriptorSize
   // per keypoint, every number finite; std::invalid_argument naming the part otherwise. That
