@@ -287,12 +287,16 @@ struct Worker {
 
 class WorkerPool {
  public:
-  WorkerPool(std::size_t size, const engine::PreparedModel& model, bool align,
+  WorkerPool(std::size_t size, const engine::PreparedModel& model, bool align, bool global,
              const icp::IcpOptions& options, const registration::RegistrationOptions& reg) {
-    // One set of coarse-stage features for all workers, built by the first frame that needs it.
-    const auto features =
-        align ? std::make_shared<const registration::ModelFeatures>(model, reg.global.features)
-              : nullptr;
+    // One set of coarse-stage features for all workers: from any pose (`global`) through the
+    // features cache, otherwise only the area is needed, built here.
+    std::shared_ptr<const registration::ModelFeatures> features;
+    if (align) {
+      features =
+          global ? load_features(model, reg.global.features)
+                 : std::make_shared<const registration::ModelFeatures>(model, reg.global.features);
+    }
     for (std::size_t i = 0; i < size; ++i) {
       auto w = std::make_unique<Worker>();
       if (align) {
@@ -483,7 +487,9 @@ void run_batch(const BatchArgs& args) {
   // is itself parallel, so more frames in flight only cost memory.
   const std::size_t in_flight = args.in_flight > 0 ? static_cast<std::size_t>(args.in_flight)
                                                    : std::min<std::size_t>(parallelism, 4) + 1;
-  WorkerPool pool(in_flight, prepared, align, options, registration_options(args.global));
+  // A batch resumed with nothing left to do builds no features.
+  WorkerPool pool(in_flight, prepared, align, request.runs_global() && !todo.empty(), options,
+                  registration_options(args.global));
 
   StopOnSignal stop_on_signal;
   std::size_t next = 0;

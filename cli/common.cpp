@@ -2,6 +2,9 @@
 
 #include <spdlog/spdlog.h>
 
+#include <ctime>
+
+#include "nurbsreg/io/features_cache.hpp"
 #include "nurbsreg/io/model_file.hpp"
 #include "nurbsreg/io/model_warnings.hpp"
 
@@ -12,6 +15,12 @@ std::unique_ptr<tbb::global_control> limit_threads(int threads) {
   if (threads == 0) return nullptr;
   return std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
                                                static_cast<std::size_t>(threads));
+}
+
+double process_cpu_seconds() {
+  timespec t{};
+  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &t);
+  return static_cast<double>(t.tv_sec) + 1e-9 * static_cast<double>(t.tv_nsec);
 }
 
 namespace {
@@ -31,6 +40,13 @@ engine::Model load_model_file(const std::string& path) {
   for (const std::string& warning : io::model_warnings(path, model))
     spdlog::warn("{}", warning);
   return model;
+}
+
+std::shared_ptr<const registration::ModelFeatures> load_features(
+    const engine::PreparedModel& model, const registration::FeatureOptions& options) {
+  io::FeaturesCacheSettings settings = io::FeaturesCacheSettings::from_environment();
+  if (model_cache_disabled) settings.enabled = false;
+  return io::load_model_features(model, options, settings);
 }
 
 }  // namespace nurbsreg::cli

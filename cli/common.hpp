@@ -9,6 +9,8 @@
 #include <string>
 
 #include "nurbsreg/engine/model.hpp"
+#include "nurbsreg/engine/prepared_model.hpp"
+#include "nurbsreg/registration/model_features.hpp"
 
 namespace nurbsreg::cli {
 
@@ -32,8 +34,18 @@ std::unique_ptr<tbb::global_control> limit_threads(int threads);
 // Reads a model file (JSON; CAD formats when supported), throwing io::InputError naming the file.
 // STEP/IGES files go through the model cache (io/model_cache.hpp) unless disabled.
 engine::Model load_model_file(const std::string& path);
-// --no-cache: load_model_file converts CAD files every time (called once, from main).
+// The global alignment's model features through the features cache (io/features_cache.hpp),
+// built in full and stored on a miss; without a cache (--no-cache, NURBSREG_NO_CACHE) built
+// lazily as the aligner would. For the runs that align from any pose (the others only need the
+// area). Errors of building (a model without area: std::runtime_error) pass through.
+std::shared_ptr<const registration::ModelFeatures> load_features(
+    const engine::PreparedModel& model, const registration::FeatureOptions& options);
+// --no-cache: load_model_file converts CAD files every time and load_features builds the
+// features every time (called once, from main).
 void disable_model_cache();
+
+// This process's CPU seconds (all threads), for the timings beside the wall times.
+double process_cpu_seconds();
 
 class Stopwatch {
  public:

@@ -12,6 +12,7 @@
 #include <iterator>
 #include <optional>
 
+#include "cache_codec.hpp"
 #include "nurbsreg/io/atomic_file.hpp"
 
 #ifndef NURBSREG_VERSION
@@ -38,47 +39,30 @@ std::uint64_t splitmix(std::uint64_t x) {
   return x ^ (x >> 31);
 }
 
-// --- writing ------------------------------------------------------------------------------
+using detail::hex;
+using detail::read_whole_file;
+using detail::Reader;
+using detail::Writer;
 
-class Writer {
- public:
-  template <class T>
-  void raw(const T& value) {
-    static_assert(std::is_trivially_copyable_v<T>);
-    const auto* p = reinterpret_cast<const char*>(&value);
-    out_.append(p, sizeof(T));
-  }
-  void u64(std::uint64_t v) { raw(v); }
-  void i32(std::int32_t v) { raw(v); }
-  void str(const std::string& s) {
-    u64(s.size());
-    out_.append(s);
-  }
-  void doubles(const std::vector<double>& v) {
-    u64(v.size());
-    out_.append(reinterpret_cast<const char*>(v.data()), v.size() * sizeof(double));
-  }
-  void points(const std::vector<engine::Vec3>& v) {
-    u64(v.size());
-    for (const engine::Vec3& p : v) {
-      raw(p.x());
-      raw(p.y());
-      raw(p.z());
-    }
-  }
-  void curve(const engine::NurbsCurve& c) {
-    str(c.name);
-    i32(c.degree);
-    i32(c.dimension);
-    doubles(c.knots);
-    points(c.control_points);
-    doubles(c.weights);
-  }
-  std::string& bytes() { return out_; }
+void write_curve(Writer& w, const engine::NurbsCurve& c) {
+  w.str(c.name);
+  w.i32(c.degree);
+  w.i32(c.dimension);
+  w.doubles(c.knots);
+  w.points(c.control_points);
+  w.doubles(c.weights);
+}
 
- private:
-  std::string out_;
-};
+engine::NurbsCurve read_curve(Reader& r) {
+  engine::NurbsCurve c;
+  c.name = r.str();
+  c.degree = r.i32();
+  c.dimension = r.i32();
+  c.knots = r.doubles();
+  c.control_points = r.points();
+  c.weights = r.doubles();
+  return c;
+}
 
 std::string encode_payload(const engine::Model& m) {
   Writer w;
@@ -99,15 +83,15 @@ std::string encode_payload(const engine::Model& m) {
     for (const engine::TrimLoop& loop : s.trim_loops) {
       w.u64(loop.curves.size());
       for (const engine::TrimCurve& c : loop.curves) {
-        w.curve(c.uv);
+        write_curve(w, c.uv);
         w.i32(c.edge ? 1 : 0);
-        if (c.edge) w.curve(*c.edge);
+        if (c.edge) write_curve(w, *c.edge);
       }
     }
   }
   w.u64(m.curves.size());
   for (const engine::NurbsCurve& c : m.curves)
-    w.curve(c);
+    write_curve(w, c);
   w.u64(m.skipped_faces.size());
   for (const engine::SkippedFace& f : m.skipped_faces) {
     w.i32(f.face);
@@ -115,75 +99,6 @@ std::string encode_payload(const engine::Model& m) {
   }
   return std::move(w.bytes());
 }
-
-// --- reading ------------------------------------------------------------------------------
-
-// Bounds-checked reads; any overrun or implausible count is corruption.
-class Reader {
- public:
-  explicit Reader(std::string_view bytes) : bytes_(bytes) {}
-
-  template <class T>
-  T raw() {
-    need(sizeof(T));
-    T value;
-    std::memcpy(&value, bytes_.data() + at_, sizeof(T));
-    at_ += sizeof(T);
-    return value;
-  }
-  std::uint64_t u64() { return raw<std::uint64_t>(); }
-  std::int32_t i32() { return raw<std::int32_t>(); }
-  // A count of items of at least `item_bytes` each that must fit in what is left.
-  std::size_t count(std::size_t item_bytes) {
-    const std::uint64_t n = u64();
-    if (n > (bytes_.size() - at_) / std::max<std::size_t>(item_bytes, 1))
-      throw CacheEntryError("a count runs past the end of the entry (truncated or corrupt)");
-    return static_cast<std::size_t>(n);
-  }
-  std::string str() {
-    const std::size_t n = count(1);
-    std::string s(bytes_.substr(at_, n));
-    at_ += n;
-    return s;
-  }
-  std::vector<double> doubles() {
-    const std::size_t n = count(sizeof(double));
-    std::vector<double> v(n);
-    // An empty vector's data() may be null, and memcpy's pointers must not be, even for 0 bytes.
-    if (n != 0) std::memcpy(v.data(), bytes_.data() + at_, n * sizeof(double));
-    at_ += n * sizeof(double);
-    return v;
-  }
-  std::vector<engine::Vec3> points() {
-    const std::size_t n = count(3 * sizeof(double));
-    std::vector<engine::Vec3> v(n);
-    for (engine::Vec3& p : v) {
-      double xyz[3];
-      std::memcpy(xyz, bytes_.data() + at_, sizeof xyz);
-      at_ += sizeof xyz;
-      p = engine::Vec3(xyz[0], xyz[1], xyz[2]);
-    }
-    return v;
-  }
-  engine::NurbsCurve curve() {
-    engine::NurbsCurve c;
-    c.name = str();
-    c.degree = i32();
-    c.dimension = i32();
-    c.knots = doubles();
-    c.control_points = points();
-    c.weights = doubles();
-    return c;
-  }
-  bool done() const { return at_ == bytes_.size(); }
-
- private:
-  void need(std::size_t n) const {
-    if (bytes_.size() - at_ < n) throw CacheEntryError("the entry ends early (truncated)");
-  }
-  std::string_view bytes_;
-  std::size_t at_ = 0;
-};
 
 engine::Model decode_payload(std::string_view bytes) {
   Reader r(bytes);
@@ -205,14 +120,14 @@ engine::Model decode_payload(std::string_view bytes) {
     for (engine::TrimLoop& loop : s.trim_loops) {
       loop.curves.resize(r.count(16));
       for (engine::TrimCurve& c : loop.curves) {
-        c.uv = r.curve();
-        if (r.i32() != 0) c.edge = r.curve();
+        c.uv = read_curve(r);
+        if (r.i32() != 0) c.edge = read_curve(r);
       }
     }
   }
   m.curves.resize(r.count(40));
   for (engine::NurbsCurve& c : m.curves)
-    c = r.curve();
+    c = read_curve(r);
   m.skipped_faces.resize(r.count(12));
   for (engine::SkippedFace& f : m.skipped_faces) {
     f.face = r.i32();
@@ -220,22 +135,6 @@ engine::Model decode_payload(std::string_view bytes) {
   }
   if (!r.done()) throw CacheEntryError("bytes after the model (corrupt)");
   return m;
-}
-
-std::string hex(std::uint64_t x) {
-  static const char* digits = "0123456789abcdef";
-  std::string s(16, '0');
-  for (int k = 15; k >= 0; --k, x >>= 4)
-    s[static_cast<std::size_t>(k)] = digits[x & 15];
-  return s;
-}
-
-std::optional<std::string> read_whole_file(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) return std::nullopt;
-  std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  if (in.bad()) return std::nullopt;
-  return bytes;
 }
 
 }  // namespace
@@ -277,6 +176,10 @@ ContentHash hash_bytes(std::string_view bytes) {
   a = std::rotl((a ^ tail ^ (std::uint64_t{bytes.size() - k} << 56)) * kP1, 29);
   b = std::rotl((b + tail) * kP2, 31) ^ a;
   return {splitmix(a ^ std::rotl(b, 17)), splitmix(b + kP1 * a)};
+}
+
+ContentHash hash_model(const engine::Model& model) {
+  return hash_bytes(encode_payload(model));
 }
 
 std::string encode_model_entry(const engine::Model& model, const ContentHash& source,

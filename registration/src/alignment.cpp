@@ -84,8 +84,7 @@ const ModelFeatures& Aligner::features() {
 }
 
 AlignmentResult Aligner::align(std::span<const engine::Vec3> scan, const AlignRequest& request) {
-  const bool global = request.global == GlobalMode::on ||
-                      (request.global == GlobalMode::automatic && !request.init);
+  const bool global = request.runs_global();
   // The deadline holds for this call only (the solver is reused by the next one).
   struct DeadlineScope {
     icp::IcpSolver& solver;

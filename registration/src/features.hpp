@@ -43,6 +43,9 @@ PcaNormals pca_normals(std::span<const engine::Vec3> points, const PointGrid& gr
                        int min_neighbours);
 
 // Descriptors (rows in point order) over the neighbours within `radius` (<= grid.cell()).
+// The model's are stored in the features cache: a change to what this computes (bins, angles,
+// weights) must bump kModelFeaturesRevision (model_features.hpp), or cached model descriptors
+// stop matching fresh scan descriptors.
 DescriptorMatrix describe(std::span<const engine::Vec3> points,
                           std::span<const engine::Vec3> normals, const PointGrid& grid,
                           double radius);

@@ -1,15 +1,16 @@
+// The global alignment's model features. A change to what any function here (or the
+// sampling, descriptors and symmetry search it calls) computes changes the parts a cache stores:
+// bump kModelFeaturesRevision (model_features.hpp) with it, or cached features go stale unseen.
 #include "nurbsreg/registration/model_features.hpp"
 
+#include <spdlog/spdlog.h>
 #include <tbb/task_group.h>
 
-#include <spdlog/spdlog.h>
-
-#include <spdlog/spdlog.h>
-#include <chrono>
-
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <stdexcept>
+#include <string>
 
 #include "features.hpp"
 #include "model_symmetry.hpp"
@@ -29,18 +30,102 @@ void build_isolated(Build&& build) {
   group.run_and_wait(std::forward<Build>(build));
 }
 
+static_assert(kFeatureDescriptorSize == detail::kDescriptorSize);
+
+double voxel_of(double area, const FeatureOptions& options) {
+  return std::sqrt(area / static_cast<double>(std::max<std::size_t>(options.keypoints, 16)));
+}
+
+void check_model(const engine::PreparedModel& model) {
+  if (model.model().surfaces.empty()) {
+    throw std::runtime_error("the model has no surfaces to align a scan to");
+  }
+}
+
+bool finite(const engine::Vec3& v) {
+  return v.allFinite();
+}
+
+// The checks from_parts promises (model_features.hpp), each naming the part.
+void check_parts(const ModelFeatureParts& p, const FeatureOptions& options) {
+  const auto fail = [](const std::string& what) {
+    throw std::invalid_argument("stored model features: " + what);
+  };
+  if (!(p.surface_area > 0.0) || !std::isfinite(p.surface_area)) {
+    fail("surface area " + std::to_string(p.surface_area) + " is not finite and positive");
+  }
+  if (p.voxel != voxel_of(p.surface_area, options)) {
+    fail("the voxel is not the one the surface area gives with " +
+         std::to_string(options.keypoints) + " keypoints");
+  }
+  const std::size_t n = p.keypoints.points.size();
+  if (p.keypoints.normals.size() != n) {
+    fail(std::to_string(n) + " keypoints but " + std::to_string(p.keypoints.normals.size()) +
+         " normals");
+  }
+  for (std::size_t i = 0; i < n; ++i) {
+    if (!finite(p.keypoints.points[i]) || !finite(p.keypoints.normals[i])) {
+      fail("keypoint " + std::to_string(i) + " is not finite");
+    }
+  }
+  if (static_cast<std::size_t>(p.descriptors.rows()) != n ||
+      p.descriptors.cols() != kFeatureDescriptorSize) {
+    fail(std::to_string(p.descriptors.rows()) + " x " + std::to_string(p.descriptors.cols()) +
+         " descriptors for " + std::to_string(n) + " keypoints (one row of " +
+         std::to_string(kFeatureDescriptorSize) + " each)");
+  }
+  if (!p.descriptors.allFinite()) fail("a descriptor is not finite");
+  for (std::size_t i = 0; i < p.symmetries.size(); ++i) {
+    if (!p.symmetries[i].matrix().allFinite()) {
+      fail("symmetry " + std::to_string(i) + " is not finite");
+    }
+  }
+}
+
 }  // namespace
 
 ModelFeatures::ModelFeatures(const engine::PreparedModel& model, FeatureOptions options)
     : model_(model), options_(options) {
-  if (model.model().surfaces.empty()) {
-    throw std::runtime_error("the model has no surfaces to align a scan to");
-  }
+  check_model(model);
   area_ = engine::surface_area(model.model());
   if (!(area_ > 0.0) || !std::isfinite(area_)) {
     throw std::runtime_error("the model's surfaces have no area to align a scan to");
   }
-  voxel_ = std::sqrt(area_ / static_cast<double>(std::max<std::size_t>(options_.keypoints, 16)));
+  voxel_ = voxel_of(area_, options_);
+}
+
+ModelFeatures::ModelFeatures(FromParts, const engine::PreparedModel& model, FeatureOptions options,
+                             ModelFeatureParts parts)
+    : model_(model),
+      options_(options),
+      area_(parts.surface_area),
+      voxel_(parts.voxel),
+      keypoints_(std::move(parts.keypoints)),
+      descriptors_(std::move(parts.descriptors)),
+      symmetries_(std::move(parts.symmetries)) {
+  // Every part is there: the lazy builds must never run (they would overwrite them).
+  std::call_once(keypoints_once_, [] {});
+  std::call_once(descriptors_once_, [] {});
+  std::call_once(symmetries_once_, [] {});
+}
+
+std::shared_ptr<const ModelFeatures> ModelFeatures::from_parts(const engine::PreparedModel& model,
+                                                               FeatureOptions options,
+                                                               ModelFeatureParts parts) {
+  try {
+    check_model(model);
+  } catch (const std::runtime_error& e) {
+    throw std::invalid_argument(e.what());
+  }
+  check_parts(parts, options);
+  // Not make_shared: the constructor is private.
+  return std::shared_ptr<const ModelFeatures>(
+      new ModelFeatures(FromParts{}, model, options, std::move(parts)));
+}
+
+void ModelFeatures::build_all() const {
+  descriptors();  // and the keypoints
+  symmetries();
 }
 
 const ModelKeypoints& ModelFeatures::keypoints() const {
@@ -65,8 +150,7 @@ const ModelKeypoints& ModelFeatures::keypoints() const {
   return keypoints_;
 }
 
-const Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>&
-ModelFeatures::descriptors() const {
+const FeatureDescriptors& ModelFeatures::descriptors() const {
   std::call_once(descriptors_once_, [&] {
     build_isolated([&] {
       const ModelKeypoints& k = keypoints();

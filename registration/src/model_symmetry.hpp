@@ -25,6 +25,8 @@ namespace nurbsreg::registration::detail {
 // samples are only estimates, and products of the turns found complete the group. An axis about
 // which arbitrary turns fit (a surface of revolution) gives no discrete symmetry: that one is
 // continuous, and the ICP's degeneracy report names it. Deterministic; sorted by angle.
+// Its result is stored in the features cache: a change to what it finds must bump
+// kModelFeaturesRevision (model_features.hpp).
 std::vector<Eigen::Isometry3d> find_model_symmetries(const engine::PreparedModel& model,
                                                      const ModelKeypoints& keypoints, double voxel);
 

@@ -63,7 +63,9 @@ class PointGrid {
 };
 
 // One representative per occupied voxel of side `voxel`, in voxel-key order: the centroid of
-// the voxel's points (centroid = true), or the index of the point nearest to it.
+// the voxel's points (centroid = true), or the index of the point nearest to it. It picks the
+// model's keypoints, which the features cache stores: a change to which point it picks must
+// bump kModelFeaturesRevision (model_features.hpp).
 struct Voxelised {
   std::vector<engine::Vec3> centroids;
   std::vector<std::uint32_t> nearest;  // the point nearest to each centroid

@@ -6,6 +6,8 @@
 #include <filesystem>
 #include <stdexcept>
 
+#include "nurbsreg/io/features_cache.hpp"
+
 namespace nurbsreg::service::detail {
 
 std::unique_ptr<registration::Aligner> ServedModel::make_aligner(
@@ -64,11 +66,12 @@ std::shared_ptr<ServedModel> serve_model(engine::Model model, const std::string&
   if (served->surfaces > 0) {
     const auto features_start = std::chrono::steady_clock::now();
     try {
-      // The options every served aligner uses (RegistrationOptions{}), built now in full.
-      auto features = std::make_shared<const registration::ModelFeatures>(
-          *served->prepared, registration::RegistrationOptions{}.global.features);
-      features->descriptors();
-      features->symmetries();
+      // The options every served aligner uses (RegistrationOptions{}), built now in full, or
+      // read from the features cache (io/features_cache.hpp, the model cache's settings).
+      auto features = io::load_model_features(*served->prepared,
+                                              registration::RegistrationOptions{}.global.features,
+                                              io::FeaturesCacheSettings::from_environment());
+      features->build_all();
       served->features = std::move(features);
     } catch (const std::runtime_error& e) {
       spdlog::warn("{}: no features for the global alignment: {}", file, e.what());

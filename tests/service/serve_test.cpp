@@ -10,10 +10,12 @@
 
 #include <atomic>
 #include <cerrno>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <thread>
 #include <vector>
 
@@ -146,6 +148,57 @@ TEST_F(Serve, AlignAndProjectAnswerAsTheCli) {
   EXPECT_NE(metrics->body.find("nurbsreg_points_total{endpoint=\"project\"} 7000"),
             std::string::npos);
   EXPECT_EQ(server.terminate(30), 0);
+}
+
+// A served model's features come through the features cache (README "Caches"), with the same
+// settings as the CLI's: the first server stores them, a corrupt entry is rebuilt with a
+// warning naming it, and a frame from any pose is the CLI's either way.
+TEST_F(Serve, ModelFeaturesComeThroughTheFeaturesCache) {
+  const Json cli = cli_report("scan.pcd");  // before the variable: the CLI stores nothing there
+  const std::string cache = path("features-cache");
+  // The servers inherit the variable; restored whatever the test's outcome.
+  struct ScopedCacheDir {
+    std::optional<std::string> before;
+    explicit ScopedCacheDir(const std::string& dir) {
+      if (const char* v = std::getenv("NURBSREG_CACHE_DIR")) before = v;
+      ::setenv("NURBSREG_CACHE_DIR", dir.c_str(), 1);
+    }
+    ~ScopedCacheDir() {
+      if (before) {
+        ::setenv("NURBSREG_CACHE_DIR", before->c_str(), 1);
+      } else {
+        ::unsetenv("NURBSREG_CACHE_DIR");
+      }
+    }
+  } scoped(cache);
+  const auto entries = [&] {
+    std::vector<std::filesystem::path> out;
+    std::error_code ec;
+    for (const auto& e : std::filesystem::directory_iterator(cache, ec))
+      if (e.path().extension() == ".nrbfeat") out.push_back(e.path());
+    return out;
+  };
+  for (const char* run : {"stored", "rebuilt"}) {
+    const std::string log = path(std::string("log_cache_") + run + ".txt");
+    ServerProcess server("--model " + kPanel, log);
+    ASSERT_GT(server.port(), 0) << read_text(log);
+    const auto aligned =
+        client(server.port())->Post("/v1/align?model=panel", bytes("scan.pcd"), kPcd);
+    ASSERT_TRUE(aligned);
+    ASSERT_EQ(aligned->status, 200) << aligned->body;
+    expect_same_alignment(Json::parse(aligned->body), cli);
+    const std::vector<std::filesystem::path> stored = entries();
+    ASSERT_EQ(stored.size(), 1u) << run;
+    if (std::string(run) == "stored") {
+      EXPECT_EQ(read_text(log).find("warning"), std::string::npos) << read_text(log);
+      std::fstream f(stored[0], std::ios::in | std::ios::out | std::ios::binary);
+      f.seekp(static_cast<std::streamoff>(std::filesystem::file_size(stored[0]) / 2));
+      f.put('\x7f');
+    } else {
+      EXPECT_NE(read_text(log).find(stored[0].string() + " is not usable"), std::string::npos)
+          << read_text(log);
+    }
+  }
 }
 
 TEST_F(Serve, CurlAsInTheReadme) {

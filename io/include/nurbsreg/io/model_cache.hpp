@@ -62,6 +62,10 @@ struct ContentHash {
 // 128-bit hash of the bytes (two independent 64-bit multiply-rotate lanes, finalised by
 // splitmix64): a cache key, not a cryptographic digest.
 ContentHash hash_bytes(std::string_view bytes);
+// hash_bytes of the model as an entry's payload stores it: every number's bits, the names, trims
+// and skipped faces. Two models with the same hash are the same model (up to the hash's
+// collisions), whatever file they came from (the features cache's key, features_cache.hpp).
+ContentHash hash_model(const engine::Model& model);
 
 // The model as an entry's bytes, and back. decode_model_entry checks everything the header says
 // (magic, format, byte order, version, source hash and size, payload size and checksum), decodes

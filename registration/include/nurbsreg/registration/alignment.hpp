@@ -72,6 +72,12 @@ struct AlignRequest {
   // deviation summary and the verdict are the same; far outliers then cost next to nothing (an
   // unbounded projection of a point far from the model searches much of it).
   bool all_projections = true;
+
+  // Whether align() runs the global stage for this request (GlobalMode::on, or automatic
+  // without init): the one path that needs the model's keypoints, descriptors and symmetries.
+  bool runs_global() const {
+    return global == GlobalMode::on || (global == GlobalMode::automatic && !init);
+  }
 };
 
 // The fine ICP's subsample stages after the global stage, for a scan of n points (unless the

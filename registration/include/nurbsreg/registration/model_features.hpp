@@ -11,6 +11,10 @@
 // Built lazily and thread-safe: the constructor only measures the area; keypoints() and
 // descriptors() build on first use (std::call_once), then every call returns the same const
 // data. Deterministic (fixed seed, results written by index).
+//
+// Stored: build_all() builds every part now, and from_parts() makes the object back from those
+// parts without building anything (io/features_cache.hpp keeps them on disk between runs; the
+// same parts give the same alignments to the bit).
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
@@ -38,6 +42,27 @@ struct ModelKeypoints {
   std::vector<engine::Vec3> normals;  // exact, on the face's outer side
 };
 
+// The revision of what ModelFeatures computes from a model and FeatureOptions: the surface area
+// (engine::surface_area), the keypoints (engine::sample_surfaces and the voxel thinning), the
+// descriptors (features.cpp, point_grid.cpp) and the symmetries (model_symmetry.cpp). Stored
+// features (io/features_cache.hpp) of another revision are stale and built again: bump it with
+// any change to those algorithms or their constants that changes a single bit of the parts,
+// or a cache would keep serving the old parts.
+inline constexpr int kModelFeaturesRevision = 1;
+
+// Row-major float, kFeatureDescriptorSize columns: one row per keypoint.
+inline constexpr int kFeatureDescriptorSize = 32;
+using FeatureDescriptors = Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+
+// Every part of a ModelFeatures as plain data: what a cache stores and gives back.
+struct ModelFeatureParts {
+  double surface_area = 0.0;
+  double voxel = 0.0;
+  ModelKeypoints keypoints;
+  FeatureDescriptors descriptors;
+  std::vector<Eigen::Isometry3d> symmetries;
+};
+
 class ModelFeatures {
  public:
   // `model` must outlive this object. Throws std::runtime_error when the model has no surface
@@ -45,26 +70,48 @@ class ModelFeatures {
   explicit ModelFeatures(const engine::PreparedModel& model, FeatureOptions options = {});
   ModelFeatures(const engine::PreparedModel&& model, FeatureOptions options = {}) = delete;
 
+  // The features of `model` and `options` from their stored parts (as the accessors gave them
+  // after build_all() for the same model and options): nothing is built, every accessor
+  // returns the parts as given.
+  // Checked: the model has surfaces, the area is finite and positive and the voxel the one it
+  // gives with options.keypoints, one normal and one descriptor row of kFeatureDescriptorSize
+  // per keypoint, every number finite; std::invalid_argument naming the part otherwise. That
+  // the parts belong to this model and these options is the caller's to know (the cache's key).
+  static std::shared_ptr<const ModelFeatures> from_parts(const engine::PreparedModel& model,
+                                                         FeatureOptions options,
+                                                         ModelFeatureParts parts);
+  static std::shared_ptr<const ModelFeatures> from_parts(const engine::PreparedModel&& model,
+                                                         FeatureOptions options,
+                                                         ModelFeatureParts parts) = delete;
+
+  // Builds the keypoints, descriptors and symmetries now if they are not yet (what a cache
+  // stores; the global alignment needs all three).
+  void build_all() const;
+
   const FeatureOptions& options() const { return options_; }
   double surface_area() const { return area_; }
   // Sample spacing (model units): sqrt(area / keypoints).
   double voxel() const { return voxel_; }
   const ModelKeypoints& keypoints() const;
   // Row i describes keypoints().points[i]; row-major float, 32 columns.
-  const Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>& descriptors() const;
+  const FeatureDescriptors& descriptors() const;
   // The model's discrete rotational symmetries (model frame, identity excluded): turns that map
   // the model onto itself, checked by exact distances (model_symmetry.hpp in src). A scan of a
   // symmetric part fits as well in every pose S * T as in T; the coarse report lists them.
   const std::vector<Eigen::Isometry3d>& symmetries() const;
 
  private:
+  struct FromParts {};
+  ModelFeatures(FromParts, const engine::PreparedModel& model, FeatureOptions options,
+                ModelFeatureParts parts);
+
   const engine::PreparedModel& model_;
   FeatureOptions options_;
   double area_ = 0.0;
   double voxel_ = 0.0;
   mutable std::once_flag keypoints_once_, descriptors_once_, symmetries_once_;
   mutable ModelKeypoints keypoints_;
-  mutable Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> descriptors_;
+  mutable FeatureDescriptors descriptors_;
   mutable std::vector<Eigen::Isometry3d> symmetries_;
 };
 
