@@ -18,6 +18,9 @@
 #ifndef NURBSREG_VERSION
 #define NURBSREG_VERSION "unknown"
 #endif
+#ifndef NURBSREG_FEATURE_SOURCES_DIGEST
+#define NURBSREG_FEATURE_SOURCES_DIGEST "unknown"
+#endif
 
 namespace nurbsreg::io {
 namespace {
@@ -117,7 +120,8 @@ double seconds_since(std::chrono::steady_clock::time_point start) {
 
 std::string features_cache_version() {
   return std::string("nurbsreg ") + NURBSREG_VERSION + " features " +
-         std::to_string(registration::kModelFeaturesRevision);
+         std::to_string(registration::kModelFeaturesRevision) + " sources " +
+         NURBSREG_FEATURE_SOURCES_DIGEST;
 }
 
 FeaturesCacheSettings FeaturesCacheSettings::from_environment() {

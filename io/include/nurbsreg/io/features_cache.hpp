@@ -6,8 +6,9 @@
 //
 // Key: the model's exact content (hash_model: every number's bits, so a .json model is keyed as
 // well as a converted STEP/IGES file), every registration::FeatureOptions field (bit for bit),
-// and the version (features_cache_version: the nurbsreg version and
-// registration::kModelFeaturesRevision, bumped whenever the features' algorithms change). The
+// and the version (features_cache_version: the nurbsreg version,
+// registration::kModelFeaturesRevision and a digest of the sources that compute the features,
+// taken when the build is configured: an edit to them makes old entries stale by itself). The
 // entry's name is derived from all three, and its header repeats them, so features of another
 // model, other options or another version are never taken for the right ones.
 //

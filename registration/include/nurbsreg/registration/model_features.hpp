@@ -45,9 +45,10 @@ struct ModelKeypoints {
 // The revision of what ModelFeatures computes from a model and FeatureOptions: the surface area
 // (engine::surface_area), the keypoints (engine::sample_surfaces and the voxel thinning), the
 // descriptors (features.cpp, point_grid.cpp) and the symmetries (model_symmetry.cpp). Stored
-// features (io/features_cache.hpp) of another revision are stale and built again: bump it with
-// any change to those algorithms or their constants that changes a single bit of the parts,
-// or a cache would keep serving the old parts.
+// features (io/features_cache.hpp) of another revision are stale and built again. The cache's
+// key also holds a digest of the sources that compute the parts (io/CMakeLists.txt lists them),
+// so an edit there needs no bump; bump it when a change elsewhere (the engine's evaluation, say)
+// changes a single bit of the parts, or a cache would keep serving the old ones.
 inline constexpr int kModelFeaturesRevision = 1;
 
 // Row-major float, kFeatureDescriptorSize columns: one row per keypoint.
