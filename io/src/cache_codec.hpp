@@ -123,6 +123,35 @@ class Reader {
   std::size_t at_ = 0;
 };
 
+// Every entry starts with its kind's 8-byte magic, the format, this byte-order mark and the
+// version that wrote it.
+inline constexpr std::uint32_t kByteOrder = 0x01020304;
+
+inline void write_entry_start(Writer& w, const char (&magic)[8], std::uint32_t format,
+                              const std::string& version) {
+  w.bytes().append(magic, sizeof magic);
+  w.raw(format);
+  w.raw(kByteOrder);
+  w.str(version);
+}
+
+// Checks an entry's start (write_entry_start) and returns a reader at what follows; throws
+// CacheEntryError naming what is wrong. `kind` names the cache in the message.
+inline Reader read_entry_start(std::string_view bytes, const char (&magic)[8], std::uint32_t format,
+                               const char* kind, const std::string& version) {
+  if (bytes.size() < sizeof magic || std::memcmp(bytes.data(), magic, sizeof magic) != 0) {
+    throw CacheEntryError(std::string("not a nurbsreg ") + kind + " entry (bad magic)");
+  }
+  Reader r(bytes.substr(sizeof magic));
+  if (r.raw<std::uint32_t>() != format) throw CacheEntryError("another entry format (stale)");
+  if (r.raw<std::uint32_t>() != kByteOrder)
+    throw CacheEntryError("written on a machine of another byte order");
+  const std::string written_by = r.str();
+  if (written_by != version)
+    throw CacheEntryError("written by \"" + written_by + "\", this is \"" + version + "\" (stale)");
+  return r;
+}
+
 inline std::string hex(std::uint64_t x) {
   static const char* digits = "0123456789abcdef";
   std::string s(16, '0');

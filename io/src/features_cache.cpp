@@ -38,7 +38,6 @@ constexpr char kMagic[8] = {'N', 'R', 'B', 'F', 'E', 'A', 'T', 'S'};
 // Bump when the entry's layout below changes (what the features are is
 // registration::kModelFeaturesRevision's, in the version).
 constexpr std::uint32_t kFormat = 1;
-constexpr std::uint32_t kByteOrder = 0x01020304;
 // A symmetry is stored as the top three rows of its 4 x 4 matrix (an isometry's last row is
 // 0 0 0 1, and Eigen's isometry products never read it).
 constexpr std::size_t kSymmetryDoubles = 12;
@@ -137,10 +136,7 @@ std::string encode_features_entry(const ModelFeatures& features, const ContentHa
   const std::string payload = encode_payload(features);
   const OptionBits o = bits_of(features.options());
   Writer w;
-  w.bytes().append(kMagic, sizeof kMagic);
-  w.raw(kFormat);
-  w.raw(kByteOrder);
-  w.str(version);
+  detail::write_entry_start(w, kMagic, kFormat, version);
   w.u64(model.lo);
   w.u64(model.hi);
   w.raw(o);
@@ -155,15 +151,7 @@ std::shared_ptr<const ModelFeatures> decode_features_entry(std::string_view byte
                                                            const ContentHash& model_hash,
                                                            const FeatureOptions& options,
                                                            const std::string& version) {
-  if (bytes.size() < sizeof kMagic || std::memcmp(bytes.data(), kMagic, sizeof kMagic) != 0)
-    throw CacheEntryError("not a nurbsreg features cache entry (bad magic)");
-  Reader r(bytes.substr(sizeof kMagic));
-  if (r.raw<std::uint32_t>() != kFormat) throw CacheEntryError("another entry format (stale)");
-  if (r.raw<std::uint32_t>() != kByteOrder)
-    throw CacheEntryError("written on a machine of another byte order");
-  const std::string written_by = r.str();
-  if (written_by != version)
-    throw CacheEntryError("written by \"" + written_by + "\", this is \"" + version + "\" (stale)");
+  Reader r = detail::read_entry_start(bytes, kMagic, kFormat, "features cache", version);
   if (r.u64() != model_hash.lo || r.u64() != model_hash.hi)
     throw CacheEntryError("made from another model (stale)");
   if (r.raw<OptionBits>() != bits_of(options))

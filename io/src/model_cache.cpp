@@ -27,7 +27,6 @@ namespace {
 constexpr int kCacheRevision = 1;
 constexpr char kMagic[8] = {'N', 'R', 'B', 'M', 'O', 'D', 'E', 'L'};
 constexpr std::uint32_t kFormat = 1;
-constexpr std::uint32_t kByteOrder = 0x01020304;
 
 constexpr std::uint64_t kP1 = 0x9e3779b97f4a7c15ull, kP2 = 0xc2b2ae3d27d4eb4full;
 
@@ -187,10 +186,7 @@ std::string encode_model_entry(const engine::Model& model, const ContentHash& so
   const std::string payload = encode_payload(model);
   const ContentHash check = hash_bytes(payload);
   Writer w;
-  w.bytes().append(kMagic, sizeof kMagic);
-  w.raw(kFormat);
-  w.raw(kByteOrder);
-  w.str(version);
+  detail::write_entry_start(w, kMagic, kFormat, version);
   w.u64(source_size);
   w.u64(source.lo);
   w.u64(source.hi);
@@ -202,20 +198,12 @@ std::string encode_model_entry(const engine::Model& model, const ContentHash& so
 
 engine::Model decode_model_entry(std::string_view bytes, const ContentHash& source,
                                  std::uint64_t source_size, const std::string& version) {
-  if (bytes.size() < sizeof kMagic || std::memcmp(bytes.data(), kMagic, sizeof kMagic) != 0)
-    throw CacheEntryError("not a nurbsreg model cache entry (bad magic)");
-  Reader r(bytes.substr(sizeof kMagic));
-  if (r.raw<std::uint32_t>() != kFormat) throw CacheEntryError("another entry format (stale)");
-  if (r.raw<std::uint32_t>() != kByteOrder)
-    throw CacheEntryError("written on a machine of another byte order");
-  const std::string written_by = r.str();
-  if (written_by != version)
-    throw CacheEntryError("written by \"" + written_by + "\", this is \"" + version + "\" (stale)");
+  Reader r = detail::read_entry_start(bytes, kMagic, kFormat, "model cache", version);
   if (r.u64() != source_size || r.u64() != source.lo || r.u64() != source.hi)
     throw CacheEntryError("made from another source file (stale)");
   const std::uint64_t size = r.u64();
   const std::uint64_t check = r.u64();
-  const std::size_t header = sizeof kMagic + 4 + 4 + 8 + written_by.size() + 8 * 5;
+  const std::size_t header = sizeof kMagic + r.offset();
   if (bytes.size() != header + size)
     throw CacheEntryError("its size does not match its header (truncated or corrupt)");
   const std::string_view payload = bytes.substr(header);

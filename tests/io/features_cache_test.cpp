@@ -5,7 +5,6 @@
 // before anything is allocated for it; an unwritable cache costs a warning, not the features.
 
 #include <gtest/gtest.h>
-#include <spdlog/sinks/ringbuffer_sink.h>
 #include <spdlog/spdlog.h>
 #include <unistd.h>
 
@@ -24,6 +23,7 @@
 #include "nurbsreg/io/features_cache.hpp"
 #include "nurbsreg/io/model_json.hpp"
 #include "nurbsreg/registration/alignment.hpp"
+#include "support/log_capture.hpp"
 #include "support/source_paths.hpp"
 
 namespace nurbsreg::io {
@@ -89,27 +89,6 @@ void expect_same_bits(const ModelFeatures& a, const ModelFeatures& b) {
         << "symmetry " << i;
 }
 
-// The warnings of one call (spdlog's default logger), restored afterwards.
-template <typename F>
-std::vector<std::string> warnings_of(F&& call) {
-  const auto sink = std::make_shared<spdlog::sinks::ringbuffer_sink_mt>(1000);
-  const auto capture = std::make_shared<spdlog::logger>("capture", sink);
-  capture->set_level(spdlog::level::warn);
-  const auto previous = spdlog::default_logger();
-  spdlog::set_default_logger(capture);
-  try {
-    call();
-  } catch (...) {
-    spdlog::set_default_logger(previous);
-    throw;
-  }
-  spdlog::set_default_logger(previous);
-  std::vector<std::string> lines;
-  for (const auto& m : sink->last_raw())
-    lines.emplace_back(m.payload.begin(), m.payload.end());
-  return lines;
-}
-
 std::string read_bytes(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
   return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
@@ -153,8 +132,8 @@ class FeaturesCacheTest : public ::testing::Test {
                                             CacheOutcome* outcome,
                                             std::vector<std::string>* warnings = nullptr) {
     std::shared_ptr<const ModelFeatures> f;
-    const auto w =
-        warnings_of([&] { f = load_model_features(model, options_, settings_, outcome); });
+    const auto w = test::log_lines_of(
+        spdlog::level::warn, [&] { f = load_model_features(model, options_, settings_, outcome); });
     if (warnings != nullptr) *warnings = w;
     return f;
   }

@@ -2,7 +2,6 @@
 // the pose against the known one of a synthetic scan, the deviation summary against a sort, the
 // failure line when ICP loses its correspondences, and warm reuse over frames.
 #include <gtest/gtest.h>
-#include <spdlog/sinks/ringbuffer_sink.h>
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
@@ -18,6 +17,7 @@
 #include "nurbsreg/engine/synthetic_scan.hpp"
 #include "nurbsreg/io/model_json.hpp"
 #include "nurbsreg/registration/alignment.hpp"
+#include "support/log_capture.hpp"
 #include "support/source_paths.hpp"
 
 namespace nurbsreg::registration {
@@ -206,27 +206,6 @@ TEST(Aligner, WithoutFarProjectionsFromAnyPoseTheSummaryAndVerdictAreTheSame) {
                                               fine_distance);
 }
 
-// The `-v` lines of one call (spdlog's default logger, debug level), restored afterwards.
-template <typename F>
-std::vector<std::string> debug_lines_of(F&& call) {
-  const auto sink = std::make_shared<spdlog::sinks::ringbuffer_sink_mt>(100000);
-  const auto capture = std::make_shared<spdlog::logger>("capture", sink);
-  capture->set_level(spdlog::level::debug);
-  const auto previous = spdlog::default_logger();
-  spdlog::set_default_logger(capture);
-  try {
-    call();
-  } catch (...) {
-    spdlog::set_default_logger(previous);
-    throw;
-  }
-  spdlog::set_default_logger(previous);
-  std::vector<std::string> lines;
-  for (const auto& m : sink->last_raw())
-    lines.emplace_back(m.payload.begin(), m.payload.end());
-  return lines;
-}
-
 // From any pose, the fine ICP's last pass (at the returned pose, bounded by its distance, which
 // is beyond the verdict's tolerance) is the deviations' and the verdict's: when nobody reads the
 // far points' projections no projection follows it, and with every projection asked for only
@@ -243,7 +222,7 @@ TEST(Aligner, FromAnyPoseTheVerdictReadsTheFineIcpsLastPass) {
     Aligner aligner(model, icp::IcpOptions{});
     AlignmentResult r;
     const std::vector<std::string> lines =
-        debug_lines_of([&] { r = aligner.align(scan.points, request); });
+        test::log_lines_of(spdlog::level::debug, [&] { r = aligner.align(scan.points, request); });
     EXPECT_TRUE(r.ok()) << r.failure.value_or("");
     EXPECT_TRUE(r.icp.statistics_at_pose);
     auto line = std::find_if(lines.begin(), lines.end(), [](const std::string& l) {
