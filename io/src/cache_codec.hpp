@@ -17,6 +17,7 @@
 
 #include "nurbsreg/engine/types.hpp"
 #include "nurbsreg/io/model_cache.hpp"
+#include "printable.hpp"
 
 namespace nurbsreg::io::detail {
 
@@ -147,8 +148,14 @@ inline Reader read_entry_start(std::string_view bytes, const char (&magic)[8], s
   if (r.raw<std::uint32_t>() != kByteOrder)
     throw CacheEntryError("written on a machine of another byte order");
   const std::string written_by = r.str();
-  if (written_by != version)
-    throw CacheEntryError("written by \"" + written_by + "\", this is \"" + version + "\" (stale)");
+  if (written_by != version) {
+    // A corrupt entry's bytes: shown printable and short (the message is one log line).
+    constexpr std::size_t kShown = 80;
+    const std::string shown =
+        text_detail::printable(std::string_view(written_by).substr(0, kShown)) +
+        (written_by.size() > kShown ? "..." : "");
+    throw CacheEntryError("written by \"" + shown + "\", this is \"" + version + "\" (stale)");
+  }
   return r;
 }
 

@@ -13,6 +13,7 @@
 #include <optional>
 
 #include "cache_codec.hpp"
+#include "printable.hpp"
 #include "nurbsreg/io/atomic_file.hpp"
 
 #ifndef NURBSREG_VERSION
@@ -209,7 +210,10 @@ engine::Model decode_model_entry(std::string_view bytes, const ContentHash& sour
   const std::string_view payload = bytes.substr(header);
   if (hash_bytes(payload).lo != check) throw CacheEntryError("checksum mismatch (corrupt)");
   engine::Model model = decode_payload(payload);
-  if (auto error = model.validate()) throw CacheEntryError("invalid model (" + *error + ")");
+  // The model's names come from the entry's bytes: shown printable.
+  if (auto error = model.validate()) {
+    throw CacheEntryError("invalid model (" + text_detail::printable(*error) + ")");
+  }
   return model;
 }
 

@@ -4,6 +4,8 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+
 #include <atomic>
 #include <filesystem>
 #include <fstream>
@@ -143,6 +145,35 @@ TEST_F(ModelCacheTest, EveryDecodingCheckNamesTheProblem) {
   std::string flipped = good;
   flipped[good.size() - 3] ^= 1;
   fails(flipped, key, 10, "v1", "checksum");
+}
+
+// Findings of fuzz_cache_entry: a corrupt entry's bytes reached the messages (the version it
+// names, a surface name in the model's validation error). They must stay one printable line.
+TEST_F(ModelCacheTest, MessagesQuotingAnEntrysBytesStayPrintable) {
+  const ContentHash key{1, 2};
+  const auto message = [&](const std::string& bytes, const std::string& version) {
+    try {
+      decode_model_entry(bytes, key, 10, version);
+    } catch (const CacheEntryError& e) {
+      return std::string(e.what());
+    }
+    ADD_FAILURE() << "accepted";
+    return std::string();
+  };
+  const auto printable = [](const std::string& m) {
+    return !m.empty() && std::all_of(m.begin(), m.end(), [](char c) {
+      return static_cast<unsigned char>(c) >= 0x20 && static_cast<unsigned char>(c) < 0x7f;
+    });
+  };
+  const std::string stale = message(encode_model_entry(screw(), key, 10, "fu\xc0\n"), "v1");
+  EXPECT_TRUE(printable(stale)) << stale;
+  EXPECT_NE(stale.find("fu\\xc0\\x0a"), std::string::npos) << stale;
+  engine::Model bad = screw();
+  bad.surfaces.at(0).name = "sa\x9c\x9b";
+  bad.surfaces.at(0).degree_u = -3;
+  const std::string invalid = message(encode_model_entry(bad, key, 10, "v1"), "v1");
+  EXPECT_TRUE(printable(invalid)) << invalid;
+  EXPECT_NE(invalid.find("invalid model"), std::string::npos) << invalid;
 }
 
 TEST_F(ModelCacheTest, VersionChangeInvalidates) {

@@ -1,0 +1,121 @@
+// libFuzzer harness: the cache entries' decoders (decode_model_entry, decode_features_entry).
+// A checksum guards every payload, so mutated bytes alone would never get past it: the input's
+// first byte picks what it is, the rest is
+//   0: a converted-model payload, wrapped in a well-formed header with its size and checksum;
+//   1: a model-features payload, wrapped likewise (features of a small saddle model);
+//   2, 3: a whole model / features entry as it stands (the header checks themselves).
+// A decode either gives what an entry can hold (a valid model; features whose parts fit the
+// model) or throws CacheEntryError with one printable line; anything else aborts.
+#include <cstdint>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <memory>
+#include <string>
+#include <string_view>
+
+#include "nurbsreg/engine/prepared_model.hpp"
+#include "nurbsreg/io/features_cache.hpp"
+#include "nurbsreg/io/model_cache.hpp"
+#include "nurbsreg/registration/model_features.hpp"
+
+namespace {
+
+using namespace nurbsreg;
+
+const std::string kVersion = "fuzz";
+
+engine::Model saddle_model() {
+  engine::NurbsSurface s;
+  s.name = "saddle";
+  s.degree_u = s.degree_v = 2;
+  s.knots_u = s.knots_v = {0, 0, 0, 1, 1, 1};
+  s.count_u = s.count_v = 3;
+  const double c[3] = {0.5, -0.5, 0.5};
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j)
+      s.control_points.emplace_back(20.0 * (i - 1), 20.0 * (j - 1), 20.0 * (c[i] - c[j]));
+  engine::Model m;
+  m.surfaces.push_back(s);
+  return m;
+}
+
+struct Fixture {
+  engine::Model model = saddle_model();
+  engine::PreparedModel prepared{saddle_model()};
+  io::ContentHash model_hash = io::hash_model(model);
+  registration::FeatureOptions options;
+  std::string model_entry, features_entry;
+
+  Fixture() {
+    options.keypoints = 20;  // small entries: the fuzzer's inputs stay short
+    model_entry = io::encode_model_entry(model, model_hash, 1234, kVersion);
+    features_entry = io::encode_features_entry(registration::ModelFeatures(prepared, options),
+                                               model_hash, kVersion);
+  }
+};
+
+const Fixture& fixture() {
+  static const Fixture f;
+  return f;
+}
+
+// The header of `entry` ends with the payload's size and checksum: found as the offset h where
+// the size field (at h - 16) equals entry.size() - h. Returns an entry with `payload` instead.
+std::string with_payload(const std::string& entry, std::string_view payload) {
+  for (std::size_t h = 16; h <= entry.size(); ++h) {
+    std::uint64_t size = 0;
+    std::memcpy(&size, entry.data() + h - 16, 8);
+    if (size != entry.size() - h) continue;
+    std::string out = entry.substr(0, h);
+    out.append(payload);
+    const std::uint64_t new_size = payload.size(), check = io::hash_bytes(payload).lo;
+    std::memcpy(out.data() + h - 16, &new_size, 8);
+    std::memcpy(out.data() + h - 8, &check, 8);
+    return out;
+  }
+  std::abort();  // the encoders' layout changed: the harness must follow
+}
+
+void check_message(const io::CacheEntryError& e) {
+  const std::string m = e.what();
+  bool printable = !m.empty();
+  for (const char ch : m)
+    printable = printable && static_cast<unsigned char>(ch) >= 0x20 &&
+                static_cast<unsigned char>(ch) <= 0x7e;
+  if (!printable) {
+    std::fprintf(stderr, "not one printable line: %s\n", m.c_str());
+    std::abort();
+  }
+}
+
+}  // namespace
+
+extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
+  if (size == 0) return 0;
+  const Fixture& f = fixture();
+  const std::string_view rest(reinterpret_cast<const char*>(data) + 1, size - 1);
+  const int kind = data[0] % 4;
+  try {
+    if (kind == 0 || kind == 2) {
+      const std::string bytes = kind == 0 ? with_payload(f.model_entry, rest) : std::string(rest);
+      const engine::Model m = io::decode_model_entry(bytes, f.model_hash, 1234, kVersion);
+      if (m.validate()) std::abort();  // a decoded model is a valid one
+    } else {
+      const std::string bytes =
+          kind == 1 ? with_payload(f.features_entry, rest) : std::string(rest);
+      const auto features =
+          io::decode_features_entry(bytes, f.prepared, f.model_hash, f.options, kVersion);
+      const auto& k = features->keypoints();
+      if (k.normals.size() != k.points.size() ||
+          static_cast<std::size_t>(features->descriptors().rows()) != k.points.size()) {
+        std::abort();
+      }
+      for (const engine::Vec3& p : k.points)
+        if (!p.allFinite()) std::abort();
+    }
+  } catch (const io::CacheEntryError& e) {
+    check_message(e);
+  }
+  return 0;
+}
