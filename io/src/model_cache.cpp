@@ -13,8 +13,8 @@
 #include <optional>
 
 #include "cache_codec.hpp"
-#include "printable.hpp"
 #include "nurbsreg/io/atomic_file.hpp"
+#include "printable.hpp"
 
 #ifndef NURBSREG_VERSION
 #define NURBSREG_VERSION "unknown"

@@ -18,6 +18,7 @@
 #include "nurbsreg/io/features_cache.hpp"
 #include "nurbsreg/io/model_cache.hpp"
 #include "nurbsreg/registration/model_features.hpp"
+#include "support/saddle_model.hpp"
 
 namespace {
 
@@ -25,24 +26,9 @@ using namespace nurbsreg;
 
 const std::string kVersion = "fuzz";
 
-engine::Model saddle_model() {
-  engine::NurbsSurface s;
-  s.name = "saddle";
-  s.degree_u = s.degree_v = 2;
-  s.knots_u = s.knots_v = {0, 0, 0, 1, 1, 1};
-  s.count_u = s.count_v = 3;
-  const double c[3] = {0.5, -0.5, 0.5};
-  for (int i = 0; i < 3; ++i)
-    for (int j = 0; j < 3; ++j)
-      s.control_points.emplace_back(20.0 * (i - 1), 20.0 * (j - 1), 20.0 * (c[i] - c[j]));
-  engine::Model m;
-  m.surfaces.push_back(s);
-  return m;
-}
-
 struct Fixture {
-  engine::Model model = saddle_model();
-  engine::PreparedModel prepared{saddle_model()};
+  engine::Model model = test::saddle_model();
+  engine::PreparedModel prepared{test::saddle_model()};
   io::ContentHash model_hash = io::hash_model(model);
   registration::FeatureOptions options;
   std::string model_entry, features_entry;

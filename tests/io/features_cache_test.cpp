@@ -24,6 +24,7 @@
 #include "nurbsreg/io/model_json.hpp"
 #include "nurbsreg/registration/alignment.hpp"
 #include "support/log_capture.hpp"
+#include "support/saddle_model.hpp"
 #include "support/source_paths.hpp"
 
 namespace nurbsreg::io {
@@ -33,26 +34,8 @@ namespace fs = std::filesystem;
 using registration::FeatureOptions;
 using registration::ModelFeatures;
 
-// A saddle z = (x^2 - y^2) / 2 over [-1, 1]^2, scaled by 20 (an exact biquadratic Bezier patch):
-// three discrete half turns, so the stored symmetries are not empty.
 const engine::PreparedModel& saddle() {
-  static const engine::PreparedModel m = [] {
-    engine::NurbsSurface s;
-    s.name = "saddle";
-    s.degree_u = s.degree_v = 2;
-    s.knots_u = s.knots_v = {0, 0, 0, 1, 1, 1};
-    s.count_u = s.count_v = 3;
-    s.control_points.assign(9, engine::Vec3::Zero());
-    const double c[3] = {0.5, -0.5, 0.5};
-    for (int i = 0; i < 3; ++i)
-      for (int j = 0; j < 3; ++j)
-        s.control_points[static_cast<std::size_t>(i * 3 + j)] =
-            engine::Vec3(20.0 * (i - 1), 20.0 * (j - 1), 20.0 * (c[i] - c[j]));
-    engine::Model model;
-    model.units = "mm";
-    model.surfaces.push_back(std::move(s));
-    return engine::PreparedModel(std::move(model));
-  }();
+  static const engine::PreparedModel m(test::saddle_model());
   return m;
 }
 

@@ -8,6 +8,7 @@
 #include <algorithm>
 
 #include "global_support.hpp"
+#include "support/saddle_model.hpp"
 
 namespace nurbsreg::registration {
 namespace {
@@ -15,25 +16,9 @@ namespace {
 using Eigen::Isometry3d;
 using engine::Vec3;
 
-// A saddle z = (x^2 - y^2) / 2 over [-1, 1]^2 (an exact biquadratic Bezier patch) is the same
-// after a half turn about z and about the lines y = x and y = -x: four poses fit equally.
+// The saddle of support/saddle_model.hpp: four poses fit equally (three half turns).
 engine::Model saddle() {
-  engine::NurbsSurface s;
-  s.name = "saddle";
-  s.degree_u = s.degree_v = 2;
-  s.knots_u = s.knots_v = {0, 0, 0, 1, 1, 1};
-  s.count_u = s.count_v = 3;
-  s.control_points.assign(9, Vec3::Zero());
-  // Bezier control net of x^2/2 over [-1, 1]: values 0.5, -0.5, 0.5 at t = 0, 0.5, 1.
-  const double c[3] = {0.5, -0.5, 0.5};
-  for (int i = 0; i < 3; ++i)
-    for (int j = 0; j < 3; ++j)
-      s.control_points[static_cast<std::size_t>(i * 3 + j)] =
-          Vec3(20.0 * (i - 1), 20.0 * (j - 1), 20.0 * (c[i] - c[j]));
-  engine::Model m;
-  m.units = "mm";
-  m.surfaces.push_back(std::move(s));
-  return m;
+  return test::saddle_model();
 }
 
 AlignmentResult align_from_random_pose(const engine::PreparedModel& model, std::uint64_t seed) {
