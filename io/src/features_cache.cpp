@@ -94,7 +94,8 @@ ModelFeatureParts decode_payload(std::string_view bytes) {
                           std::to_string(kFeatureDescriptorSize) + " (corrupt)");
   }
   const std::size_t rows = r.count(kFeatureDescriptorSize * sizeof(float));
-  if (rows != n) {
+  // One row per described keypoint, a subset of them (ModelFeatures::from_parts counts it).
+  if (rows > n) {
     throw CacheEntryError(std::to_string(rows) + " descriptors for " + std::to_string(n) +
                           " keypoints (corrupt)");
   }

@@ -69,11 +69,14 @@ struct Hypothesis {
 // support) kept when it ranks among the best by overlap,
 // then a least-squares refit of each kept hypothesis on its supporting matches. Each seed has
 // its own seeded stream; seeds are dealt to fixed chunks whose results merge in chunk order:
-// the same hypotheses for any thread count. Best first.
+// the same hypotheses for any thread count. Best first. `scan` and `model` are the matched
+// points (Match's rows); `model_surface` the points whose cells count as model for the overlap
+// (all the model's keypoints: the described ones leave out its edges).
 std::vector<Hypothesis> ransac_hypotheses(std::span<const engine::Vec3> scan,
                                           std::span<const engine::Vec3> model,
                                           std::span<const Match> matches,
-                                          const RansacParams& params);
+                                          const RansacParams& params,
+                                          std::span<const engine::Vec3> model_surface);
 
 // Least-squares rigid motion taking src onto dst (Umeyama 1991, no scale); false when the
 // points do not fix one (fewer than 3, or collinear).

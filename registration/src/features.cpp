@@ -216,6 +216,18 @@ PcaNormals pca_normals(std::span<const Vec3> points, const PointGrid& grid, doub
   return out;
 }
 
+SurfacePoints surface_points(std::span<const Vec3> points, double radius) {
+  const PointGrid grid(points, radius);
+  const PcaNormals pca = pca_normals(points, grid, radius, kMinNormalNeighbours);
+  SurfacePoints out;
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    if (!pca.valid[i]) continue;
+    out.points.push_back(points[i]);
+    out.normals.push_back(pca.normals[i]);
+  }
+  return out;
+}
+
 DescriptorMatrix describe(std::span<const Vec3> points, std::span<const Vec3> normals,
                           const PointGrid& grid, double radius) {
   const std::size_t n = points.size();

@@ -61,14 +61,9 @@ constexpr std::size_t kMaxSeedsRetry = 20000;
 constexpr double kDuplicateVoxels = 0.1;
 constexpr double kDuplicateDegrees = 0.25;
 
-struct ScanKeypoints {
-  std::vector<Vec3> points;
-  std::vector<Vec3> normals;
-};
-
 // One point per voxel (the centroid: it averages the noise), kept where PCA finds a surface; a
 // seeded subset when a scene yields more than kMaxScanKeypoints.
-ScanKeypoints scan_keypoints(std::span<const Vec3> scan, const ModelFeatures& features) {
+SurfacePoints scan_keypoints(std::span<const Vec3> scan, const ModelFeatures& features) {
   const FeatureOptions& fo = features.options();
   const double v = features.voxel();
   const Voxelised vox = voxelise(scan, v);
@@ -83,15 +78,7 @@ ScanKeypoints scan_keypoints(std::span<const Vec3> scan, const ModelFeatures& fe
   for (std::size_t i = 0; i < vox.centroids.size(); ++i) {
     if (vox.counts[i] >= min_count) dense.push_back(vox.centroids[i]);
   }
-  const double radius = fo.normal_radius * v;
-  const PointGrid grid(dense, radius);
-  const PcaNormals normals = pca_normals(dense, grid, radius, 5);
-  ScanKeypoints out;
-  for (std::size_t i = 0; i < dense.size(); ++i) {
-    if (!normals.valid[i]) continue;
-    out.points.push_back(dense[i]);
-    out.normals.push_back(normals.normals[i]);
-  }
+  SurfacePoints out = surface_points(dense, fo.normal_radius * v);
   if (out.points.size() > kMaxScanKeypoints) {
     std::vector<std::size_t> order(out.points.size());
     std::iota(order.begin(), order.end(), std::size_t{0});
@@ -100,7 +87,7 @@ ScanKeypoints scan_keypoints(std::span<const Vec3> scan, const ModelFeatures& fe
       std::swap(order[i], order[i + static_cast<std::size_t>(rng() % (order.size() - i))]);
     order.resize(kMaxScanKeypoints);
     std::sort(order.begin(), order.end());
-    ScanKeypoints kept;
+    SurfacePoints kept;
     for (std::size_t i : order) {
       kept.points.push_back(out.points[i]);
       kept.normals.push_back(out.normals[i]);
@@ -259,11 +246,14 @@ CoarseOutcome coarse_align(std::span<const Vec3> scan, const ModelFeatures& feat
                                              features)
                             : scan_keypoints(scan, features);
   };
-  ScanKeypoints keys = keypoints_of_draw(0);
+  SurfacePoints keys = keypoints_of_draw(0);
   lap("scan keypoints");
   if (past_deadline("after the scan's keypoints")) return out;
   r.scan_keypoints = keys.points.size();
-  const ModelKeypoints& model_keys = features.keypoints();
+  // The model's keypoints as the scan's are described (ModelFeatures::described_keypoints), the
+  // matches' model side; all of them stand for its surface in the hypotheses' overlap.
+  const ModelKeypoints& model_keys = features.described_keypoints();
+  const std::span<const Vec3> model_surface = features.keypoints().points;
   r.model_keypoints = model_keys.points.size();
   if (keys.points.size() < kMinScanKeypoints) {
     out.failure = fmt::format(
@@ -273,7 +263,7 @@ CoarseOutcome coarse_align(std::span<const Vec3> scan, const ModelFeatures& feat
     return out;
   }
   const double feature_radius = fo.feature_radius * v;
-  const auto matches_of = [&](const ScanKeypoints& k) {
+  const auto matches_of = [&](const SurfacePoints& k) {
     const PointGrid grid(k.points, feature_radius);
     const DescriptorMatrix scan_desc = describe(k.points, k.normals, grid, feature_radius);
     lap("scan descriptors");
@@ -326,7 +316,7 @@ CoarseOutcome coarse_align(std::span<const Vec3> scan, const ModelFeatures& feat
   // promising, each scored. `iterations`: the short ICP's at most.
   const auto search = [&](const RansacParams& params, int iterations) -> bool {
     const std::vector<Hypothesis> hypotheses =
-        ransac_hypotheses(keys.points, model_keys.points, matches, params);
+        ransac_hypotheses(keys.points, model_keys.points, matches, params, model_surface);
     total_hypotheses += static_cast<int>(hypotheses.size());
     lap("hypotheses");
     if (past_deadline("after the sample consensus")) return false;
@@ -454,7 +444,7 @@ CoarseOutcome coarse_align(std::span<const Vec3> scan, const ModelFeatures& feat
       spdlog::debug("coarse: best verified inlier fraction {:.3f}: a last round, fresh draws{}",
                     best_fraction(), subset_keypoints ? " on another keypoint subset" : "");
       if (subset_keypoints) {
-        ScanKeypoints other = keypoints_of_draw(1);
+        SurfacePoints other = keypoints_of_draw(1);
         if (other.points.size() >= kMinScanKeypoints) {
           keys = std::move(other);
           matches = matches_of(keys);

@@ -260,7 +260,8 @@ bool fit_rigid(std::span<const Vec3> src, std::span<const Vec3> dst, Eigen::Isom
 }
 
 std::vector<Hypothesis> ransac_hypotheses(std::span<const Vec3> scan, std::span<const Vec3> model,
-                                          std::span<const Match> matches, const RansacParams& p) {
+                                          std::span<const Match> matches, const RansacParams& p,
+                                          std::span<const Vec3> model_surface) {
   std::vector<Hypothesis> kept;
   if (matches.size() < 3) return kept;
   const double d2max = p.inlier_distance * p.inlier_distance;
@@ -289,7 +290,7 @@ std::vector<Hypothesis> ransac_hypotheses(std::span<const Vec3> scan, std::span<
   const std::size_t probe_step = std::max<std::size_t>(1, scan.size() / kOverlapProbes);
   for (std::size_t i = 0; i < scan.size(); i += probe_step)
     probes.push_back(scan[i]);
-  const Occupancy occupancy(model, p.overlap_cell);
+  const Occupancy occupancy(model_surface, p.overlap_cell);
   const std::size_t chunks = std::min<std::size_t>(kChunks, seeds.size());
   std::vector<std::vector<Hypothesis>> chunk_best(chunks);
   tbb::parallel_for(std::size_t{0}, chunks, [&](std::size_t chunk) {

@@ -46,11 +46,36 @@ bool finite(const engine::Vec3& v) {
   return v.allFinite();
 }
 
+[[noreturn]] void fail(const std::string& what) {
+  throw std::invalid_argument("stored model features: " + what);
+}
+
+// The keypoints the descriptors describe (ModelFeatures::described_keypoints), computed again
+// from stored keypoints (a few milliseconds): isolated like the builds, so that a caller's
+// cancellation cannot cut it short while a cache entry is read.
+ModelKeypoints described_of(const ModelKeypoints& k, const FeatureOptions& options, double voxel) {
+  ModelKeypoints out;
+  build_isolated([&] {
+    detail::SurfacePoints s = detail::surface_points(k.points, options.normal_radius * voxel);
+    out = {std::move(s.points), std::move(s.normals)};
+  });
+  return out;
+}
+
+// The checks from_parts promises of the descriptors, given the keypoints they describe.
+void check_descriptors(const ModelFeatureParts& p, std::size_t described) {
+  const std::size_t n = p.keypoints.points.size();
+  if (static_cast<std::size_t>(p.descriptors.rows()) != described ||
+      p.descriptors.cols() != kFeatureDescriptorSize) {
+    fail(std::to_string(p.descriptors.rows()) + " x " + std::to_string(p.descriptors.cols()) +
+         " descriptors for " + std::to_string(described) + " described keypoints of " +
+         std::to_string(n) + " (one row of " + std::to_string(kFeatureDescriptorSize) + " each)");
+  }
+  if (!p.descriptors.allFinite()) fail("a descriptor is not finite");
+}
+
 // The checks from_parts promises (model_features.hpp), each naming the part.
 void check_parts(const ModelFeatureParts& p, const FeatureOptions& options) {
-  const auto fail = [](const std::string& what) {
-    throw std::invalid_argument("stored model features: " + what);
-  };
   if (!(p.surface_area > 0.0) || !std::isfinite(p.surface_area)) {
     fail("surface area " + std::to_string(p.surface_area) + " is not finite and positive");
   }
@@ -68,13 +93,6 @@ void check_parts(const ModelFeatureParts& p, const FeatureOptions& options) {
       fail("keypoint " + std::to_string(i) + " is not finite");
     }
   }
-  if (static_cast<std::size_t>(p.descriptors.rows()) != n ||
-      p.descriptors.cols() != kFeatureDescriptorSize) {
-    fail(std::to_string(p.descriptors.rows()) + " x " + std::to_string(p.descriptors.cols()) +
-         " descriptors for " + std::to_string(n) + " keypoints (one row of " +
-         std::to_string(kFeatureDescriptorSize) + " each)");
-  }
-  if (!p.descriptors.allFinite()) fail("a descriptor is not finite");
   for (std::size_t i = 0; i < p.symmetries.size(); ++i) {
     if (!p.symmetries[i].matrix().allFinite()) {
       fail("symmetry " + std::to_string(i) + " is not finite");
@@ -95,7 +113,7 @@ ModelFeatures::ModelFeatures(const engine::PreparedModel& model, FeatureOptions 
 }
 
 ModelFeatures::ModelFeatures(FromParts, const engine::PreparedModel& model, FeatureOptions options,
-                             ModelFeatureParts parts)
+                             ModelFeatureParts parts, ModelKeypoints described)
     : model_(model),
       options_(options),
       area_(parts.surface_area),
@@ -105,6 +123,7 @@ ModelFeatures::ModelFeatures(FromParts, const engine::PreparedModel& model, Feat
       symmetries_(std::move(parts.symmetries)) {
   // Every part is there: the lazy builds must never run (they would overwrite them).
   std::call_once(keypoints_once_, [] {});
+  std::call_once(described_once_, [&] { described_ = std::move(described); });
   std::call_once(descriptors_once_, [] {});
   std::call_once(symmetries_once_, [] {});
 }
@@ -118,9 +137,11 @@ std::shared_ptr<const ModelFeatures> ModelFeatures::from_parts(const engine::Pre
     throw std::invalid_argument(e.what());
   }
   check_parts(parts, options);
+  ModelKeypoints described = described_of(parts.keypoints, options, parts.voxel);
+  check_descriptors(parts, described.points.size());
   // Not make_shared: the constructor is private.
   return std::shared_ptr<const ModelFeatures>(
-      new ModelFeatures(FromParts{}, model, options, std::move(parts)));
+      new ModelFeatures(FromParts{}, model, options, std::move(parts), std::move(described)));
 }
 
 void ModelFeatures::build_all() const {
@@ -150,10 +171,16 @@ const ModelKeypoints& ModelFeatures::keypoints() const {
   return keypoints_;
 }
 
+const ModelKeypoints& ModelFeatures::described_keypoints() const {
+  std::call_once(described_once_,
+                 [&] { described_ = described_of(keypoints(), options_, voxel_); });
+  return described_;
+}
+
 const FeatureDescriptors& ModelFeatures::descriptors() const {
   std::call_once(descriptors_once_, [&] {
     build_isolated([&] {
-      const ModelKeypoints& k = keypoints();
+      const ModelKeypoints& k = described_keypoints();
       const double radius = options_.feature_radius * voxel_;
       const detail::PointGrid grid(k.points, radius);
       descriptors_ = detail::describe(k.points, k.normals, grid, radius);

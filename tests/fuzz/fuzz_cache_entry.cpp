@@ -94,7 +94,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
           io::decode_features_entry(bytes, f.prepared, f.model_hash, f.options, kVersion);
       const auto& k = features->keypoints();
       if (k.normals.size() != k.points.size() ||
-          static_cast<std::size_t>(features->descriptors().rows()) != k.points.size()) {
+          static_cast<std::size_t>(features->descriptors().rows()) !=
+              features->described_keypoints().points.size()) {
         std::abort();
       }
       for (const engine::Vec3& p : k.points)

@@ -286,14 +286,16 @@ TEST_F(FeaturesCacheTest, ACountBeyondTheEntryIsAnErrorNotAnAllocation) {
   fails(with_payload(good, "v1", p), "count runs past the end");
   // 2^40 symmetries: the last count.
   const std::size_t n = fresh_saddle().keypoints().points.size();
-  const std::size_t symmetries_at = 16 + 8 + n * 48 + 16 + n * 32 * 4;
+  // One descriptor row per described keypoint (ModelFeatures::described_keypoints).
+  const auto rows = static_cast<std::size_t>(fresh_saddle().descriptors().rows());
+  const std::size_t symmetries_at = 16 + 8 + n * 48 + 16 + rows * 32 * 4;
   p = payload;
   std::memcpy(p.data() + symmetries_at, &huge, 8);
   fails(with_payload(good, "v1", p), "count runs past the end");
-  // Descriptor rows that disagree with the keypoints.
+  // More descriptor rows than keypoints.
   p = payload;
-  const std::uint64_t fewer = n - 1;
-  std::memcpy(p.data() + 16 + 8 + n * 48 + 8, &fewer, 8);
+  const std::uint64_t more = n + 1;
+  std::memcpy(p.data() + 16 + 8 + n * 48 + 8, &more, 8);
   fails(with_payload(good, "v1", p), "descriptors for");
   // A header claiming a payload far beyond the file: a compare, nothing read or allocated.
   std::string claims = good;

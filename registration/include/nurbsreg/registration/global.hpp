@@ -108,6 +108,7 @@ struct PoseScore {
 
 struct CoarseReport {
   std::string method;  // "fpfh-ransac" (sign-invariant FPFH, sample consensus, exact verification)
+  // The keypoints described and matched on either side (where PCA finds a surface).
   std::size_t scan_keypoints = 0, model_keypoints = 0, matches = 0;
   int hypotheses = 0;  // kept from sample consensus
   int verified = 0;    // refined by exact ICP and scored

@@ -49,9 +49,10 @@ struct ModelKeypoints {
 // key also holds a digest of the sources that compute the parts (io/CMakeLists.txt lists them),
 // so an edit there needs no bump; bump it when a change elsewhere (the engine's evaluation, say)
 // changes a single bit of the parts, or a cache would keep serving the old ones.
-inline constexpr int kModelFeaturesRevision = 1;
+// 2: the descriptors describe the keypoints PCA finds on a surface, with PCA normals.
+inline constexpr int kModelFeaturesRevision = 2;
 
-// Row-major float, kFeatureDescriptorSize columns: one row per keypoint.
+// Row-major float, kFeatureDescriptorSize columns: one row per described keypoint.
 inline constexpr int kFeatureDescriptorSize = 32;
 using FeatureDescriptors = Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
 
@@ -75,8 +76,9 @@ class ModelFeatures {
   // after build_all() for the same model and options): nothing is built, every accessor
   // returns the parts as given.
   // Checked: the model has surfaces, the area is finite and positive and the voxel the one it
-  // gives with options.keypoints, one normal and one descriptor row of kFeatureDescriptorSize
-  // per keypoint, every number finite; std::invalid_argument naming the part otherwise. That
+  // gives with options.keypoints, one normal per keypoint and one descriptor row of
+  // kFeatureDescriptorSize per described keypoint (computed here from the keypoints), every
+  // number finite; std::invalid_argument naming the part otherwise. That
   // the parts belong to this model and these options is the caller's to know (the cache's key).
   static std::shared_ptr<const ModelFeatures> from_parts(const engine::PreparedModel& model,
                                                          FeatureOptions options,
@@ -93,8 +95,15 @@ class ModelFeatures {
   double surface_area() const { return area_; }
   // Sample spacing (model units): sqrt(area / keypoints).
   double voxel() const { return voxel_; }
+  // Area-uniform samples, one per voxel, with exact normals: the model's surface for the
+  // hypotheses' overlap, the verdict's coverage and the symmetry search.
   const ModelKeypoints& keypoints() const;
-  // Row i describes keypoints().points[i]; row-major float, 32 columns.
+  // The keypoints as a scan's keypoints are described: those where PCA over the keypoints
+  // (normal_radius) finds a surface, with their PCA normals, in keypoint order. The scan's
+  // normals come from PCA; exact ones would differ wherever the surface bends within the
+  // radius, and a descriptor compares normals.
+  const ModelKeypoints& described_keypoints() const;
+  // Row i describes described_keypoints().points[i]; row-major float, 32 columns.
   const FeatureDescriptors& descriptors() const;
   // The model's discrete rotational symmetries (model frame, identity excluded): turns that map
   // the model onto itself, checked by exact distances (model_symmetry.hpp in src). A scan of a
@@ -104,14 +113,15 @@ class ModelFeatures {
  private:
   struct FromParts {};
   ModelFeatures(FromParts, const engine::PreparedModel& model, FeatureOptions options,
-                ModelFeatureParts parts);
+                ModelFeatureParts parts, ModelKeypoints described);
 
   const engine::PreparedModel& model_;
   FeatureOptions options_;
   double area_ = 0.0;
   double voxel_ = 0.0;
-  mutable std::once_flag keypoints_once_, descriptors_once_, symmetries_once_;
+  mutable std::once_flag keypoints_once_, described_once_, descriptors_once_, symmetries_once_;
   mutable ModelKeypoints keypoints_;
+  mutable ModelKeypoints described_;
   mutable FeatureDescriptors descriptors_;
   mutable std::vector<Eigen::Isometry3d> symmetries_;
 };
