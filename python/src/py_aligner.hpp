@@ -53,6 +53,12 @@ class PyAligner {
       py::gil_scoped_acquire gil;
       try {
         run_released(thread_limit, scan.size() >= kWatchedPoints, [&] {
+          // From any pose the alignment needs all of the model's features: the loaded model's
+          // (once per model, from the features cache), kept by this Aligner from then on.
+          if (request.runs_global() && !features_) {
+            features_ = model_->features(registration_.global.features);
+            aligner_ = make_aligner();
+          }
           align_rows(*aligner_, scan, request, *frame);
           if (after && frame->rows > frame->skipped) after(*aligner_, *frame);
         });
@@ -77,13 +83,15 @@ class PyAligner {
 
  private:
   std::unique_ptr<registration::Aligner> make_aligner() const {
-    return std::make_unique<registration::Aligner>(model_->prepared(), options_, registration_);
+    return std::make_unique<registration::Aligner>(model_->prepared(), options_, registration_,
+                                                   features_);
   }
 
   ModelPtr model_;
   icp::IcpOptions options_;
   registration::RegistrationOptions registration_;
   std::mutex mutex_;
+  std::shared_ptr<const registration::ModelFeatures> features_;  // the model's, once shared
   std::unique_ptr<registration::Aligner> aligner_;
 };
 

@@ -161,6 +161,36 @@ def test_result_fields(panel, panel_scan, scan_points):
     assert nurbsreg.align(panel, scan_points).signed_distance is None
 
 
+def test_model_features_come_from_the_cache_once_per_loaded_model(scan_points, tmp_path,
+                                                                  monkeypatch, cli_alignment):
+    # As `nurbsreg align` does: from any pose the model's features are read from the features
+    # cache, or built and stored there, once per loaded model (every Aligner made from it, and
+    # nurbsreg.align's one per call, share them); NURBSREG_NO_CACHE leaves the cache alone.
+    pose, _ = cli_alignment
+    monkeypatch.setenv("NURBSREG_CACHE_DIR", str(tmp_path / "cache"))
+    model = nurbsreg.load_model(PANEL)
+    first = nurbsreg.align(model, scan_points)
+    stored = sorted((tmp_path / "cache").glob("*.nrbfeat"))
+    assert len(stored) == 1
+    written = stored[0].stat().st_mtime_ns
+    again = nurbsreg.align(model, scan_points)
+    # Another process (a model loaded afresh) reads them: the entry is not written again.
+    from_disk = nurbsreg.align(nurbsreg.load_model(PANEL), scan_points)
+    assert stored[0].stat().st_mtime_ns == written
+    for a in (first, again, from_disk):
+        np.testing.assert_array_equal(a.T_model_scan, pose)
+    monkeypatch.setenv("NURBSREG_NO_CACHE", "1")
+    monkeypatch.setenv("NURBSREG_CACHE_DIR", str(tmp_path / "off"))
+    off = nurbsreg.align(nurbsreg.load_model(PANEL), scan_points)
+    np.testing.assert_array_equal(off.T_model_scan, pose)
+    assert not (tmp_path / "off").exists() or not any((tmp_path / "off").glob("*.nrbfeat"))
+    # From a given pose nothing is built for the global stage: no entry.
+    monkeypatch.delenv("NURBSREG_NO_CACHE")
+    monkeypatch.setenv("NURBSREG_CACHE_DIR", str(tmp_path / "init"))
+    nurbsreg.align(nurbsreg.load_model(PANEL), scan_points, init=pose)
+    assert not any((tmp_path / "init").glob("*.nrbfeat"))
+
+
 def test_frame_after_frame_keeps_one_aligner(panel, scan_points):
     aligner = nurbsreg.Aligner(panel)
     first = aligner.align(scan_points)

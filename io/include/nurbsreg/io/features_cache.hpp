@@ -14,9 +14,10 @@
 //
 // Entry: a header (magic, format, byte order, version, model hash, options, payload size and a
 // 64-bit checksum of the payload), then the parts: area, voxel, keypoints (points, normals),
-// descriptors (rows x kFeatureDescriptorSize floats), symmetries (the 3 x 4 affine part of each
-// turn). Every number is stored as its IEEE-754 bits: a hit gives the features a fresh build
-// gives, so the same alignments to the bit.
+// descriptors (rows x kFeatureDescriptorSize floats, one row per described keypoint: the
+// keypoints ModelFeatures::from_parts finds again on a surface), symmetries (the 3 x 4 affine part
+// of each turn). Every number is stored as its IEEE-754 bits: a hit gives the features a fresh
+// build gives, so the same alignments to the bit.
 //
 // Never used silently when wrong: an entry that is truncated, fails its checksum, whose counts
 // run past its end, whose numbers are not finite or whose parts do not fit together
