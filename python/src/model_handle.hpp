@@ -53,8 +53,8 @@ class ModelHandle {
     for (const auto& [o, f] : features_) {
       if (same_options(o, options)) return f;
     }
-    auto f = io::load_model_features(prepared_, options,
-                                     io::FeaturesCacheSettings::from_environment());
+    auto f =
+        io::load_model_features(prepared_, options, io::FeaturesCacheSettings::from_environment());
     features_.emplace_back(options, f);
     return f;
   }
@@ -84,8 +84,8 @@ class ModelHandle {
   std::mutex mutex_;
   std::vector<std::unique_ptr<engine::Projector>> idle_;
   std::mutex features_mutex_;
-  std::vector<std::pair<registration::FeatureOptions,
-                        std::shared_ptr<const registration::ModelFeatures>>>
+  std::vector<
+      std::pair<registration::FeatureOptions, std::shared_ptr<const registration::ModelFeatures>>>
       features_;
 };
 
