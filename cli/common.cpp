@@ -2,6 +2,7 @@
 
 #include <spdlog/spdlog.h>
 
+#include <cstdlib>
 #include <ctime>
 
 #include "nurbsreg/io/features_cache.hpp"
@@ -29,6 +30,9 @@ bool model_cache_disabled = false;  // the application's --no-cache, set before 
 
 void disable_model_cache() {
   model_cache_disabled = true;
+  // And for every reader of the caches' settings in this process (the service's model loading
+  // reads only the environment): set before any command starts a thread.
+  ::setenv("NURBSREG_NO_CACHE", "1", 1);
 }
 
 engine::Model load_model_file(const std::string& path) {

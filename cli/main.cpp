@@ -41,8 +41,8 @@ int main(int argc, char** argv) {
   app.add_flag("-q,--quiet", quiet, "Only warnings and errors on stderr");
   bool no_cache = false;
   app.add_flag("--no-cache", no_cache,
-               "Convert STEP/IGES files again instead of using the model cache (also: "
-               "NURBSREG_NO_CACHE=1)");
+               "Use neither cache: convert STEP/IGES files and build the model features again "
+               "(also: NURBSREG_NO_CACHE=1)");
   app.parse_complete_callback([&] {
     set_up_logging(verbose, quiet);
     if (no_cache) nurbsreg::cli::disable_model_cache();

@@ -199,6 +199,18 @@ TEST_F(Serve, ModelFeaturesComeThroughTheFeaturesCache) {
           << read_text(log);
     }
   }
+  // `nurbsreg --no-cache serve` reads and writes no entry (the service once read only the
+  // environment and stored the features whatever the flag said).
+  std::filesystem::remove_all(cache);
+  const std::string log = path("log_cache_off.txt");
+  ServerProcess server("--model " + kPanel, log, "--no-cache");
+  ASSERT_GT(server.port(), 0) << read_text(log);
+  const auto aligned =
+      client(server.port())->Post("/v1/align?model=panel", bytes("scan.pcd"), kPcd);
+  ASSERT_TRUE(aligned);
+  ASSERT_EQ(aligned->status, 200) << aligned->body;
+  expect_same_alignment(Json::parse(aligned->body), cli);
+  EXPECT_TRUE(entries().empty());
 }
 
 TEST_F(Serve, CurlAsInTheReadme) {

@@ -31,8 +31,8 @@ class ServerProcess {
   // `args` after `serve` (e.g. "--model m.json"); `--port 0` is added, and in the sanitizer
   // builds `--time-limit 600` unless `args` sets one: they compute a frame several times slower
   // than Release, past the 30 s default on a busy machine, and a 504 there says nothing of what
-  // the test checks. `log` receives stderr.
-  ServerProcess(const std::string& args, const std::string& log) {
+  // the test checks. `log` receives stderr. `global` goes before `serve` (e.g. "--no-cache").
+  ServerProcess(const std::string& args, const std::string& log, const std::string& global = "") {
     log_ = log;
     const std::string limit =
         kReducedTests && args.find("--time-limit") == std::string::npos ? " --time-limit 600" : "";
@@ -43,8 +43,8 @@ class ServerProcess {
       ::dup2(out[1], STDOUT_FILENO);
       ::close(out[0]);
       ::close(out[1]);
-      const std::string command = "exec " + nurbsreg::test::nurbsreg_binary() + " serve " + args +
-                                  limit + " --port 0 2>" + log;
+      const std::string command = "exec " + nurbsreg::test::nurbsreg_binary() + " " + global +
+                                  " serve " + args + limit + " --port 0 2>" + log;
       ::execl("/bin/sh", "sh", "-c", command.c_str(), static_cast<char*>(nullptr));
       ::_exit(127);
     }
