@@ -75,7 +75,8 @@ void check_descriptors(const ModelFeatureParts& p, std::size_t described) {
 }
 
 // The checks from_parts promises (model_features.hpp), each naming the part.
-void check_parts(const ModelFeatureParts& p, const FeatureOptions& options) {
+void check_parts(const ModelFeatureParts& p, const FeatureOptions& options,
+                 const engine::PreparedModel& model) {
   if (!(p.surface_area > 0.0) || !std::isfinite(p.surface_area)) {
     fail("surface area " + std::to_string(p.surface_area) + " is not finite and positive");
   }
@@ -91,6 +92,18 @@ void check_parts(const ModelFeatureParts& p, const FeatureOptions& options) {
   for (std::size_t i = 0; i < n; ++i) {
     if (!finite(p.keypoints.points[i]) || !finite(p.keypoints.normals[i])) {
       fail("keypoint " + std::to_string(i) + " is not finite");
+    }
+  }
+  // Keypoints are samples of the model's faces: inside its box (with a margin for the rounding
+  // of an evaluation). Anything else is not this model's (and far points would overflow the
+  // grids' cell indices).
+  const engine::Aabb& box = model.bounds();
+  const double margin = 1e-6 * (box.hi - box.lo).norm();
+  for (std::size_t i = 0; i < n; ++i) {
+    const engine::Vec3& q = p.keypoints.points[i];
+    if ((q.array() < box.lo.array() - margin).any() ||
+        (q.array() > box.hi.array() + margin).any()) {
+      fail("keypoint " + std::to_string(i) + " lies outside the model's bounding box");
     }
   }
   for (std::size_t i = 0; i < p.symmetries.size(); ++i) {
@@ -136,7 +149,7 @@ std::shared_ptr<const ModelFeatures> ModelFeatures::from_parts(const engine::Pre
   } catch (const std::runtime_error& e) {
     throw std::invalid_argument(e.what());
   }
-  check_parts(parts, options);
+  check_parts(parts, options, model);
   ModelKeypoints described = described_of(parts.keypoints, options, parts.voxel);
   check_descriptors(parts, described.points.size());
   // Not make_shared: the constructor is private.

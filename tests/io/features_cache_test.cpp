@@ -319,6 +319,12 @@ TEST_F(FeaturesCacheTest, NonFiniteOrMismatchedPartsAreRejected) {
   std::string p = payload;
   std::memcpy(p.data() + 16 + 8 + 8, &nan, 8);  // keypoint 0's y
   fails(p, "keypoint 0 is not finite");
+  // Finite but far off the model (fuzz_cache_entry: 9.9e91 overflowed the described keypoints'
+  // grid, which from_parts builds): not a sample of this model.
+  p = payload;
+  const double far = 9.93014e91;
+  std::memcpy(p.data() + 16 + 8 + 8, &far, 8);
+  fails(p, "keypoint 0 lies outside the model's bounding box");
   p = payload;
   const double area = 1.0;  // a finite area that does not give the stored voxel
   std::memcpy(p.data(), &area, 8);
