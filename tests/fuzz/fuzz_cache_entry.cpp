@@ -98,8 +98,15 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
               features->described_keypoints().points.size()) {
         std::abort();
       }
-      for (const engine::Vec3& p : k.points)
+      const engine::Aabb& box = f.prepared.bounds();
+      const double margin = 1e-6 * (box.hi - box.lo).norm();
+      for (const engine::Vec3& p : k.points) {
         if (!p.allFinite()) std::abort();
+        if ((p.array() < box.lo.array() - margin).any() ||
+            (p.array() > box.hi.array() + margin).any()) {
+          std::abort();  // decoded keypoints are samples of the model's faces
+        }
+      }
     }
   } catch (const io::CacheEntryError& e) {
     check_message(e);
