@@ -51,7 +51,7 @@ class ModelHandle {
       const registration::FeatureOptions& options) {
     std::lock_guard lock(features_mutex_);
     for (const auto& [o, f] : features_) {
-      if (same_options(o, options)) return f;
+      if (o == options) return f;
     }
     auto f =
         io::load_model_features(prepared_, options, io::FeaturesCacheSettings::from_environment());
@@ -71,12 +71,6 @@ class ModelHandle {
   void give_back(std::unique_ptr<engine::Projector> projector) {
     std::lock_guard lock(mutex_);
     idle_.push_back(std::move(projector));
-  }
-
-  static bool same_options(const registration::FeatureOptions& a,
-                           const registration::FeatureOptions& b) {
-    return a.keypoints == b.keypoints && a.normal_radius == b.normal_radius &&
-           a.feature_radius == b.feature_radius && a.seed == b.seed;
   }
 
   std::string path_;

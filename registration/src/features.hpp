@@ -24,6 +24,7 @@
 #include <vector>
 
 #include "nurbsreg/engine/types.hpp"
+#include "nurbsreg/registration/model_features.hpp"
 #include "point_grid.hpp"
 
 namespace nurbsreg::registration::detail {
@@ -51,10 +52,7 @@ PcaNormals pca_normals(std::span<const engine::Vec3> points, const PointGrid& gr
 // kind of points on either. Described the same way, a half view of NIST CTC-02 found ten times
 // as many right matches.
 inline constexpr int kMinNormalNeighbours = 5;
-struct SurfacePoints {
-  std::vector<engine::Vec3> points;
-  std::vector<engine::Vec3> normals;
-};
+using SurfacePoints = ModelKeypoints;  // points and their (here PCA) normals
 SurfacePoints surface_points(std::span<const engine::Vec3> points, double radius);
 
 // Descriptors (rows in point order) over the neighbours within `radius` (<= grid.cell()).

@@ -55,10 +55,7 @@ bool finite(const engine::Vec3& v) {
 // cancellation cannot cut it short while a cache entry is read.
 ModelKeypoints described_of(const ModelKeypoints& k, const FeatureOptions& options, double voxel) {
   ModelKeypoints out;
-  build_isolated([&] {
-    detail::SurfacePoints s = detail::surface_points(k.points, options.normal_radius * voxel);
-    out = {std::move(s.points), std::move(s.normals)};
-  });
+  build_isolated([&] { out = detail::surface_points(k.points, options.normal_radius * voxel); });
   return out;
 }
 

@@ -35,11 +35,12 @@ struct FeatureOptions {
   double normal_radius = 2.0;
   double feature_radius = 8.0;
   std::uint64_t seed = 1;
+  bool operator==(const FeatureOptions&) const = default;
 };
 
 struct ModelKeypoints {
   std::vector<engine::Vec3> points;
-  std::vector<engine::Vec3> normals;  // exact, on the face's outer side
+  std::vector<engine::Vec3> normals;  // keypoints(): exact, outward; described: by PCA, unsigned
 };
 
 // The revision of what ModelFeatures computes from a model and FeatureOptions: the surface area
