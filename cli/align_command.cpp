@@ -85,7 +85,6 @@ void run_align(const AlignArgs& args) {
   }
   const icp::IcpResult& result = frame.icp;
   const registration::DeviationSummary& dev = frame.deviation;
-  spdlog::info("{}", result.brief_report());
   if (const auto& failure = frame.failure) {
     // No pose and no aligned scan: they would align nothing. The report says what happened
     // (converged: false, the termination and every iteration).
@@ -93,6 +92,9 @@ void run_align(const AlignArgs& args) {
                         AlignOutputs{"", "", args.report}, total);
     throw std::runtime_error(args.scan + ": " + *failure);
   }
+  // After the failure check: a failed alignment's one line is its error (the brief report would
+  // say the same thing first).
+  spdlog::info("{}", result.brief_report());
   warn_if_unconverged(args.scan, result, args.icp);
   warn_about_fit(args.scan, frame);
   if (const auto note = frame.sizes.warning()) spdlog::warn("{}: {}", args.scan, *note);

@@ -10,6 +10,7 @@
 
 #include "coarse.hpp"
 #include "features.hpp"
+#include "scan_shape.hpp"
 #include "verdict.hpp"
 
 namespace nurbsreg::registration {
@@ -181,6 +182,9 @@ AlignmentResult Aligner::align_global(std::span<const engine::Vec3> scan, bool a
     frame.icp.points = scan.size();
     frame.icp.message = *coarse.failure;
     frame.failure = "alignment failed: " + *coarse.failure;
+    if (coarse.found_nothing()) {
+      if (const auto flat = detail::flat_scan_note(scan, noise)) *frame.failure += "; " + *flat;
+    }
     if (const auto note = frame.sizes.failure_note()) *frame.failure += "; " + *note;
     return frame;
   }

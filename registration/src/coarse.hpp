@@ -20,6 +20,9 @@ struct CoarseOutcome {
   // otherwise.
   std::optional<std::string> failure;
   bool timed_out = false;  // the failure is the deadline's
+  bool cancelled = false;  // ... or the caller's cancellation
+  // The stage ran to its end and found no pose (neither of the two above).
+  bool found_nothing() const { return failure && !timed_out && !cancelled; }
 };
 
 // CPU seconds of this process so far (all its threads).

@@ -208,6 +208,7 @@ CoarseOutcome coarse_align(std::span<const Vec3> scan, const ModelFeatures& feat
   const auto past_deadline = [&](const std::string& where) {
     if (tbb::is_current_task_group_canceling()) {
       out.failure = "cancelled in the global alignment " + where;
+      out.cancelled = true;
       return true;
     }
     if (Clock::now() < deadline) return false;

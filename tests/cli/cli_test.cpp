@@ -420,6 +420,15 @@ TEST(Cli, AlignFailureNamesTheSizeMismatch) {
   // ~1/26: the model's size is its control points' box.
   EXPECT_NE(align.err.find("the scan is 1/2"), std::string::npos) << align.err;
   EXPECT_NE(align.err.find("are both in the same units"), std::string::npos) << align.err;
+  // Without -q the info lines come too, but the failure is said once: on its error line.
+  const CommandResult loud =
+      run_nurbsreg("align --model " + kPanel + " --scan " + scan, dir.path());
+  EXPECT_EQ(loud.status, 1) << loud.err;
+  const std::string cause = "too few points for features";
+  const std::size_t first = loud.err.find(cause);
+  ASSERT_NE(first, std::string::npos) << loud.err;
+  EXPECT_EQ(loud.err.find(cause, first + 1), std::string::npos) << loud.err;
+  EXPECT_EQ(loud.err.rfind("\n", first), loud.err.rfind("\nerror: ", first)) << loud.err;
 }
 
 // A scan with fewer points than a pose needs fails for that reason alone: no hint about where it
