@@ -151,11 +151,16 @@ def nurbsreg_batch(a, model, scans, tmp):
 
 def pcl_align(a, dense, voxel, scans):
     """One peer process per row: the model's features once, then every scan."""
+    limit = a.timeout * max(1, len(scans))
     p = run([a.pcl_peer, "--model-cloud", dense, "--voxel", repr(voxel), "--threads",
-             str(a.threads), *scans], a.timeout * max(1, len(scans)))
+             str(a.threads), *scans], limit)
     out = {}
+    # A failed row is recorded per scan with its reason (a timeout is not a wrong pose), and said.
     if p is None or p.returncode != 0:
-        return out
+        why = ({"exit": "timeout", "limit_s": limit} if p is None else
+               {"exit": p.returncode, "stderr": p.stderr.strip()[-400:]})
+        print("pcl: %d scans not aligned: %s" % (len(scans), why), file=sys.stderr)
+        return {scan: why for scan in scans}
     for line in p.stdout.splitlines():
         f = line.split()
         if len(f) != 20:
@@ -282,6 +287,8 @@ def main():
                         elif name.startswith("o3d"):
                             T, r["wall"], r["cpu"] = open3d_align(o3d, scan, o3d_model, voxel,
                                                                   name[4:])
+                        elif isinstance(pcl.get(scan), dict):
+                            r.update(pcl[scan])
                         elif scan in pcl:
                             T, r["wall"], r["cpu"] = pcl[scan]
                         if T is not None:
