@@ -58,6 +58,8 @@ void run_align(const AlignArgs& args) {
   registration::AlignRequest request = align_request(args.init, args.global);
   // Only --aligned writes per-point distances; the rest reads the summary and the verdict.
   request.all_projections = !args.aligned.empty();
+  // A long alignment says where it is (a 1 M-point scan takes seconds).
+  request.progress = [](const std::string& line) { spdlog::info("{}", line); };
   spdlog::info("{}: {} points ({} skipped: NaN or infinite)", args.scan, cloud.size(),
                cloud.skipped_nonfinite);
 

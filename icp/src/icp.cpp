@@ -717,6 +717,7 @@ IcpResult IcpSolver::align(CorrespondenceFinder& finder, std::span<const Vec3> s
       it.seconds = seconds_since(t0);
       result.log.push_back(it);
       ++result.iterations;
+      if (o.on_iteration) o.on_iteration(it);
       spdlog::debug(
           "icp stage {} iteration {}: rms {:.6g}, inliers {}/{}, step {:.3g} rad {:.3g} "
           "({:.3g} sigma){}",

@@ -92,12 +92,39 @@ AlignmentResult Aligner::align(std::span<const engine::Vec3> scan, const AlignRe
     ~DeadlineScope() { solver.set_deadline(std::chrono::steady_clock::time_point::max()); }
   } scope{solver_};
   solver_.set_deadline(request.deadline);
+  // Progress, likewise for this call only.
+  struct ProgressScope {
+    Aligner& aligner;
+    ~ProgressScope() {
+      aligner.progress_ = nullptr;
+      aligner.solver_.set_on_iteration(nullptr);
+    }
+  } progress_scope{*this};
+  progress_ = request.progress;
+  if (progress_) solver_.set_on_iteration(icp_progress("ICP"));
   completed_ = false;
   if (!global) {
     return align_from(scan, request.init.value_or(Eigen::Isometry3d::Identity()),
                       request.all_projections);
   }
   return align_global(scan, request.all_projections);
+}
+
+std::function<void(const icp::IcpIteration&)> Aligner::icp_progress(std::string what) const {
+  // At most about a line a second: an alignment of a second or less says nothing more than
+  // its result.
+  using Clock = std::chrono::steady_clock;
+  const Clock::time_point start = Clock::now();
+  return [this, what = std::move(what), start, last = start](const icp::IcpIteration& it) mutable {
+    const Clock::time_point now = Clock::now();
+    if (!progress_ || now - last < std::chrono::seconds(1)) return;
+    last = now;
+    progress_(fmt::format(
+        "{}: {} points, rms {:.4g} over {} inliers, step {:.3g} standard deviations ({:.1f} s "
+        "so far)",
+        what, it.points, it.rms, it.inliers, it.step_sigmas,
+        std::chrono::duration<double>(now - start).count()));
+  };
 }
 
 AlignmentResult Aligner::align(std::span<const engine::Vec3> scan, const Eigen::Isometry3d& init) {
@@ -217,6 +244,14 @@ AlignmentResult Aligner::align_global(std::span<const engine::Vec3> scan, bool a
   if (first_motion > 0.0) fine.initial_expected_motion = first_motion;
   fine.statistical_tolerance = std::max(fine.statistical_tolerance, g.fine_statistical_tolerance);
   fine.predict_final_convergence = fine.predict_final_convergence || g.fine_predict_final;
+  if (progress_) {
+    const CoarseReport& c = *frame.coarse;
+    progress_(fmt::format(
+        "coarse alignment: a pose in {:.2f} s ({:.1f}% of the points it checked fit; {} matches, "
+        "{} hypotheses verified); fine ICP on {} points next",
+        c.seconds, 100.0 * c.winner.inlier_fraction, c.matches, c.verified, scan.size()));
+    fine.on_iteration = icp_progress("fine ICP");
+  }
   icp::IcpSolver fine_solver(fine);
   frame.icp = fine_solver.align(finder_, scan, frame.coarse->winner.T_model_scan);
   lap("fine ICP");

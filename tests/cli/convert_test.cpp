@@ -52,12 +52,18 @@ TEST(CliConvert, SecondLoadComesFromTheCache) {
   const CommandResult first = sh(env, "info --json --model " + kScrew);
   ASSERT_EQ(first.status, 0) << first.err;
   EXPECT_NE(first.err.find("stored in the cache"), std::string::npos) << first.err;
+  // The conversion is said when done (and while it runs, past a second: not this small part's),
+  // and only when it runs.
+  EXPECT_NE(first.err.find(": converted in "), std::string::npos) << first.err;
+  EXPECT_EQ(first.err.find("converting"), std::string::npos) << first.err;
   const CommandResult second = sh(env, "info --json --model " + kScrew);
   ASSERT_EQ(second.status, 0) << second.err;
   EXPECT_NE(second.err.find("read from the model cache"), std::string::npos) << second.err;
+  EXPECT_EQ(second.err.find("converting"), std::string::npos) << second.err;
   EXPECT_EQ(nlohmann::json::parse(first.out), nlohmann::json::parse(second.out));
   const CommandResult flag = sh(env, "--no-cache info --json --model " + kScrew);
   EXPECT_EQ(flag.err.find("cache"), std::string::npos) << flag.err;
+  EXPECT_NE(flag.err.find(": converted in "), std::string::npos) << flag.err;
   const CommandResult off = sh(env + "NURBSREG_NO_CACHE=1 ", "info --json --model " + kScrew);
   EXPECT_EQ(off.err.find("cache"), std::string::npos) << off.err;
   // Corrupt the entry: rebuilt with a warning, same answer.
@@ -69,6 +75,7 @@ TEST(CliConvert, SecondLoadComesFromTheCache) {
   const CommandResult rebuilt = sh(env, "info --json --model " + kScrew);
   ASSERT_EQ(rebuilt.status, 0) << rebuilt.err;
   EXPECT_NE(rebuilt.err.find("is not usable"), std::string::npos) << rebuilt.err;
+  EXPECT_NE(rebuilt.err.find(": converted in "), std::string::npos) << rebuilt.err;
   EXPECT_EQ(nlohmann::json::parse(rebuilt.out), nlohmann::json::parse(first.out));
 }
 

@@ -105,6 +105,26 @@ TEST(Icp, PointToPlaneRecoversThePoseExactly) {
   EXPECT_FALSE(r.brief_report().empty());
 }
 
+// IcpOptions::on_iteration sees every iteration as the log records it, in order, and changes
+// nothing.
+TEST(Icp, OnIterationSeesEveryIterationOfTheLog) {
+  const std::vector<Primitive> primitives = scene();
+  UnionFinder finder(primitives);
+  const std::vector<Vec3> scan = to_scan(sample_uniform(primitives, 4000, 7), true_pose());
+  IcpOptions o = exact_options();
+  std::vector<IcpIteration> seen;
+  o.on_iteration = [&](const IcpIteration& it) { seen.push_back(it); };
+  const IcpResult r = align(finder, scan, Isometry3d::Identity(), o);
+  const IcpResult plain = align(finder, scan, Isometry3d::Identity(), exact_options());
+  ASSERT_EQ(seen.size(), r.log.size());
+  for (std::size_t k = 0; k < seen.size(); ++k) {
+    EXPECT_EQ(seen[k].points, r.log[k].points);
+    EXPECT_EQ(seen[k].rms, r.log[k].rms);
+    EXPECT_EQ(seen[k].step_sigmas, r.log[k].step_sigmas);
+  }
+  EXPECT_EQ(r.T_model_scan.matrix(), plain.T_model_scan.matrix());
+}
+
 TEST(Icp, PointToPointRecoversThePose) {
   const std::vector<Primitive> primitives = scene();
   UnionFinder finder(primitives);

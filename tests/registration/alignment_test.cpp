@@ -242,6 +242,44 @@ TEST(Aligner, FromAnyPoseTheVerdictReadsTheFineIcpsLastPass) {
   EXPECT_LT(far.front(), scan.points.size());  // not every point
 }
 
+// AlignRequest::progress: from any pose it gets the coarse stage's outcome when that stage ends
+// (then the fine ICP's lines, at most about one a second: none for this short alignment); the
+// answer is the same with and without it; from a pose there is no coarse line.
+TEST(Aligner, ProgressSaysWhereALongAlignmentIs) {
+  const engine::PreparedModel& model = panel();
+  const double noise = 1e-4 * model.bounds().diagonal();
+  const engine::SyntheticScan scan = cluttered_scan_of(model, 4000, noise, 22);
+  AlignRequest request;
+  request.global = GlobalMode::on;
+  std::vector<std::string> lines;
+  request.progress = [&](const std::string& line) { lines.push_back(line); };
+  Aligner aligner(model, icp::IcpOptions{});
+  const AlignmentResult with = aligner.align(scan.points, request);
+  ASSERT_TRUE(with.ok()) << with.failure.value_or("");
+  ASSERT_FALSE(lines.empty());
+  EXPECT_TRUE(lines.front().starts_with("coarse alignment: a pose in ")) << lines.front();
+  EXPECT_NE(lines.front().find("fine ICP on 4000 points next"), std::string::npos) << lines.front();
+  for (std::size_t k = 1; k < lines.size(); ++k)
+    EXPECT_TRUE(lines[k].starts_with("fine ICP: ")) << lines[k];
+  AlignRequest quiet = request;
+  quiet.progress = nullptr;
+  const AlignmentResult without = Aligner(model, icp::IcpOptions{}).align(scan.points, quiet);
+  EXPECT_EQ(without.icp.T_model_scan.matrix(), with.icp.T_model_scan.matrix());
+  // The callback is this call's only: the next call without one says nothing to it.
+  const std::size_t said = lines.size();
+  aligner.align(scan.points, quiet);
+  EXPECT_EQ(lines.size(), said);
+  // From a pose: ICP lines only (none here: it is short; plain ICP on this cluttered scan
+  // fits poorly, which does not matter here).
+  AlignRequest from_pose = request;
+  from_pose.global = GlobalMode::automatic;
+  from_pose.init = with.icp.T_model_scan;
+  lines.clear();
+  aligner.align(scan.points, from_pose);
+  for (const std::string& line : lines)
+    EXPECT_TRUE(line.starts_with("ICP: ")) << line;
+}
+
 TEST(Aligner, AScanFarFromTheModelFailsWithAReason) {
   const engine::PreparedModel& model = panel();
   const engine::SyntheticScan scan = scan_of(model, 2000, 0.0, 5);

@@ -27,6 +27,7 @@
 #include <chrono>
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <limits>
 #include <memory>
 #include <optional>
@@ -64,6 +65,8 @@ std::string_view to_string(RobustKernel kernel);
 // Accepts "point-to-plane" / "point_to_plane" etc.; nothing if unknown.
 std::optional<IcpMethod> parse_icp_method(std::string_view text);
 std::optional<RobustKernel> parse_robust_kernel(std::string_view text);
+
+struct IcpIteration;
 
 struct IcpOptions {
   IcpMethod method = IcpMethod::point_to_plane;
@@ -146,6 +149,10 @@ struct IcpOptions {
   // and the pose reached so far. An iteration already begun is finished, so a run may end up to
   // one iteration (plus the final statistics) after it. max(): no limit.
   std::chrono::steady_clock::time_point deadline = std::chrono::steady_clock::time_point::max();
+  // Called after every iteration with its IcpIteration (the entry the result's log gets), on
+  // the thread that called align(): a caller's progress report. Empty: none. Its exceptions
+  // propagate out of align().
+  std::function<void(const IcpIteration&)> on_iteration;
 
   // An error naming the field (`keep_fraction: must be in (0, 1] (got 0)`), or nothing.
   std::optional<std::string> validate() const;
@@ -231,6 +238,10 @@ class IcpSolver {
   // solver).
   void set_deadline(std::chrono::steady_clock::time_point deadline) {
     options_.deadline = deadline;
+  }
+  // Sets options().on_iteration for the calls that follow (a reused solver's per-call progress).
+  void set_on_iteration(std::function<void(const IcpIteration&)> on_iteration) {
+    options_.on_iteration = std::move(on_iteration);
   }
 
   // Aligns `scan` (scan frame, finite coordinates) to the model behind `finder`, starting

@@ -14,6 +14,7 @@
 
 #include <Eigen/Geometry>
 #include <chrono>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <span>
@@ -72,6 +73,10 @@ struct AlignRequest {
   // deviation summary and the verdict are the same; far outliers then cost next to nothing (an
   // unbounded projection of a point far from the model searches much of it).
   bool all_projections = true;
+  // Lines for a person waiting on a long alignment (`align` logs them): the coarse stage's pose
+  // and time when it ends, then the ICP's progress at most about once a second (its stage's
+  // points, iteration, rms and step). Called on the calling thread; empty: none.
+  std::function<void(const std::string&)> progress;
 
   // Whether align() runs the global stage for this request (GlobalMode::on, or automatic
   // without init): the one path that needs the model's keypoints, descriptors and symmetries.
@@ -133,6 +138,8 @@ class Aligner {
   AlignmentResult align_from(std::span<const engine::Vec3> scan, const Eigen::Isometry3d& init,
                              bool all_projections);
   AlignmentResult align_global(std::span<const engine::Vec3> scan, bool all_projections);
+  // An icp::IcpOptions::on_iteration that passes progress_ a line about once a second.
+  std::function<void(const icp::IcpIteration&)> icp_progress(std::string what) const;
   AlignmentResult finish(std::span<const engine::Vec3> scan, AlignmentResult frame,
                          const icp::IcpOptions& options, double noise, bool all_projections);
 
@@ -148,6 +155,8 @@ class Aligner {
   // the far points and their indices (kept like correspondences_).
   engine::ProjectionResults completed_projections_;
   bool completed_ = false;
+  // AlignRequest::progress for the current call (empty outside it).
+  std::function<void(const std::string&)> progress_;
   std::vector<engine::Vec3> far_points_;
   std::vector<std::size_t> far_ids_;
 };
