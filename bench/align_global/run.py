@@ -59,7 +59,11 @@ def children_cpu():
 
 def errors(truth, found, diag):
     e = truth @ np.linalg.inv(found)
-    ang = np.degrees(np.arccos(np.clip((np.trace(e[:3, :3]) - 1) / 2, -1, 1)))
+    # The angle from both its sine (the skew part) and its cosine (the trace): arccos of the
+    # trace alone loses small angles to rounding (a peer's float pose read as 0 degrees).
+    r = e[:3, :3]
+    sine = np.linalg.norm([r[2, 1] - r[1, 2], r[0, 2] - r[2, 0], r[1, 0] - r[0, 1]]) / 2
+    ang = np.degrees(np.arctan2(sine, (np.trace(r) - 1) / 2))
     return float(ang), float(np.linalg.norm(e[:3, 3]) / diag)
 
 
