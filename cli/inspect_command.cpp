@@ -7,6 +7,7 @@
 
 #include <cmath>
 #include <iostream>
+#include <memory>
 #include <optional>
 #include <stdexcept>
 
@@ -128,12 +129,24 @@ void run_inspect(const InspectArgs& args) {
     report.pose_given = true;
     report.alignment = inspect::given_pose_alignment(init.matrix(), deviations, cloud.size());
   } else {
-    // As `align` does: from any pose without --init (the global stage), from --init as given.
-    registration::Aligner aligner(prepared, icp, registration_options(args.global));
-    const registration::AlignmentResult frame =
-        align_frame(aligner, cloud, align_request(args.init, args.global));
-    spdlog::info("{}", frame.icp.brief_report());
+    // As `align` does: from any pose without --init (the global stage, with the model's
+    // features from the features cache), from --init as given; progress while it runs.
+    const registration::RegistrationOptions registration = registration_options(args.global);
+    registration::AlignRequest request = align_request(args.init, args.global);
+    request.progress = [](const std::string& line) { spdlog::info("{}", line); };
+    std::shared_ptr<const registration::ModelFeatures> features;
+    if (request.runs_global()) {
+      try {
+        features = load_features(prepared, registration.global.features);
+      } catch (const std::runtime_error& e) {
+        throw UsageError(std::string("inspect: ") + e.what());
+      }
+    }
+    registration::Aligner aligner(prepared, icp, registration, features);
+    const registration::AlignmentResult frame = align_frame(aligner, cloud, request);
+    // A failure's one line is its error (the brief report would say it first).
     if (frame.failure) throw std::runtime_error(args.scan + ": " + *frame.failure);
+    spdlog::info("{}", frame.icp.brief_report());
     warn_if_unconverged(args.scan, frame.icp, args.icp);
     warn_about_fit(args.scan, frame);
     if (const auto note = frame.sizes.warning()) spdlog::warn("{}: {}", args.scan, *note);

@@ -149,5 +149,20 @@ TEST_F(CliFeaturesCache, BatchSharesTheCacheWithAlign) {
   EXPECT_EQ(read_text(dir_ / "out/a.pose.txt"), pose("single"));
 }
 
+// `inspect` from any pose reads the same entry (it built the features anew on every run
+// before) and finds the pose `align` does; its progress lines come at the default level.
+TEST_F(CliFeaturesCache, InspectSharesTheCacheWithAlign) {
+  const CommandResult single = align("single");
+  ASSERT_EQ(single.status, 0) << single.err;
+  const CommandResult inspect = sh("", "inspect --threads 2 --tolerance 0.05 --model " + kPanel +
+                                           " --scan " + scan_ + " --out-dir " + (dir_ / "report"));
+  ASSERT_EQ(inspect.status, 0) << inspect.err;
+  EXPECT_NE(inspect.err.find("model features: read from the cache (hit"), std::string::npos)
+      << inspect.err;
+  EXPECT_NE(inspect.err.find("info coarse alignment: a pose in "), std::string::npos)
+      << inspect.err;
+  EXPECT_EQ(feature_entries(dir_ / "cache").size(), 1u);
+}
+
 }  // namespace
 }  // namespace nurbsreg::test
