@@ -180,6 +180,13 @@ engine::SyntheticScan cluttered_scan_of(const engine::PreparedModel& model, std:
   return engine::make_synthetic_scan(model.model(), o);
 }
 
+// The panel scanned from a far pose with 20% outliers, noise 1e-4 of its size: the tests of the
+// alignment from any pose below.
+engine::SyntheticScan cluttered_panel_scan() {
+  const engine::PreparedModel& model = panel();
+  return cluttered_scan_of(model, 4000, 1e-4 * model.bounds().diagonal(), 22);
+}
+
 TEST(Aligner, WithoutFarProjectionsFromAPoseTheSummaryAndVerdictAreTheSame) {
   const engine::PreparedModel& model = panel();
   const double noise = 1e-4 * model.bounds().diagonal();
@@ -195,8 +202,7 @@ TEST(Aligner, WithoutFarProjectionsFromAPoseTheSummaryAndVerdictAreTheSame) {
 
 TEST(Aligner, WithoutFarProjectionsFromAnyPoseTheSummaryAndVerdictAreTheSame) {
   const engine::PreparedModel& model = panel();
-  const double noise = 1e-4 * model.bounds().diagonal();
-  const engine::SyntheticScan scan = cluttered_scan_of(model, 4000, noise, 22);
+  const engine::SyntheticScan scan = cluttered_panel_scan();
   AlignRequest request;
   request.global = GlobalMode::on;
   // The fine ICP after the global stage bounds its distances itself (GlobalOptions).
@@ -212,8 +218,7 @@ TEST(Aligner, WithoutFarProjectionsFromAnyPoseTheSummaryAndVerdictAreTheSame) {
 // the points it left unanswered are projected (the reports are the same bits: above).
 TEST(Aligner, FromAnyPoseTheVerdictReadsTheFineIcpsLastPass) {
   const engine::PreparedModel& model = panel();
-  const double noise = 1e-4 * model.bounds().diagonal();
-  const engine::SyntheticScan scan = cluttered_scan_of(model, 4000, noise, 22);
+  const engine::SyntheticScan scan = cluttered_panel_scan();
   // The points of every projection after the fine ICP's, from the `-v` lines.
   const auto passes_after_the_fine_icp = [&](bool all_projections) {
     AlignRequest request;
@@ -247,8 +252,7 @@ TEST(Aligner, FromAnyPoseTheVerdictReadsTheFineIcpsLastPass) {
 // answer is the same with and without it; from a pose there is no coarse line.
 TEST(Aligner, ProgressSaysWhereALongAlignmentIs) {
   const engine::PreparedModel& model = panel();
-  const double noise = 1e-4 * model.bounds().diagonal();
-  const engine::SyntheticScan scan = cluttered_scan_of(model, 4000, noise, 22);
+  const engine::SyntheticScan scan = cluttered_panel_scan();
   AlignRequest request;
   request.global = GlobalMode::on;
   std::vector<std::string> lines;
