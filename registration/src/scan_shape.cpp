@@ -26,8 +26,10 @@ std::optional<std::string> flat_scan_note(std::span<const engine::Vec3> scan, do
   if (solver.info() != Eigen::Success) return std::nullopt;
   // Ascending: the spread off the principal plane, off the principal line, along it (rms).
   const engine::Vec3 spread = solver.eigenvalues().cwiseMax(0.0).cwiseSqrt();
-  // A noise-free flat scan has a rounding-level spread off its plane and a noise estimate of 0.
-  const double flat = 2.0 * std::max(noise, 1e-12 * spread.z());
+  // A noise-free flat scan has a noise estimate of 0 and a spread off its plane at the rounding
+  // of the smallest eigenvalue: about eps times the largest, so its root about 1e-8 of the
+  // scan's extent (1e-6 leaves room for any compiler's sums).
+  const double flat = 2.0 * std::max(noise, 1e-6 * spread.z());
   // Across: an evenly filled square of side a has an rms spread of a / sqrt(12) along each side.
   const auto across = [](double rms) { return std::sqrt(12.0) * rms; };
   if (spread.y() <= flat) {
