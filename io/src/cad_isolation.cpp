@@ -1,12 +1,15 @@
 // The STEP/IGES import in a child process: why and how in cad_isolation.hpp.
 #include "cad_isolation.hpp"
 
+#include <spdlog/spdlog.h>
+
 #include <poll.h>
 #include <signal.h>
 #include <sys/resource.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <chrono>
 #include <cstring>
@@ -167,19 +170,32 @@ engine::Model import_isolated(const std::string& path, CadImportReport* report) 
   const auto deadline =
       std::chrono::steady_clock::now() + std::chrono::seconds(limits.cad_timeout_seconds);
   bool timed_out = false;
+  // A conversion past a second is said while it runs (a large part takes seconds; a malformed
+  // file's quick failure keeps its error as the only line). From this wait, not from a thread: a
+  // thread beside the fork could leave the child holding a lock nobody releases (an ASan build
+  // hung so).
+  const auto start = std::chrono::steady_clock::now();
+  const auto say_at = start + std::chrono::seconds(1);
+  bool said = false;
   char buffer[1 << 16];
   while (true) {
-    const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(
-                          deadline - std::chrono::steady_clock::now())
-                          .count();
+    const auto now = std::chrono::steady_clock::now();
+    const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - now).count();
     if (left <= 0) {
       timed_out = true;
       break;
     }
+    if (!said && now >= say_at) {
+      spdlog::info("{}: converting the {} file with OpenCASCADE", path, format);
+      said = true;
+    }
+    const long long wait =
+        said ? left
+             : std::chrono::duration_cast<std::chrono::milliseconds>(say_at - now).count() + 1;
     pollfd p{fds[0], POLLIN, 0};
-    const int ready = ::poll(&p, 1, static_cast<int>(std::min<long long>(left, 1 << 30)));
+    const int ready = ::poll(&p, 1, static_cast<int>(std::min<long long>({left, wait, 1 << 30})));
     if (ready < 0 && errno == EINTR) continue;
-    if (ready == 0) continue;  // the deadline is checked above
+    if (ready == 0) continue;  // the deadline and the line are checked above
     const ssize_t n = ::read(fds[0], buffer, sizeof buffer);
     if (n < 0 && errno == EINTR) continue;
     if (n <= 0) break;  // EOF: the child is done (or dead)

@@ -14,7 +14,6 @@
 
 #include "cache_codec.hpp"
 #include "nurbsreg/io/atomic_file.hpp"
-#include "slow_work_notice.hpp"
 
 #ifndef NURBSREG_VERSION
 #define NURBSREG_VERSION "unknown"
@@ -213,16 +212,10 @@ std::shared_ptr<const ModelFeatures> load_model_features(const engine::PreparedM
       done = CacheOutcome::rebuilt;
     }
   }
-  // Seconds on a large part: said when it runs that long, and when it is done (the later runs
-  // read the entry).
+  // Said when done, at the default level (seconds on a large part; the later runs read the
+  // entry).
   auto features = std::make_shared<const ModelFeatures>(model, options);
-  {
-    const detail::SlowWorkNotice notice(fmt::format(
-        "model features for the alignment from any pose: building them ({})",
-        done == CacheOutcome::miss ? "once per model: later runs read the features cache"
-                                   : "the cache entry was not usable"));
-    features->build_all();
-  }
+  features->build_all();
   const double build_seconds = seconds_since(start);
   spdlog::info("model features built in {:.2f} s ({} keypoints)", build_seconds,
                features->keypoints().points.size());

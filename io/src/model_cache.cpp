@@ -17,7 +17,6 @@
 #include "cache_codec.hpp"
 #include "nurbsreg/io/atomic_file.hpp"
 #include "printable.hpp"
-#include "slow_work_notice.hpp"
 
 #ifndef NURBSREG_VERSION
 #define NURBSREG_VERSION "unknown"
@@ -238,23 +237,17 @@ engine::Model read_model_through_cache(
   };
   // An unreadable source is convert's to report (it names the file and the problem).
   const std::optional<std::string> source = settings.enabled ? read_whole_file(path) : std::nullopt;
-  // A conversion takes seconds on a large part (OpenCASCADE): said when it runs that long, and
-  // when it is done.
-  const auto converted = [&](std::string_view why) {
+  // A conversion takes seconds on a large part (OpenCASCADE): said when it is done (and, by the
+  // import's own wait for its process, while it runs past a second).
+  const auto converted = [&] {
     const auto start = std::chrono::steady_clock::now();
-    engine::Model model;
-    {
-      const detail::SlowWorkNotice notice(
-          fmt::format("{}: converting with OpenCASCADE{}", path,
-                      why.empty() ? std::string() : fmt::format(" ({})", why)));
-      model = convert(path);
-    }
+    engine::Model model = convert(path);
     spdlog::info("{}: converted in {:.2f} s ({} surfaces, {} curves)", path,
                  std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(),
                  model.surfaces.size(), model.curves.size());
     return model;
   };
-  if (!settings.enabled) return finish(converted(""));
+  if (!settings.enabled) return finish(converted());
   if (!source) return finish(convert(path));
   const ContentHash key = hash_bytes(*source);
   const std::uint64_t size = source->size();
@@ -272,9 +265,7 @@ engine::Model read_model_through_cache(
       done = CacheOutcome::rebuilt;
     }
   }
-  engine::Model model =
-      converted(done == CacheOutcome::miss ? "its first load: later loads read the model cache"
-                                           : "the cache entry was not usable");
+  engine::Model model = converted();
   try {
     std::error_code ec;
     std::filesystem::create_directories(settings.directory, ec);
