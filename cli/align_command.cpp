@@ -59,23 +59,17 @@ void run_align(const AlignArgs& args) {
   // Only --aligned writes per-point distances; the rest reads the summary and the verdict.
   request.all_projections = !args.aligned.empty();
   // A long alignment says where it is (a 1 M-point scan takes seconds).
-  request.progress = [](const std::string& line) { spdlog::info("{}", line); };
+  request.progress = log_progress;
   spdlog::info("{}: {} points ({} skipped: NaN or infinite)", args.scan, cloud.size(),
                cloud.skipped_nonfinite);
 
   const engine::PreparedModel prepared(std::move(model));
   const registration::RegistrationOptions registration = registration_options(args.global);
   // From any pose the alignment needs every part of the model's features: from the cache.
-  std::shared_ptr<const registration::ModelFeatures> features;
   const Stopwatch features_wall;
   const double features_cpu0 = process_cpu_seconds();
-  if (request.runs_global()) {
-    try {
-      features = load_features(prepared, registration.global.features);
-    } catch (const std::runtime_error& e) {
-      throw UsageError(std::string("align: ") + e.what());  // as the aligner reports it
-    }
-  }
+  const std::shared_ptr<const registration::ModelFeatures> features =
+      features_for(prepared, request, registration, "align");
   const double features_seconds = features_wall.seconds();
   const double features_cpu_seconds = process_cpu_seconds() - features_cpu0;
   registration::Aligner aligner(prepared, options, registration, features);

@@ -123,6 +123,21 @@ registration::RegistrationOptions registration_options(const GlobalArgs& args) {
   return o;
 }
 
+std::shared_ptr<const registration::ModelFeatures> features_for(
+    const engine::PreparedModel& model, const registration::AlignRequest& request,
+    const registration::RegistrationOptions& registration, const std::string& command) {
+  if (!request.runs_global()) return nullptr;
+  try {
+    return load_features(model, registration.global.features);
+  } catch (const std::runtime_error& e) {
+    throw UsageError(command + ": " + e.what());  // as the aligner reports it
+  }
+}
+
+void log_progress(const std::string& line) {
+  spdlog::info("{}", line);
+}
+
 registration::AlignmentResult align_frame(registration::Aligner& aligner,
                                           const io::PointCloud& cloud,
                                           const registration::AlignRequest& request) {

@@ -15,6 +15,7 @@
 #include <Eigen/Geometry>
 #include <cstddef>
 #include <limits>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -88,6 +89,14 @@ void add_global_options(CLI::App& cmd, GlobalArgs& args);
 // The request for `init` (the --init value) and the flags; reads the pose file (InputError).
 registration::AlignRequest align_request(const std::string& init, const GlobalArgs& args);
 registration::RegistrationOptions registration_options(const GlobalArgs& args);
+// The model's features an Aligner for `request` needs: through the features cache
+// (load_features) when it aligns from any pose, else none (the aligner measures the area
+// itself). A model the features cannot be built for (no area) is a UsageError naming `command`.
+std::shared_ptr<const registration::ModelFeatures> features_for(
+    const engine::PreparedModel& model, const registration::AlignRequest& request,
+    const registration::RegistrationOptions& registration, const std::string& command);
+// registration::AlignRequest::progress for a command a person waits on: each line at info.
+void log_progress(const std::string& line);
 
 // Where align writes; an empty name means "do not write".
 struct AlignOutputs {

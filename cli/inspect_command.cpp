@@ -7,7 +7,6 @@
 
 #include <cmath>
 #include <iostream>
-#include <memory>
 #include <optional>
 #include <stdexcept>
 
@@ -133,16 +132,9 @@ void run_inspect(const InspectArgs& args) {
     // features from the features cache), from --init as given; progress while it runs.
     const registration::RegistrationOptions registration = registration_options(args.global);
     registration::AlignRequest request = align_request(args.init, args.global);
-    request.progress = [](const std::string& line) { spdlog::info("{}", line); };
-    std::shared_ptr<const registration::ModelFeatures> features;
-    if (request.runs_global()) {
-      try {
-        features = load_features(prepared, registration.global.features);
-      } catch (const std::runtime_error& e) {
-        throw UsageError(std::string("inspect: ") + e.what());
-      }
-    }
-    registration::Aligner aligner(prepared, icp, registration, features);
+    request.progress = log_progress;
+    registration::Aligner aligner(prepared, icp, registration,
+                                  features_for(prepared, request, registration, "inspect"));
     const registration::AlignmentResult frame = align_frame(aligner, cloud, request);
     // A failure's one line is its error (the brief report would say it first).
     if (frame.failure) throw std::runtime_error(args.scan + ": " + *frame.failure);

@@ -189,7 +189,10 @@ std::shared_ptr<const ModelFeatures> load_model_features(const engine::PreparedM
   const auto finish = [&](std::shared_ptr<const ModelFeatures> f, CacheOutcome done,
                           const std::string& what) {
     if (outcome != nullptr) *outcome = done;
-    spdlog::debug("model features: {} in {:.3f} s", what, seconds_since(start));
+    // A build takes seconds on a large part: said at the default level (a read, at debug).
+    const bool built = done == CacheOutcome::miss || done == CacheOutcome::rebuilt;
+    spdlog::log(built ? spdlog::level::info : spdlog::level::debug,
+                "model features: {} in {:.3f} s", what, seconds_since(start));
     return f;
   };
   if (!settings.enabled) {
@@ -212,13 +215,9 @@ std::shared_ptr<const ModelFeatures> load_model_features(const engine::PreparedM
       done = CacheOutcome::rebuilt;
     }
   }
-  // Said when done, at the default level (seconds on a large part; the later runs read the
-  // entry).
   auto features = std::make_shared<const ModelFeatures>(model, options);
   features->build_all();
   const double build_seconds = seconds_since(start);
-  spdlog::info("model features built in {:.2f} s ({} keypoints)", build_seconds,
-               features->keypoints().points.size());
   const char* word = done == CacheOutcome::miss ? "miss" : "rebuilt";
   std::string what = fmt::format("built in {:.3f} s ({})", build_seconds, word);
   try {

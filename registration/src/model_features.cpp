@@ -95,11 +95,9 @@ void check_parts(const ModelFeatureParts& p, const FeatureOptions& options,
   // of an evaluation). Anything else is not this model's (and far points would overflow the
   // grids' cell indices).
   const engine::Aabb& box = model.bounds();
-  const double margin = 1e-6 * (box.hi - box.lo).norm();
+  const double margin = 1e-6 * box.diagonal();
   for (std::size_t i = 0; i < n; ++i) {
-    const engine::Vec3& q = p.keypoints.points[i];
-    if ((q.array() < box.lo.array() - margin).any() ||
-        (q.array() > box.hi.array() + margin).any()) {
+    if (box.squared_distance(p.keypoints.points[i]) > margin * margin) {
       fail("keypoint " + std::to_string(i) + " lies outside the model's bounding box");
     }
   }

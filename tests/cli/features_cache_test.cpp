@@ -76,7 +76,7 @@ TEST_F(CliFeaturesCache, SecondAlignReadsTheFeaturesAndGivesTheSameOutput) {
   EXPECT_NE(first.err.find("(miss)"), std::string::npos) << first.err;
   // Said at the default level too when done (and while building, past a second: not the
   // panel's), with the coarse stage's outcome.
-  EXPECT_NE(first.err.find("info model features built in "), std::string::npos) << first.err;
+  EXPECT_NE(first.err.find("info model features: built in "), std::string::npos) << first.err;
   EXPECT_NE(first.err.find("info coarse alignment: a pose in "), std::string::npos) << first.err;
   ASSERT_EQ(feature_entries(dir_ / "cache").size(), 1u);
 
@@ -85,7 +85,7 @@ TEST_F(CliFeaturesCache, SecondAlignReadsTheFeaturesAndGivesTheSameOutput) {
   EXPECT_NE(second.err.find("model features: read from the cache (hit"), std::string::npos)
       << second.err;
   EXPECT_EQ(second.err.find("model features: built"), std::string::npos) << second.err;
-  EXPECT_EQ(second.err.find("features built"), std::string::npos) << second.err;
+  EXPECT_EQ(second.err.find("model features: built"), std::string::npos) << second.err;
   EXPECT_NE(second.err.find("info coarse alignment: a pose in "), std::string::npos) << second.err;
   EXPECT_EQ(pose("second"), pose("first"));  // shortest round-trip numbers: the same bits
   EXPECT_EQ(untimed(second.out), untimed(first.out));
