@@ -189,10 +189,13 @@ std::shared_ptr<const ModelFeatures> load_model_features(const engine::PreparedM
   const auto finish = [&](std::shared_ptr<const ModelFeatures> f, CacheOutcome done,
                           const std::string& what) {
     if (outcome != nullptr) *outcome = done;
-    // A build takes seconds on a large part: said at the default level (a read, at debug).
-    const bool built = done == CacheOutcome::miss || done == CacheOutcome::rebuilt;
-    spdlog::log(built ? spdlog::level::info : spdlog::level::debug,
-                "model features: {} in {:.3f} s", what, seconds_since(start));
+    // A build takes seconds on a large part: said at the default level, its time in `what` (a
+    // read, at debug, with its own time).
+    if (done == CacheOutcome::miss || done == CacheOutcome::rebuilt) {
+      spdlog::info("model features: {}", what);
+    } else {
+      spdlog::debug("model features: {} in {:.3f} s", what, seconds_since(start));
+    }
     return f;
   };
   if (!settings.enabled) {
