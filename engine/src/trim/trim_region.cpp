@@ -413,8 +413,11 @@ TrimRegion::TrimRegion(const NurbsSurface& surface) {
   for (int r = 0; r < cells_v_; ++r)
     row_first_[r + 1] += row_first_[r];
   row_pieces_.clear();
-  for (const auto& [row, piece] : row_entries)
-    row_pieces_.push_back(piece);
+  for (const auto& [row, piece] : row_entries) {
+    const Piece& p = pieces_[piece];
+    row_pieces_.push_back({piece_v_lo(p), piece_v_hi(p), std::min(p.u_start, p.u_end),
+                           std::max(p.u_start, p.u_end), piece});
+  }
 
   // 3. Inside/outside of the other cells: one sweep per row along its centre line.
   std::vector<double> crossings;
@@ -422,7 +425,7 @@ TrimRegion::TrimRegion(const NurbsSurface& surface) {
     const double vc = dv_.lo + (j + 0.5) * cell_h;
     crossings.clear();
     for (int q = row_first_[j]; q < row_first_[j + 1]; ++q) {
-      const Piece& p = pieces_[row_pieces_[q]];
+      const Piece& p = pieces_[row_pieces_[q].piece];
       if (vc >= piece_v_lo(p) && vc < piece_v_hi(p))
         crossings.push_back(crossing_u(p, vc, cell_w / 16));
     }
@@ -532,11 +535,14 @@ bool TrimRegion::contains(double u, double v) const {
   }
   bool inside = false;
   for (int q = row_first_[j]; q < row_first_[j + 1]; ++q) {
-    const Piece& p = pieces_[row_pieces_[q]];
-    const bool rising = p.v_end > p.v_start;
-    const double lo = rising ? p.v_start : p.v_end, hi = rising ? p.v_end : p.v_start;
-    if (!(v >= lo && v < hi)) continue;
-    if (crossing_right_of(p, u, v)) inside = !inside;
+    const RowPiece& r = row_pieces_[q];
+    if (!(v >= r.v_lo && v < r.v_hi)) continue;
+    // crossing_right_of's own first tests, without opening the piece.
+    if (u < r.u_min) {
+      inside = !inside;
+    } else if (!(u > r.u_max) && crossing_right_of(pieces_[r.piece], u, v)) {
+      inside = !inside;
+    }
   }
   return inside;
 }

@@ -68,9 +68,16 @@ class TrimRegion {
   std::vector<CellSums> sums_;
   std::int32_t boundary_total_ = 0, inside_total_ = 0;
   std::vector<Piece> pieces_;
-  // Per grid row (v band): the pieces whose v range meets it, for the exact crossing count.
+  // Per grid row (v band): the pieces whose v range meets it, for the exact crossing count, as
+  // compact records side by side: a point in a boundary cell reads its row's ranges in one run
+  // and opens a piece (hundreds of bytes) only when its u falls within the piece's u range.
+  struct RowPiece {
+    double v_lo = 0.0, v_hi = 0.0;    // the piece's v range, half-open [v_lo, v_hi)
+    double u_min = 0.0, u_max = 0.0;  // its end points' u range (the piece is monotone)
+    std::int32_t piece = 0;
+  };
   std::vector<std::int32_t> row_first_;
-  std::vector<std::int32_t> row_pieces_;
+  std::vector<RowPiece> row_pieces_;
 
   int cell_u(double u) const;
   int cell_v(double v) const;
