@@ -211,9 +211,9 @@ bool ModelCorrespondenceFinder::beyond_edge(std::size_t k, const engine::Vec3& p
     return std::abs((p - c.foot).dot(c.normal)) < (1.0 - 1e-6) * distance;
   };
   if (results_.on_trim_edge[k]) return off_normal();
-  const engine::NurbsSurface& s = projector_.model().model().surfaces[entity];
-  const engine::ParamInterval du = s.domain_u();
-  const engine::ParamInterval dv = s.domain_v();
+  const engine::PreparedModel::SurfaceDomain& domain = projector_.model().surface_domain(entity);
+  const engine::ParamInterval du = domain.u;
+  const engine::ParamInterval dv = domain.v;
   const double u = results_.u[k];
   const double v = results_.v[k];
   const double eps = 1e-12;

@@ -222,6 +222,7 @@ PreparedModel::PreparedModel(Model model)
           {static_cast<int>(k) / layout.spans_v, static_cast<int>(k) % layout.spans_v});
     }
     surface_c1_.push_back(c1_across_spans(surface) ? 1 : 0);
+    surface_domain_.push_back({surface.domain_u(), surface.domain_v(), surface.reversed});
     surface_patches_.push_back(std::move(layout));
   }
   // Classify the trimmed surfaces' patches (regions_ is complete: pointers into it are stable):

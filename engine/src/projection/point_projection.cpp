@@ -98,16 +98,15 @@ bool reach_proves(const PreparedModel& model, std::int64_t patch, double s, doub
   const PreparedModel::ReachCell* cell = model.reach_cell(static_cast<std::size_t>(patch), s, t);
   if (cell == nullptr) return false;
   const BezierPatch& bp = model.patch(static_cast<std::size_t>(patch)).patch;
-  const NurbsSurface& surface =
-      model.model()
-          .surfaces[static_cast<std::size_t>(model.patch_surface(static_cast<std::size_t>(patch)))];
+  const PreparedModel::SurfaceDomain& domain =
+      model.surface_domain(model.patch_surface(static_cast<std::size_t>(patch)));
   const bool s_edge = s <= 0.0 || s >= 1.0, t_edge = t <= 0.0 || t >= 1.0;
-  if (s_edge && !((s <= 0.0 && bp.param_u.lo <= surface.domain_u().lo) ||
-                  (s >= 1.0 && bp.param_u.hi >= surface.domain_u().hi))) {
+  if (s_edge &&
+      !((s <= 0.0 && bp.param_u.lo <= domain.u.lo) || (s >= 1.0 && bp.param_u.hi >= domain.u.hi))) {
     return false;
   }
-  if (t_edge && !((t <= 0.0 && bp.param_v.lo <= surface.domain_v().lo) ||
-                  (t >= 1.0 && bp.param_v.hi >= surface.domain_v().hi))) {
+  if (t_edge &&
+      !((t <= 0.0 && bp.param_v.lo <= domain.v.lo) || (t >= 1.0 && bp.param_v.hi >= domain.v.hi))) {
     return false;
   }
   if (normal.isZero(0.0)) return false;
@@ -204,9 +203,9 @@ bool newton_on_certificate(const PreparedModel& model, const WarmCertificate& c,
 void warm_start(const PreparedModel& model, const ProjectionOptions& options,
                 const ProjectionHint& hint, const Vec3& p, double limit_sq, SurfacePoint& point,
                 SurfaceScratch& scratch) {
-  const NurbsSurface& surface = model.model().surfaces[hint.entity];
-  const double u = std::clamp(hint.u, surface.domain_u().lo, surface.domain_u().hi);
-  const double v = std::clamp(hint.v, surface.domain_v().lo, surface.domain_v().hi);
+  const PreparedModel::SurfaceDomain& domain = model.surface_domain(hint.entity);
+  const double u = std::clamp(hint.u, domain.u.lo, domain.u.hi);
+  const double v = std::clamp(hint.v, domain.v.lo, domain.v.hi);
   point.hint_patch = hinted_patch(model, hint, u, v);
   if (point.hint_patch < 0) return;
   {
@@ -311,20 +310,21 @@ double seed_cold_start(const PreparedModel& model, const ProjectionOptions& opti
 // its own side's span, which differs at a C0 crease: there, and where the patch normal is
 // undefined (poles), the surface's own rule decides. A reversed face's outer side is
 // -(S_u x S_v).
-Vec3 foot_normal(const PreparedModel& model, const NurbsSurface& s, const SurfacePoint& point) {
+Vec3 foot_normal(const PreparedModel& model, const SurfacePoint& point) {
   const SurfaceHit& best = point.best;
+  const PreparedModel::SurfaceDomain& domain = model.surface_domain(point.surface);
   Vec3 n = Vec3::Zero();
   if (point.patch >= 0) {
     // A patch edge that is the domain's own edge has no neighbour span: the patch decides.
     const BezierPatch& bp = model.patch(static_cast<std::size_t>(point.patch)).patch;
-    const bool inner_s = (best.s > 0.0 || bp.param_u.lo <= s.domain_u().lo) &&
-                         (best.s < 1.0 || bp.param_u.hi >= s.domain_u().hi);
-    const bool inner_t = (best.t > 0.0 || bp.param_v.lo <= s.domain_v().lo) &&
-                         (best.t < 1.0 || bp.param_v.hi >= s.domain_v().hi);
+    const bool inner_s = (best.s > 0.0 || bp.param_u.lo <= domain.u.lo) &&
+                         (best.s < 1.0 || bp.param_u.hi >= domain.u.hi);
+    const bool inner_t = (best.t > 0.0 || bp.param_v.lo <= domain.v.lo) &&
+                         (best.t < 1.0 || bp.param_v.hi >= domain.v.hi);
     if (inner_s && inner_t) n = best.normal;
   }
-  if (n.isZero(0.0)) n = surface_normal(s, best.u, best.v);
-  if (s.reversed) n = -n;
+  if (n.isZero(0.0)) n = surface_normal(model.model().surfaces[point.surface], best.u, best.v);
+  if (domain.reversed) n = -n;
   return n;
 }
 
@@ -333,7 +333,6 @@ void write_surface_answer(const PreparedModel& model, const ProjectionOptions& o
                           const Vec3& p, std::size_t i, SurfacePoint& point,
                           ProjectionResults& out) {
   SurfaceHit& best = point.best;
-  const NurbsSurface& s = model.model().surfaces[point.surface];
   if (point.edge >= 0) {
     // An edge point reports its trim curve's (u, v) at the same parameter.
     const Vec2 uv = model.edge_uv(static_cast<std::size_t>(point.edge), point.edge_t);
@@ -341,7 +340,7 @@ void write_surface_answer(const PreparedModel& model, const ProjectionOptions& o
     best.v = uv.y();
   }
   const double distance = std::sqrt(best.distance_sq);
-  const Vec3 n = foot_normal(model, s, point);
+  const Vec3 n = foot_normal(model, point);
   write_foot(out, options.foot_sink, i, best.foot, n);
   out.distance[i] = distance;
   out.signed_distance[i] = (p - best.foot).dot(n) < 0.0 ? -distance : distance;

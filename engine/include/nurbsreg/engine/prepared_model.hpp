@@ -64,6 +64,17 @@ class PreparedModel {
     return r < 0 ? nullptr : &regions_[static_cast<std::size_t>(r)];
   }
 
+  // Surface s's parameter domain (NurbsSurface::domain_u / domain_v, read from its knots) and
+  // orientation: kept side by side, since every answer and hint reads them (the surfaces
+  // themselves lie far apart in memory, each a miss).
+  struct SurfaceDomain {
+    ParamInterval u, v;
+    bool reversed = false;  // NurbsSurface::reversed: the outer side is -(S_u x S_v)
+  };
+  const SurfaceDomain& surface_domain(int s) const {
+    return surface_domain_[static_cast<std::size_t>(s)];
+  }
+
   // Can a WarmCertificate be made for a foot on surface s: has it a polynomial patch
   // (certify_patch proves convexity on polynomial patches only; on a trimmed face only for a box
   // the region proves inside it)? And on any surface of the model? A projector certifies only
@@ -181,8 +192,9 @@ class PreparedModel {
     std::vector<double> breaks_u, breaks_v;
   };
   std::vector<SurfacePatches> surface_patches_;
-  std::vector<SpanCell> patch_span_;      // per patch
-  std::vector<std::uint8_t> surface_c1_;  // per surface (surface_c1)
+  std::vector<SpanCell> patch_span_;           // per patch
+  std::vector<std::uint8_t> surface_c1_;       // per surface (surface_c1)
+  std::vector<SurfaceDomain> surface_domain_;  // per surface (surface_domain)
   std::vector<RegionClass> patch_class_;
   std::vector<TrimRegion> regions_;
   std::vector<int> surface_region_;                // per surface: index into regions_, -1 untrimmed
