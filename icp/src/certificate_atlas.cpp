@@ -123,29 +123,18 @@ void CertificateAtlas::lookup_order(std::span<const engine::Vec3> points, bool p
     order[start[bucket[k]]++] = static_cast<std::uint32_t>(k);
 }
 
-const engine::ProjectionHint* CertificateAtlas::find_in_cell(const engine::Vec3& p,
-                                                             const Cell& cell,
-                                                             double& slack) const {
+void CertificateAtlas::gather(const Cell& cell, Neighbourhood& near, int& end) const {
   const std::uint64_t k = key(cell);
   const std::size_t mask = slots_.size() - 1;
   for (std::size_t i = mix(k) & mask; slots_[i].key != 0; i = (i + 1) & mask) {
     if (slots_[i].key != k) continue;
-    // The covering hint with the most slack (clearance - |p - anchor|; WarmCertificate::covers and
-    // the slack from one distance, a root computed once).
-    const engine::ProjectionHint* best = nullptr;
     for (std::uint32_t j = 0; j < slots_[i].count; ++j) {
       const engine::ProjectionHint& h = hints_[slots_[i].first + j];
-      const double d = h.certificate.distance_to_anchor(p);
-      if (!(h.certificate.radius > 0.0f && d <= h.certificate.radius)) continue;
-      const double s = static_cast<double>(h.certificate.clearance) - d;
-      if (best == nullptr || s > slack) {
-        best = &h;
-        slack = s;
-      }
+      near.entries[end++] = {h.certificate.anchor, h.certificate.radius, h.certificate.clearance,
+                             &h};
     }
-    return best;
+    return;
   }
-  return nullptr;
 }
 
 namespace {
@@ -180,6 +169,12 @@ constexpr std::array<Ring, 3> kRings = {{{0, 6}, {6, 18}, {18, 26}}};
 }  // namespace
 
 const engine::ProjectionHint* CertificateAtlas::find(const engine::Vec3& p) const {
+  Neighbourhood near;
+  return find(p, near);
+}
+
+const engine::ProjectionHint* CertificateAtlas::find(const engine::Vec3& p,
+                                                     Neighbourhood& near) const {
   if (hints_.empty()) return nullptr;
   // Enough slack for the query's own distance (about the scan's noise, far below a quarter of a
   // cell, an eighth of the radius cap): take it. Otherwise (p's cell is empty, or its anchor's
@@ -190,24 +185,44 @@ const engine::ProjectionHint* CertificateAtlas::find(const engine::Vec3& p) cons
   // pass probed 11.4 M cells instead of 9.5 M) for the same certificates in the end.
   const double enough = 0.25 / inverse_cell_;
   const Cell c = cell_of(p);
-  // What a covering certificate leaves for p's own distance (it proves p's answer when that
-  // distance is at most clearance - |p - anchor|), kept with the best hint so far instead of
-  // recomputed (a root) at every comparison: the same values, the same choice.
+  if (!(near.cell == c)) {
+    near.cell = c;
+    near.levels = 0;
+  }
+  // The covering certificate with the most slack (clearance - |p - anchor|: it proves p's answer
+  // when p's distance is at most that), the first of equals in find()'s order; the slack kept
+  // with it, from the same distance as the cover test (one root a certificate).
   double best_slack = 0.0;
-  const engine::ProjectionHint* best = find_in_cell(p, c, best_slack);
-  if (best != nullptr && best_slack >= enough) return best;
-  for (const Ring& ring : kRings) {
-    for (int k = ring.begin; k < ring.end; ++k) {
-      const Offset& o = kNeighbours[k];
-      double slack = 0.0;
-      const engine::ProjectionHint* h =
-          find_in_cell(p, {c.x + o.dx, c.y + o.dy, c.z + o.dz}, slack);
-      if (h != nullptr && (best == nullptr || slack > best_slack)) {
-        best = h;
+  const engine::ProjectionHint* best = nullptr;
+  int begin = 0;
+  for (int level = 0; level < 4; ++level) {
+    if (near.levels == level) {
+      int end = begin;
+      if (level == 0) {
+        gather(c, near, end);
+      } else {
+        const Ring& ring = kRings[static_cast<std::size_t>(level - 1)];
+        for (int k = ring.begin; k < ring.end; ++k) {
+          const Offset& o = kNeighbours[static_cast<std::size_t>(k)];
+          gather({c.x + o.dx, c.y + o.dy, c.z + o.dz}, near, end);
+        }
+      }
+      near.ends[level] = end;
+      near.levels = level + 1;
+    }
+    const int end = near.ends[level];
+    for (int e = begin; e < end; ++e) {
+      const Neighbourhood::Entry& x = near.entries[e];
+      const double d = (p - x.anchor.cast<double>()).norm();
+      if (!(x.radius > 0.0f && d <= x.radius)) continue;
+      const double slack = static_cast<double>(x.clearance) - d;
+      if (best == nullptr || slack > best_slack) {
+        best = x.hint;
         best_slack = slack;
       }
     }
     if (best != nullptr && best_slack >= enough) return best;
+    begin = end;
   }
   return best;
 }

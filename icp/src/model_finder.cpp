@@ -138,9 +138,11 @@ ModelCorrespondenceFinder::HintSource ModelCorrespondenceFinder::prepare_hints(
       }
     });
     detail::for_each_block(n, query.parallel, [&](std::size_t begin, std::size_t end, std::size_t) {
+      // A cell's points come one after another in this order: they share its neighbourhood.
+      CertificateAtlas::Neighbourhood near;
       for (std::size_t position = begin; position < end; ++position) {
         const std::size_t k = lookup_order_[position];
-        borrowed_[k] = needs_lookup_[k] ? atlas_.find(query.points[k]) : nullptr;
+        borrowed_[k] = needs_lookup_[k] ? atlas_.find(query.points[k], near) : nullptr;
       }
     });
     source.borrowed = borrowed_.data();

@@ -36,6 +36,11 @@ class CertificateAtlas {
   // of neighbours (faces, then edges, then corners) whose best covering one does, else the covering
   // one with the most slack.
   const engine::ProjectionHint* find(const engine::Vec3& p) const;
+  // The hints of one cell and its neighbours, gathered by the lookups that needed them: find()
+  // with a Neighbourhood answers the next point of the same cell without probing the table again
+  // (lookup_order puts a cell's points one after another). The same answer as find(p).
+  struct Neighbourhood;
+  const engine::ProjectionHint* find(const engine::Vec3& p, Neighbourhood& near) const;
   std::size_t size() const { return count_; }  // hints kept
   // An order of `points` (indices into it) in which the points of one cell lie close together,
   // within the run of one hash bucket of about eight points: a counting sort by a hash of the
@@ -45,16 +50,31 @@ class CertificateAtlas {
   void lookup_order(std::span<const engine::Vec3> points, bool parallel,
                     std::vector<std::uint32_t>& order, std::vector<std::uint32_t>& bucket) const;
 
- private:
   struct Cell {
     std::int64_t x, y, z;
+    bool operator==(const Cell&) const = default;
   };
+  struct Neighbourhood {
+    // The certificates of the cell and of its 26 neighbours, in find()'s order (the cell, then
+    // the rings of faces, edges and corners, each cell's hints in table order), compact: what
+    // a lookup compares, side by side instead of in 27 cells' hints. levels rings of the 4
+    // gathered so far for `cell`; ring r's entries end at ends[r].
+    struct Entry {
+      Eigen::Vector3f anchor;
+      float radius, clearance;
+      const engine::ProjectionHint* hint;
+    };
+    Cell cell{0, 0, 0};
+    int levels = 0;
+    int ends[4] = {0, 0, 0, 0};
+    Entry entries[27 * kMaxPerCell];
+  };
+
+ private:
   Cell cell_of(const engine::Vec3& p) const;
   static std::uint64_t key(const Cell& c);
-  // The cell's hint if its certificate covers p, with its slack for p (clearance - |p - anchor|,
-  // from the same distance the cover test used), else null.
-  const engine::ProjectionHint* find_in_cell(const engine::Vec3& p, const Cell& cell,
-                                             double& slack) const;
+  // Appends the cell's certificates to `near`'s entries (one probe sequence of the table).
+  void gather(const Cell& cell, Neighbourhood& near, int& end) const;
   void grow();
   std::size_t cells() const { return per_cell_ > 0 ? hints_.size() / per_cell_ : 0; }
   struct Slot {
