@@ -2,6 +2,8 @@
 
 #include <spdlog/fmt/fmt.h>
 #include <spdlog/spdlog.h>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
 
 #include <chrono>
 #include <cmath>
@@ -252,8 +254,18 @@ AlignmentResult Aligner::align_global(std::span<const engine::Vec3> scan, bool a
         c.seconds, 100.0 * c.winner.inlier_fraction, c.matches, c.verified, scan.size()));
     fine.on_iteration = icp_progress("fine ICP");
   }
+  // The fine ICP and the verdict run on the scan in spatial order: each pass over every point
+  // reads the points' hints and writes their answers in the projector's own processing order
+  // (engine::spatial_order), in sequence, where a scan in any other order (a synthetic one, a
+  // merged or subsampled one) sends each of them to a random place of arrays of millions. The
+  // results go back to scan order at the end (restore_scan_order).
+  engine::spatial_order(engine::PointView::of(scan), order_, order_scratch_);
+  ordered_scan_.resize(scan.size());
+  for (std::size_t k = 0; k < scan.size(); ++k)
+    ordered_scan_[k] = scan[order_[k]];
+  const std::span<const engine::Vec3> ordered = ordered_scan_;
   icp::IcpSolver fine_solver(fine);
-  frame.icp = fine_solver.align(finder_, scan, frame.coarse->winner.T_model_scan);
+  frame.icp = fine_solver.align(finder_, ordered, frame.coarse->winner.T_model_scan);
   lap("fine ICP");
   // A continuous symmetry (a surface of revolution, a plane patch) leaves the pose free along
   // it: the pose is one of infinitely many that fit, and the report says so.
@@ -263,7 +275,8 @@ AlignmentResult Aligner::align_global(std::span<const engine::Vec3> scan, bool a
     std::string& symmetry = frame.coarse->symmetry;
     symmetry = symmetry.empty() ? continuous : continuous + "; " + symmetry;
   }
-  frame = finish(scan, std::move(frame), fine, noise, all_projections);
+  frame = finish(ordered, std::move(frame), fine, noise, all_projections);
+  restore_scan_order(frame);
   lap("deviations and verdict");
   CoarseReport& c = *frame.coarse;
   c.alignment_seconds =
@@ -271,6 +284,37 @@ AlignmentResult Aligner::align_global(std::span<const engine::Vec3> scan, bool a
       c.model_features_seconds;
   c.alignment_cpu_seconds = detail::process_cpu_seconds() - cpu0 - c.model_features_cpu_seconds;
   return frame;
+}
+
+void Aligner::restore_scan_order(AlignmentResult& frame) {
+  const std::size_t n = order_.size();
+  const engine::ProjectionResults& from = last_projections();
+  const bool projections = from.size() == n;  // (finish() projects every point: always)
+  std::vector<engine::Vec3> aligned(n);
+  engine::ProjectionResults& to = scan_order_projections_;
+  // What last_projections() promises (entity, u, v, distance, signed distance, status, trim
+  // edge), without feet and certificates.
+  if (projections) to.resize(n, /*feet=*/false, /*certificates=*/false);
+  // Entry k of the ordered scan is scan point order_[k]'s.
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 16384),
+                    [&](const tbb::blocked_range<std::size_t>& r) {
+                      for (std::size_t k = r.begin(); k < r.end(); ++k) {
+                        const std::size_t i = order_[k];
+                        aligned[i] = frame.aligned[k];
+                        if (!projections) continue;
+                        to.distance[i] = from.distance[k];
+                        to.signed_distance[i] = from.signed_distance[k];
+                        to.entity[i] = from.entity[k];
+                        to.u[i] = from.u[k];
+                        to.v[i] = from.v[k];
+                        to.status[i] = from.status[k];
+                        to.on_trim_edge[i] = from.on_trim_edge[k];
+                      }
+                    });
+  frame.aligned = std::move(aligned);
+  if (!projections) return;
+  std::swap(completed_projections_, scan_order_projections_);
+  completed_ = true;
 }
 
 AlignmentResult Aligner::finish(std::span<const engine::Vec3> scan, AlignmentResult frame,

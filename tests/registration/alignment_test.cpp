@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "nurbsreg/engine/prepared_model.hpp"
+#include "nurbsreg/engine/projection.hpp"
 #include "nurbsreg/engine/synthetic_scan.hpp"
 #include "nurbsreg/io/model_json.hpp"
 #include "nurbsreg/registration/alignment.hpp"
@@ -245,6 +246,37 @@ TEST(Aligner, FromAnyPoseTheVerdictReadsTheFineIcpsLastPass) {
   ASSERT_EQ(far.size(), 1u);
   EXPECT_GT(far.front(), 0u);                  // the outliers beyond the ICP's bound
   EXPECT_LT(far.front(), scan.points.size());  // not every point
+}
+
+// From any pose the fine ICP and the verdict work on the scan in spatial order: what comes back
+// is in the scan's own order. Every aligned point is T * its scan point (the same bits), and
+// every projection is that point's own exact closest point (a cold projection of it gives the
+// same distance and face).
+TEST(Aligner, FromAnyPoseThePointsComeBackInScanOrder) {
+  const engine::PreparedModel& model = panel();
+  const engine::SyntheticScan scan = cluttered_panel_scan();
+  AlignRequest request;
+  request.global = GlobalMode::on;
+  Aligner aligner(model, icp::IcpOptions{});
+  const AlignmentResult r = aligner.align(scan.points, request);
+  ASSERT_TRUE(r.ok()) << *r.failure;
+  ASSERT_EQ(r.aligned.size(), scan.points.size());
+  for (std::size_t i = 0; i < scan.points.size(); ++i) {
+    const Vec3 expected = r.icp.T_model_scan * scan.points[i];
+    ASSERT_EQ(r.aligned[i], expected) << i;
+  }
+  const engine::ProjectionResults& answers = aligner.last_projections();
+  ASSERT_EQ(answers.size(), scan.points.size());
+  engine::Projector cold(model);
+  engine::ProjectionResults reference;
+  cold.project(engine::PointView::of(r.aligned), engine::ProjectionOptions{}, reference);
+  const double tolerance = 1e-12 * model.bounds().diagonal();
+  for (std::size_t i = 0; i < scan.points.size(); ++i) {
+    ASSERT_EQ(answers.status[i], engine::ProjectionStatus::ok) << i;
+    EXPECT_NEAR(answers.distance[i], reference.distance[i], tolerance) << i;
+    EXPECT_EQ(answers.entity[i], reference.entity[i]) << i;
+    EXPECT_NEAR(std::abs(answers.signed_distance[i]), answers.distance[i], tolerance) << i;
+  }
 }
 
 // AlignRequest::progress: from any pose it gets the coarse stage's outcome when that stage ends

@@ -12,7 +12,7 @@
 
 #include "model/prepared_model_internals.hpp"
 #include "nurbsreg/engine/projection.hpp"
-#include "projection/spatial_order.hpp"
+#include "nurbsreg/engine/spatial_order.hpp"
 
 namespace nurbsreg::engine {
 

@@ -1,4 +1,4 @@
-#include "projection/spatial_order.hpp"
+#include "nurbsreg/engine/spatial_order.hpp"
 #include "nurbsreg/engine/cancellation.hpp"
 
 #include <tbb/blocked_range.h>

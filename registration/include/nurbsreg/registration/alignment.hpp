@@ -23,6 +23,7 @@
 
 #include "nurbsreg/engine/prepared_model.hpp"
 #include "nurbsreg/engine/projection.hpp"
+#include "nurbsreg/engine/spatial_order.hpp"
 #include "nurbsreg/icp/icp.hpp"
 #include "nurbsreg/icp/model_finder.hpp"
 #include "nurbsreg/registration/deviation.hpp"
@@ -142,6 +143,8 @@ class Aligner {
   std::function<void(const icp::IcpIteration&)> icp_progress(std::string what) const;
   AlignmentResult finish(std::span<const engine::Vec3> scan, AlignmentResult frame,
                          const icp::IcpOptions& options, double noise, bool all_projections);
+  // After finish() on ordered_scan_: the aligned points and last_projections() in scan order.
+  void restore_scan_order(AlignmentResult& frame);
 
   const engine::PreparedModel& model_;
   RegistrationOptions registration_;
@@ -159,6 +162,12 @@ class Aligner {
   std::function<void(const std::string&)> progress_;
   std::vector<engine::Vec3> far_points_;
   std::vector<std::size_t> far_ids_;
+  // From any pose: the scan in spatial order (engine::spatial_order: ordered_scan_[k] is scan
+  // point order_[k]) for the fine ICP and the verdict, and their answers back in scan order.
+  engine::FrameVector<std::uint32_t> order_;
+  engine::SpatialOrderScratch order_scratch_;
+  std::vector<engine::Vec3> ordered_scan_;
+  engine::ProjectionResults scan_order_projections_;
 };
 
 }  // namespace nurbsreg::registration
