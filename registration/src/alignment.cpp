@@ -276,7 +276,7 @@ AlignmentResult Aligner::align_global(std::span<const engine::Vec3> scan, bool a
     symmetry = symmetry.empty() ? continuous : continuous + "; " + symmetry;
   }
   frame = finish(ordered, std::move(frame), fine, noise, all_projections);
-  restore_scan_order(frame);
+  restore_scan_order(scan, frame);
   lap("deviations and verdict");
   CoarseReport& c = *frame.coarse;
   c.alignment_seconds =
@@ -286,22 +286,25 @@ AlignmentResult Aligner::align_global(std::span<const engine::Vec3> scan, bool a
   return frame;
 }
 
-void Aligner::restore_scan_order(AlignmentResult& frame) {
+void Aligner::restore_scan_order(std::span<const engine::Vec3> scan, AlignmentResult& frame) {
   const std::size_t n = order_.size();
   const engine::ProjectionResults& from = last_projections();
   const bool projections = from.size() == n;  // (finish() projects every point: always)
-  std::vector<engine::Vec3> aligned(n);
   engine::ProjectionResults& to = scan_order_projections_;
   // What last_projections() promises (entity, u, v, distance, signed distance, status, trim
   // edge), without feet and certificates.
   if (projections) to.resize(n, /*feet=*/false, /*certificates=*/false);
-  // Entry k of the ordered scan is scan point order_[k]'s.
+  const Eigen::Isometry3d& T = frame.icp.T_model_scan;
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 16384),
                     [&](const tbb::blocked_range<std::size_t>& r) {
+                      // The aligned points in place, in sequence: finish() made each as T * its
+                      // ordered point, the same product as T * the scan point.
+                      for (std::size_t i = r.begin(); i < r.end(); ++i)
+                        frame.aligned[i] = T * scan[i];
+                      if (!projections) return;
+                      // Entry k of the ordered scan is scan point order_[k]'s.
                       for (std::size_t k = r.begin(); k < r.end(); ++k) {
                         const std::size_t i = order_[k];
-                        aligned[i] = frame.aligned[k];
-                        if (!projections) continue;
                         to.distance[i] = from.distance[k];
                         to.signed_distance[i] = from.signed_distance[k];
                         to.entity[i] = from.entity[k];
@@ -311,7 +314,6 @@ void Aligner::restore_scan_order(AlignmentResult& frame) {
                         to.on_trim_edge[i] = from.on_trim_edge[k];
                       }
                     });
-  frame.aligned = std::move(aligned);
   if (!projections) return;
   std::swap(completed_projections_, scan_order_projections_);
   completed_ = true;

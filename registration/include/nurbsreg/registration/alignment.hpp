@@ -143,8 +143,9 @@ class Aligner {
   std::function<void(const icp::IcpIteration&)> icp_progress(std::string what) const;
   AlignmentResult finish(std::span<const engine::Vec3> scan, AlignmentResult frame,
                          const icp::IcpOptions& options, double noise, bool all_projections);
-  // After finish() on ordered_scan_: the aligned points and last_projections() in scan order.
-  void restore_scan_order(AlignmentResult& frame);
+  // After finish() on ordered_scan_: the aligned points and last_projections() in the order of
+  // `scan` (the caller's).
+  void restore_scan_order(std::span<const engine::Vec3> scan, AlignmentResult& frame);
 
   const engine::PreparedModel& model_;
   RegistrationOptions registration_;
