@@ -287,34 +287,19 @@ AlignmentResult Aligner::align_global(std::span<const engine::Vec3> scan, bool a
 }
 
 void Aligner::restore_scan_order(std::span<const engine::Vec3> scan, AlignmentResult& frame) {
-  const std::size_t n = order_.size();
-  const engine::ProjectionResults& from = last_projections();
-  const bool projections = from.size() == n;  // (finish() projects every point: always)
-  engine::ProjectionResults& to = scan_order_projections_;
-  // What last_projections() promises (entity, u, v, distance, signed distance, status, trim
-  // edge), without feet and certificates.
-  if (projections) to.resize(n, /*feet=*/false, /*certificates=*/false);
+  // The aligned points in place, in sequence: finish() made each as T * its ordered point, the
+  // same product as T * the scan point.
   const Eigen::Isometry3d& T = frame.icp.T_model_scan;
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 16384),
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, scan.size(), 16384),
                     [&](const tbb::blocked_range<std::size_t>& r) {
-                      // The aligned points in place, in sequence: finish() made each as T * its
-                      // ordered point, the same product as T * the scan point.
                       for (std::size_t i = r.begin(); i < r.end(); ++i)
                         frame.aligned[i] = T * scan[i];
-                      if (!projections) return;
-                      // Entry k of the ordered scan is scan point order_[k]'s.
-                      for (std::size_t k = r.begin(); k < r.end(); ++k) {
-                        const std::size_t i = order_[k];
-                        to.distance[i] = from.distance[k];
-                        to.signed_distance[i] = from.signed_distance[k];
-                        to.entity[i] = from.entity[k];
-                        to.u[i] = from.u[k];
-                        to.v[i] = from.v[k];
-                        to.status[i] = from.status[k];
-                        to.on_trim_edge[i] = from.on_trim_edge[k];
-                      }
                     });
-  if (!projections) return;
+  // Answer k of the ordered scan is scan point order_[k]'s. What last_projections() promises
+  // (entity, u, v, distance, signed distance, status, trim edge), without feet and certificates.
+  order_ids_.assign(order_.begin(), order_.end());
+  scan_order_projections_.resize(scan.size(), /*feet=*/false, /*certificates=*/false);
+  scan_order_projections_.scatter_from(last_projections(), order_ids_);
   std::swap(completed_projections_, scan_order_projections_);
   completed_ = true;
 }
