@@ -3,11 +3,14 @@
 #include "blocks.hpp"
 
 #include <spdlog/spdlog.h>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
 
 #include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <cmath>
+#include <limits>
 
 namespace nurbsreg::icp {
 
@@ -17,6 +20,7 @@ ModelCorrespondenceFinder::ModelCorrespondenceFinder(const engine::PreparedModel
       width_cap_(patch_width_cap(model)) {
   certificate_radius_ = share_cap_;
   atlas_.reset(cell_side(), kAtlasHintsPerCell);
+  use_spatial_order_ = model.patch_count() >= kSpatialOrderMinPatches;
 }
 
 // Atlas cells of half the radius cap: any point of a cell is within 0.87 cap of an anchor in the
@@ -65,6 +69,8 @@ struct ModelCorrespondenceFinder::HintSource {
   const std::uint32_t* previous_position = nullptr;
   std::size_t scan_size = 0;
   std::span<const std::size_t> scan_indices;
+  // The query index of the point stored at position k (null: k itself).
+  const std::uint32_t* order = nullptr;
   // Per point, the atlas's certificate to use instead (null: its own hint), looked up before
   // the projection: in a loop of their own the lookups' cache misses overlap, inside the
   // projection's they would wait one after another (measured: 40-60 ms more per 1 M points).
@@ -74,7 +80,8 @@ struct ModelCorrespondenceFinder::HintSource {
   engine::ProjectionHint own(std::size_t k) const {
     if (in_place != nullptr) return in_place->hint(k);
     if (carried != nullptr) {
-      const std::size_t s = scan_indices.empty() ? k : scan_indices[k];
+      const std::size_t q = order == nullptr ? k : order[k];
+      const std::size_t s = scan_indices.empty() ? q : scan_indices[q];
       // kNoPosition is beyond every count; the bound also keeps a stale position (a find()
       // that threw between prepare_hints and remember_query) from reading outside `carried`.
       if (s < scan_size && previous_position[s] < carried_count) {
@@ -113,28 +120,34 @@ ModelCorrespondenceFinder::HintSource ModelCorrespondenceFinder::prepare_hints(
                              for (std::size_t j = begin; j < end; ++j)
                                carried_[j] = results_.hint(j);
                            });
+    // By stored position j of the previous query (its order still holds here).
     for (std::size_t j = 0; j < previous_size_; ++j)
-      previous_position_[previous_index(j)] = static_cast<std::uint32_t>(j);
+      previous_position_[previous_index(query_index(j))] = static_cast<std::uint32_t>(j);
     source.carried = carried_.data();
     source.carried_count = previous_size_;
     source.previous_position = previous_position_.data();
     source.scan_size = previous_position_.size();
     source.scan_indices = query.scan_indices;
   }
+  if (!repeats) choose_order(query);
+  gather_points(query);
+  if (ordered_) source.order = order_.data();
   if (atlas_.size() > 0) {
-    const std::size_t n = query.points.size();
+    const std::span<const engine::Vec3> points = stored_points(query);
+    const std::size_t n = points.size();
     borrowed_.resize(n);
     const std::span<const std::size_t> ids = query.scan_indices;
     // In an order that keeps each atlas cell's points together (the lookups' probes then hit
     // the cache); each point's lookup is its own, so the order changes no result.
-    atlas_.lookup_order(query.points, query.parallel, lookup_order_, lookup_bucket_);
-    // Which points keep their own hint, in index order (the previous answers and the points are
+    atlas_.lookup_order(points, query.parallel, lookup_order_, lookup_bucket_);
+    // Which points keep their own hint, in stored order (the previous answers and the points are
     // read in sequence: in the cell order each read was a cache miss).
     needs_lookup_.resize(n);
     detail::for_each_block(n, query.parallel, [&](std::size_t begin, std::size_t end, std::size_t) {
       for (std::size_t k = begin; k < end; ++k) {
-        needs_lookup_[k] = !stopped_borrowing(ids.empty() ? k : ids[k]) &&
-                           !source.own(k).certificate.covers(query.points[k]);
+        const std::size_t q = query_index(k);
+        needs_lookup_[k] = !stopped_borrowing(ids.empty() ? q : ids[q]) &&
+                           !source.own(k).certificate.covers(points[k]);
       }
     });
     detail::for_each_block(n, query.parallel, [&](std::size_t begin, std::size_t end, std::size_t) {
@@ -142,7 +155,7 @@ ModelCorrespondenceFinder::HintSource ModelCorrespondenceFinder::prepare_hints(
       CertificateAtlas::Neighbourhood near;
       for (std::size_t position = begin; position < end; ++position) {
         const std::size_t k = lookup_order_[position];
-        borrowed_[k] = needs_lookup_[k] ? atlas_.find(query.points[k], near) : nullptr;
+        borrowed_[k] = needs_lookup_[k] ? atlas_.find(points[k], near) : nullptr;
       }
     });
     source.borrowed = borrowed_.data();
@@ -193,7 +206,8 @@ void ModelCorrespondenceFinder::remember_failed_borrows(const CorrespondenceQuer
       const bool proven = results_.status[k] == engine::ProjectionStatus::ok &&
                           kept.radius > 0.0f && kept.anchor == borrowed->certificate.anchor;
       if (!proven) {
-        std::atomic_ref<std::uint8_t>(borrow_failed_[ids.empty() ? k : ids[k]])
+        const std::size_t q = query_index(k);
+        std::atomic_ref<std::uint8_t>(borrow_failed_[ids.empty() ? q : ids[q]])
             .store(1, std::memory_order_relaxed);
       }
     }
@@ -224,6 +238,74 @@ bool ModelCorrespondenceFinder::beyond_edge(std::size_t k, const engine::Vec3& p
   return on_edge && off_normal();
 }
 
+void ModelCorrespondenceFinder::choose_order(const CorrespondenceQuery& query) {
+  const std::size_t n = query.points.size();
+  // spatial_order runs TBB loops of its own: not for a serial query.
+  ordered_ = use_spatial_order_ && query.parallel && n >= kSpatialOrderMin &&
+             n <= std::numeric_limits<std::uint32_t>::max();
+  if (ordered_) engine::spatial_order(engine::PointView::of(query.points), order_, order_scratch_);
+}
+
+void ModelCorrespondenceFinder::gather_points(const CorrespondenceQuery& query) {
+  if (!ordered_) return;
+  const std::size_t n = query.points.size();
+  ordered_points_.resize(n);
+  detail::for_each_block(n, query.parallel, [&](std::size_t begin, std::size_t end, std::size_t) {
+    for (std::size_t p = begin; p < end; ++p)
+      ordered_points_[p] = query.points[order_[p]];
+  });
+}
+
+std::span<const engine::Vec3> ModelCorrespondenceFinder::stored_points(
+    const CorrespondenceQuery& query) const {
+  if (!ordered_) return query.points;
+  return {ordered_points_.data(), ordered_points_.size()};
+}
+
+// New certificates (made only when certifying; anchored at this query's point) join the atlas
+// in query order: the atlas is not thread-safe, and between equal clearances the order decides
+// which one a cell keeps, so the atlas is the same whichever order the answers are stored in.
+void ModelCorrespondenceFinder::insert_made_certificates(std::span<const engine::Vec3> points) {
+  made_.clear();
+  for (std::size_t p = 0; p < points.size(); ++p) {
+    if (results_.status[p] != engine::ProjectionStatus::ok) continue;
+    const engine::WarmCertificate& c = results_.certificate[p];
+    if (c.radius > 0.0f && c.anchor == points[p].cast<float>()) {
+      made_.emplace_back(static_cast<std::uint32_t>(query_index(p)), static_cast<std::uint32_t>(p));
+    }
+  }
+  if (ordered_) std::sort(made_.begin(), made_.end());
+  for (const auto& [query_point, p] : made_)
+    atlas_.insert(results_.hint(p));
+}
+
+const engine::ProjectionResults& ModelCorrespondenceFinder::last_results() const {
+  if (!ordered_) return results_;
+  if (!query_order_current_) {
+    const std::size_t n = results_.size();
+    engine::ProjectionResults& to = query_order_results_;
+    to.resize(n, !results_.foot.empty(), false);
+    const auto put = [&](auto& into, const auto& from) {
+      if (into.empty()) return;
+      tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 16384), [&](const auto& r) {
+        for (std::size_t p = r.begin(); p < r.end(); ++p)
+          into[order_[p]] = from[p];
+      });
+    };
+    put(to.foot, results_.foot);
+    put(to.distance, results_.distance);
+    put(to.signed_distance, results_.signed_distance);
+    put(to.entity, results_.entity);
+    put(to.u, results_.u);
+    put(to.v, results_.v);
+    put(to.normal, results_.normal);
+    put(to.status, results_.status);
+    put(to.on_trim_edge, results_.on_trim_edge);
+    query_order_current_ = true;
+  }
+  return query_order_results_;
+}
+
 void ModelCorrespondenceFinder::find(const CorrespondenceQuery& query,
                                      std::span<Correspondence> out) {
   const std::size_t n = query.points.size();
@@ -235,7 +317,9 @@ void ModelCorrespondenceFinder::find(const CorrespondenceQuery& query,
   const bool subsample = !query.scan_indices.empty() && query.scan_indices.size() < scan_size_;
   const bool certify = subsample && query.expected_motion < 0.5 * certificate_radius_;
   const bool repeats = repeats_previous_query(query);
+  query_order_current_ = false;
   const HintSource source = prepare_hints(query, repeats);
+  const std::span<const engine::Vec3> points = stored_points(query);
   const auto t1 = std::chrono::steady_clock::now();
   const engine::HintView hints(&source, n, &HintSource::at);
   engine::ProjectionOptions options;
@@ -243,43 +327,38 @@ void ModelCorrespondenceFinder::find(const CorrespondenceQuery& query,
   options.certify = certify;
   options.certificate_radius = certificate_radius_;
   options.certificate_span = certificate_span_for(scan_size_);
-  // Feet and normals straight into the answers (no copy, 48 bytes a point less in results_).
-  options.foot_sink = {out.data(), [](void* data, std::size_t k, const engine::Vec3& foot,
-                                      const engine::Vec3& normal) {
-                         Correspondence& c = static_cast<Correspondence*>(data)[k];
-                         c.foot = foot;
-                         c.normal = normal;
-                       }};
-  const auto points = engine::PointView::of(query.points);
+  // Feet and normals straight into the answers (no copy, 48 bytes a point less in results_); in
+  // spatial order into answers in that order first, so that each answer goes to its place in
+  // query order once, whole, below (written there twice, each a cache miss, it cost more).
+  if (ordered_) ordered_answers_.resize(n);
+  Correspondence* const answers = ordered_ ? ordered_answers_.data() : out.data();
+  options.foot_sink = {
+      answers, [](void* data, std::size_t k, const engine::Vec3& foot, const engine::Vec3& normal) {
+        Correspondence& c = static_cast<Correspondence*>(data)[k];
+        c.foot = foot;
+        c.normal = normal;
+      }};
+  const auto view = engine::PointView::of(points);
   if (query.parallel) {
-    projector_.project(points, options, results_, hints, &counters_);
+    projector_.project(view, options, results_, hints, &counters_);
   } else {
-    projector_.project_serial(points, options, results_, hints, &counters_);
+    projector_.project_serial(view, options, results_, hints, &counters_);
   }
   const auto t2 = std::chrono::steady_clock::now();
   remember_query(query, repeats);
   if (source.borrowed != nullptr) remember_failed_borrows(query);
   detail::for_each_block(n, query.parallel, [&](std::size_t begin, std::size_t end, std::size_t) {
     for (std::size_t k = begin; k < end; ++k) {
-      Correspondence& c = out[k];
+      Correspondence& c = answers[k];
       c.valid = results_.status[k] == engine::ProjectionStatus::ok;
-      if (!c.valid) continue;
-      c.distance = results_.distance[k];
-      c.on_boundary = beyond_edge(k, query.points[k], c);
+      if (c.valid) {
+        c.distance = results_.distance[k];
+        c.on_boundary = beyond_edge(k, points[k], c);
+      }
+      if (ordered_) out[order_[k]] = c;
     }
   });
-  // New certificates (made only when certifying; anchored at this query's point) join the
-  // atlas, in query order (the atlas is not thread-safe, and between equal clearances the order
-  // decides which one a cell keeps).
-  if (certify) {
-    for (std::size_t k = 0; k < n; ++k) {
-      if (results_.status[k] != engine::ProjectionStatus::ok) continue;
-      const engine::WarmCertificate& c = results_.certificate[k];
-      if (c.radius > 0.0f && c.anchor == query.points[k].cast<float>()) {
-        atlas_.insert(results_.hint(k));
-      }
-    }
-  }
+  if (certify) insert_made_certificates(points);
   // Where a pass's time goes (`-v`): the hints (atlas lookups), the projection and its proofs.
   const auto ms = [](auto a, auto b) {
     return std::chrono::duration<double, std::milli>(b - a).count();

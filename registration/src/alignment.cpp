@@ -154,13 +154,20 @@ AlignmentResult Aligner::align_from(std::span<const engine::Vec3> scan,
 AlignmentResult Aligner::align_global(std::span<const engine::Vec3> scan, bool all_projections) {
   // From any pose the answer is a fresh aligner's to the bit: no certificates of the frames
   // before (keep_certificates) in the coarse stage's or the fine ICP's passes.
+  // The fine ICP below runs on the scan in spatial order already (Aligner::align_global's own
+  // order): the finder's would only add its cost, so it is off here too.
   struct FreshCertificates {
     icp::ModelCorrespondenceFinder& finder;
     bool keep = finder.keeps_certificates();
+    bool order = finder.uses_spatial_order();
     explicit FreshCertificates(icp::ModelCorrespondenceFinder& f) : finder(f) {
       finder.keep_certificates(false);
+      finder.use_spatial_order(false);
     }
-    ~FreshCertificates() { finder.keep_certificates(keep); }
+    ~FreshCertificates() {
+      finder.keep_certificates(keep);
+      finder.use_spatial_order(order);
+    }
   } fresh{finder_};
   const auto wall0 = std::chrono::steady_clock::now();
   const double cpu0 = detail::process_cpu_seconds();

@@ -19,10 +19,22 @@
 // answer as its hint (a byte per scan point): on thin walls and near face boundaries the same
 // neighbour's certificate would fail again, and each failure costs the lookup, a Newton on the
 // neighbour's box and a search without the point's own warm start.
+//
+// A large query is answered in spatial order (engine::spatial_order of its points, computed when
+// the query's scan points change and kept over the iterations that repeat them): the per-point
+// state (the answers that are the next hints, the borrowed certificates) is stored in that order,
+// so each pass reads and writes it in sequence, and consecutive points touch the same patches.
+// A scan in no spatial order (synthetic, merged, subsampled) otherwise sends every access to a
+// random place in arrays of a million entries. Only the storage moves: each answer depends on
+// its point and hint alone and the atlas takes new certificates in query order, so the answers
+// are the same bits; find() writes them and last_results() hands them out in query order.
 
+#include <cstdint>
+#include <utility>
 #include <vector>
 
 #include "nurbsreg/engine/projection.hpp"
+#include "nurbsreg/engine/spatial_order.hpp"
 #include "nurbsreg/icp/certificate_atlas.hpp"
 #include "nurbsreg/icp/correspondence.hpp"
 
@@ -78,7 +90,9 @@ class ModelCorrespondenceFinder final : public CorrespondenceFinder {
   // The projection results of the last find() (entity, u, v, signed distance, ...), in query
   // order: what `align --aligned` writes per point. Without feet and normals (foot and normal
   // are empty): those went straight into find()'s correspondences.
-  const engine::ProjectionResults& last_results() const { return results_; }
+  // After a find() in spatial order, put back in query order on the first call, without the
+  // certificates (they stay with the finder: 44 bytes a point that no caller reads).
+  const engine::ProjectionResults& last_results() const;
   const engine::ProjectionCounters& last_counters() const { return counters_; }
   // Scan point s borrowed an atlas certificate since reset() that did not prove its answer, so
   // it borrows no more (for tests and benchmarks).
@@ -93,6 +107,18 @@ class ModelCorrespondenceFinder final : public CorrespondenceFinder {
   // covers only the points within that fraction of it (the cells hold one to three anchors of a
   // 10% subsample).
   static constexpr int kAtlasHintsPerCell = 4;
+  // Queries of this many points and more are answered in spatial order (below, the arrays stay in
+  // cache anyway and ordering would cost more than it saves), when they may run in parallel, on
+  // models of kSpatialOrderMinPatches patches and more: there the patches a pass touches do not
+  // stay in a core's cache, and points that come one after another on the same patches save
+  // more than putting each answer in its place costs; on the smaller parts (a few hundred
+  // patches) the two are even or the order loses (bench/README.md, issue 26's fifteenth pass).
+  static constexpr std::size_t kSpatialOrderMin = 8192;
+  static constexpr std::size_t kSpatialOrderMinPatches = 500;
+  // Whether large queries are answered in spatial order (by default, as the model's size says);
+  // the answers are the same bits either way (tests compare the two).
+  void use_spatial_order(bool use) { use_spatial_order_ = use; }
+  bool uses_spatial_order() const { return use_spatial_order_; }
 
  private:
   bool beyond_edge(std::size_t k, const engine::Vec3& p, const Correspondence& c) const;
@@ -108,6 +134,17 @@ class ModelCorrespondenceFinder final : public CorrespondenceFinder {
   std::size_t previous_index(std::size_t j) const {
     return previous_all_ ? j : previous_indices_[j];
   }
+  // Where query point k's answer is stored: its position in the order of the last query (p),
+  // and back (query_index).
+  std::size_t query_index(std::size_t p) const { return ordered_ ? order_[p] : p; }
+  // A new query's order (or none): order_, ordered_.
+  void choose_order(const CorrespondenceQuery& query);
+  // The query's points in that order (ordered_points_), every call.
+  void gather_points(const CorrespondenceQuery& query);
+  // The points as the projection takes them: ordered_points_ or the query's own.
+  std::span<const engine::Vec3> stored_points(const CorrespondenceQuery& query) const;
+  // New certificates into the atlas, in query order.
+  void insert_made_certificates(std::span<const engine::Vec3> points);
 
   engine::Projector projector_;
   engine::ProjectionResults results_;
@@ -139,6 +176,18 @@ class ModelCorrespondenceFinder final : public CorrespondenceFinder {
   engine::FrameVector<std::uint8_t> borrow_failed_;
   CertificateAtlas atlas_;
   bool keep_certificates_ = false;
+  // The spatial order of the last query (position -> query index) when ordered_, its scratch,
+  // and that query's points in it.
+  bool use_spatial_order_ = false;
+  bool ordered_ = false;
+  engine::FrameVector<std::uint32_t> order_;
+  engine::SpatialOrderScratch order_scratch_;
+  engine::FrameVector<engine::Vec3> ordered_points_;
+  engine::FrameVector<Correspondence> ordered_answers_;
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> made_;  // (query index, position)
+  // results_ in query order, made by last_results() after a find() in spatial order.
+  mutable engine::ProjectionResults query_order_results_;
+  mutable bool query_order_current_ = false;
 };
 
 }  // namespace nurbsreg::icp
