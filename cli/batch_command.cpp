@@ -290,12 +290,12 @@ class WorkerPool {
   WorkerPool(std::size_t size, const engine::PreparedModel& model, bool align, bool global,
              const icp::IcpOptions& options, const registration::RegistrationOptions& reg) {
     // One set of coarse-stage features for all workers: from any pose (`global`) through the
-    // features cache, otherwise only the area is needed, built here.
+    // features cache, otherwise only the area and keypoints are needed, from the cache when
+    // there.
     std::shared_ptr<const registration::ModelFeatures> features;
     if (align) {
-      features =
-          global ? load_features(model, reg.global.features)
-                 : std::make_shared<const registration::ModelFeatures>(model, reg.global.features);
+      features = global ? load_features(model, reg.global.features)
+                        : cached_features(model, reg.global.features);
     }
     for (std::size_t i = 0; i < size; ++i) {
       auto w = std::make_unique<Worker>();

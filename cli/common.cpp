@@ -53,4 +53,11 @@ std::shared_ptr<const registration::ModelFeatures> load_features(
   return io::load_model_features(model, options, settings);
 }
 
+std::shared_ptr<const registration::ModelFeatures> cached_features(
+    const engine::PreparedModel& model, const registration::FeatureOptions& options) {
+  io::FeaturesCacheSettings settings = io::FeaturesCacheSettings::from_environment();
+  if (model_cache_disabled) settings.enabled = false;
+  return io::cached_model_features(model, options, settings);
+}
+
 }  // namespace nurbsreg::cli

@@ -40,6 +40,10 @@ engine::Model load_model_file(const std::string& path);
 // area). Errors of building (a model without area: std::runtime_error) pass through.
 std::shared_ptr<const registration::ModelFeatures> load_features(
     const engine::PreparedModel& model, const registration::FeatureOptions& options);
+// For the runs from a given pose: the area and keypoints from the features cache when an entry
+// is there (io::cached_model_features), else measured now; never builds the rest or stores.
+std::shared_ptr<const registration::ModelFeatures> cached_features(
+    const engine::PreparedModel& model, const registration::FeatureOptions& options);
 // --no-cache: load_model_file converts CAD files every time and load_features builds the
 // features every time (called once, from main).
 void disable_model_cache();

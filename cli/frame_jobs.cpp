@@ -126,8 +126,8 @@ registration::RegistrationOptions registration_options(const GlobalArgs& args) {
 std::shared_ptr<const registration::ModelFeatures> features_for(
     const engine::PreparedModel& model, const registration::AlignRequest& request,
     const registration::RegistrationOptions& registration, const std::string& command) {
-  if (!request.runs_global()) return nullptr;
   try {
+    if (!request.runs_global()) return cached_features(model, registration.global.features);
     return load_features(model, registration.global.features);
   } catch (const std::runtime_error& e) {
     throw UsageError(command + ": " + e.what());  // as the aligner reports it

@@ -90,8 +90,9 @@ void add_global_options(CLI::App& cmd, GlobalArgs& args);
 registration::AlignRequest align_request(const std::string& init, const GlobalArgs& args);
 registration::RegistrationOptions registration_options(const GlobalArgs& args);
 // The model's features an Aligner for `request` needs: through the features cache
-// (load_features) when it aligns from any pose, else none (the aligner measures the area
-// itself). A model the features cannot be built for (no area) is a UsageError naming `command`.
+// (load_features) when it aligns from any pose, else the cheap parts from the cache when there
+// (cached_features). A model the features cannot be built for (no area) is a UsageError naming
+// `command`.
 std::shared_ptr<const registration::ModelFeatures> features_for(
     const engine::PreparedModel& model, const registration::AlignRequest& request,
     const registration::RegistrationOptions& registration, const std::string& command);

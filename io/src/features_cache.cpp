@@ -237,4 +237,39 @@ std::shared_ptr<const ModelFeatures> load_model_features(const engine::PreparedM
   return finish(std::move(features), done, what);
 }
 
+std::shared_ptr<const ModelFeatures> cached_model_features(const engine::PreparedModel& model,
+                                                           const FeatureOptions& options,
+                                                           const FeaturesCacheSettings& settings,
+                                                           CacheOutcome* outcome) {
+  const auto start = std::chrono::steady_clock::now();
+  const auto fresh = [&](CacheOutcome done, const char* why) {
+    if (outcome != nullptr) *outcome = done;
+    auto f = std::make_shared<const ModelFeatures>(model, options);
+    spdlog::debug("model features: {}; the area measured in {:.3f} s (the rest on first use)", why,
+                  seconds_since(start));
+    return f;
+  };
+  if (!settings.enabled) return fresh(CacheOutcome::disabled, "no cache");
+  const ContentHash key = hash_model(model.model());
+  const std::string entry = features_cache_entry_path(settings, key, options);
+  const std::optional<std::string> bytes = read_whole_file(entry);
+  if (!bytes) {
+    return fresh(CacheOutcome::miss, "not in the cache (an alignment from any pose stores them)");
+  }
+  try {
+    auto f = decode_features_entry(*bytes, model, key, options, settings.version);
+    if (outcome != nullptr) *outcome = CacheOutcome::hit;
+    spdlog::debug("model features: read from the cache (hit, {}) in {:.3f} s", entry,
+                  seconds_since(start));
+    return f;
+  } catch (const CacheEntryError& e) {
+    spdlog::warn(
+        "the model features cache entry {} is not usable: {}; measuring what this alignment "
+        "needs instead (the next alignment from any pose replaces the entry)",
+        entry, e.what());
+    // Not `rebuilt`: nothing was stored.
+    return fresh(CacheOutcome::miss, "the cache entry not usable");
+  }
+}
+
 }  // namespace nurbsreg::io

@@ -120,20 +120,40 @@ TEST_F(CliFeaturesCache, SecondAlignReadsTheFeaturesAndGivesTheSameOutput) {
   EXPECT_NE(align("again").err.find("(hit"), std::string::npos);
 }
 
-// From a pose (--init, --no-global) only the area is needed: no features are read or stored.
-TEST_F(CliFeaturesCache, AlignFromAPoseLeavesTheCacheAlone) {
+// From a pose (--init, --no-global) only the area and keypoints are needed: read from an entry
+// when one is there, never stored; the alignment and its verdict are the same either way.
+TEST_F(CliFeaturesCache, AlignFromAPoseReadsButNeverStores) {
   std::ofstream(dir_ / "identity.txt") << "1 0 0 0\n0 1 0 0\n0 0 1 0\n0 0 0 1\n";
   const std::string near = dir_ / "near.pcd";  // in place: ICP from the identity converges
   ASSERT_EQ(run_nurbsreg("synth --model " + kPanel + " --points 2000 --noise 0.01 --out " + near,
                          dir_.path())
                 .status,
             0);
-  for (const std::string& how : {std::string("--no-global"), "--init " + (dir_ / "identity.txt")}) {
-    const CommandResult r = sh("", "align " + how + " --model " + kPanel + " --scan " + near);
+  const auto from_pose = [&](const std::string& how, const std::string& name) {
+    const CommandResult r =
+        sh("", "align " + how + " --model " + kPanel + " --scan " + near + " --report " +
+                   (dir_ / (name + ".json")) + " --out-pose " + (dir_ / (name + ".pose.txt")));
+    EXPECT_EQ(r.status, 0) << how << ": " << r.err;
     EXPECT_NE(r.err.find("icp stage 0 iteration 0"), std::string::npos) << how << ": " << r.err;
-    EXPECT_EQ(r.err.find("model features:"), std::string::npos) << how << ": " << r.err;
+    return r.err;
+  };
+  const std::string init = "--init " + (dir_ / "identity.txt");
+  for (const std::string& how : {std::string("--no-global"), init}) {
+    EXPECT_NE(from_pose(how, "missed").find("model features: not in the cache"), std::string::npos)
+        << how;
   }
   EXPECT_TRUE(feature_entries(dir_ / "cache").empty());
+  // An alignment from any pose stores the entry; from a pose it is read, to the same answer.
+  ASSERT_EQ(align("any").status, 0);
+  ASSERT_EQ(feature_entries(dir_ / "cache").size(), 1u);
+  EXPECT_NE(from_pose(init, "hit").find("model features: read from the cache (hit"),
+            std::string::npos);
+  EXPECT_EQ(pose("hit"), pose("missed"));
+  const auto fit = [&](const std::string& name) {
+    const std::string report = read_text(dir_ / (name + ".json"));
+    return report.substr(report.find("\"fit_details\""));
+  };
+  EXPECT_EQ(fit("hit"), fit("missed"));
 }
 
 TEST_F(CliFeaturesCache, BatchSharesTheCacheWithAlign) {

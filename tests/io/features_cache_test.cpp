@@ -200,6 +200,40 @@ TEST_F(FeaturesCacheTest, HitAfterMissGivesTheSameAlignmentToTheBit) {
   EXPECT_EQ(std::bit_cast<std::uint64_t>(a.icp.rms), std::bit_cast<std::uint64_t>(b.icp.rms));
 }
 
+// The runs from a given pose read the entry when it is there and otherwise measure what they
+// need, storing nothing; an unusable entry costs a warning naming it and is left as it is.
+TEST_F(FeaturesCacheTest, CachedFeaturesReadAnEntryAndNeverStoreOne) {
+  CacheOutcome outcome{};
+  const auto missed = cached_model_features(saddle(), options_, settings_, &outcome);
+  EXPECT_EQ(outcome, CacheOutcome::miss);
+  EXPECT_FALSE(fs::exists(entry(saddle())));
+  expect_same_bits(*missed, fresh_saddle());
+  EXPECT_FALSE(fs::exists(entry(saddle())));  // not even after building every part
+
+  load(saddle(), nullptr);  // a full load stores the entry
+  const auto hit = cached_model_features(saddle(), options_, settings_, &outcome);
+  EXPECT_EQ(outcome, CacheOutcome::hit);
+  expect_same_bits(*hit, fresh_saddle());
+
+  std::string bytes = read_bytes(entry(saddle()));
+  bytes[bytes.size() / 2] ^= 0x10;
+  write_bytes(entry(saddle()), bytes);
+  std::shared_ptr<const ModelFeatures> f;
+  const auto warnings = test::log_lines_of(spdlog::level::warn, [&] {
+    f = cached_model_features(saddle(), options_, settings_, &outcome);
+  });
+  EXPECT_EQ(outcome, CacheOutcome::miss);
+  ASSERT_EQ(warnings.size(), 1u);
+  EXPECT_NE(warnings[0].find(entry(saddle())), std::string::npos) << warnings[0];
+  EXPECT_NE(warnings[0].find("checksum"), std::string::npos) << warnings[0];
+  EXPECT_EQ(read_bytes(entry(saddle())), bytes);  // left for a full load to replace
+  expect_same_bits(*f, fresh_saddle());
+
+  settings_.enabled = false;
+  cached_model_features(saddle(), options_, settings_, &outcome);
+  EXPECT_EQ(outcome, CacheOutcome::disabled);
+}
+
 TEST_F(FeaturesCacheTest, TruncatedEntryIsRebuilt) {
   load(saddle(), nullptr);
   fs::resize_file(entry(saddle()), fs::file_size(entry(saddle())) / 2);

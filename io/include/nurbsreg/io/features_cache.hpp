@@ -84,4 +84,18 @@ std::shared_ptr<const registration::ModelFeatures> load_model_features(
     const engine::PreparedModel&& model, const registration::FeatureOptions& options,
     const FeaturesCacheSettings& settings, CacheOutcome* outcome = nullptr) = delete;
 
+// For the runs that need only the features' cheap parts (an alignment from a given pose: the
+// area for the noise estimate and the keypoints for the verdict's coverage, together a few
+// tenths of a second on a large part): the stored features on a hit, which saves measuring
+// them again; otherwise (no entry, disabled, or an entry that is not usable: a warning names it
+// and what is wrong, and it is left for the next full load to replace) a fresh ModelFeatures
+// that measures the area now and builds the rest on first use, as without a cache. Never
+// builds the descriptors or stores anything: that costs seconds, more than these runs take.
+std::shared_ptr<const registration::ModelFeatures> cached_model_features(
+    const engine::PreparedModel& model, const registration::FeatureOptions& options,
+    const FeaturesCacheSettings& settings, CacheOutcome* outcome = nullptr);
+std::shared_ptr<const registration::ModelFeatures> cached_model_features(
+    const engine::PreparedModel&& model, const registration::FeatureOptions& options,
+    const FeaturesCacheSettings& settings, CacheOutcome* outcome = nullptr) = delete;
+
 }  // namespace nurbsreg::io
