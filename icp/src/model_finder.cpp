@@ -308,6 +308,22 @@ const engine::ProjectionResults& ModelCorrespondenceFinder::last_results() const
 
 void ModelCorrespondenceFinder::find(const CorrespondenceQuery& query,
                                      std::span<Correspondence> out) {
+  try {
+    answer(query, out);
+  } catch (...) {
+    // A query cut short (a cancelled loop: engine::Cancelled) leaves the order, the answers and
+    // the positions of the previous query out of step: the next query starts afresh, as after
+    // reset(), instead of reading one through the other.
+    has_previous_ = false;
+    ordered_ = false;
+    results_.resize(0);
+    std::fill(previous_position_.begin(), previous_position_.end(), kNoPosition);
+    throw;
+  }
+}
+
+void ModelCorrespondenceFinder::answer(const CorrespondenceQuery& query,
+                                       std::span<Correspondence> out) {
   const std::size_t n = query.points.size();
   const auto t0 = std::chrono::steady_clock::now();
   // Certificates are made on the coarse stages' subsamples once the solver expects small moves:

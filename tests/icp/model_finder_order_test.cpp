@@ -7,6 +7,7 @@
 // sequence of a coarse-to-fine alignment and through IcpSolver itself.
 #include <gtest/gtest.h>
 #include <tbb/global_control.h>
+#include <tbb/task_group.h>
 
 #include <algorithm>
 #include <bit>
@@ -14,6 +15,7 @@
 #include <random>
 #include <vector>
 
+#include "nurbsreg/engine/cancellation.hpp"
 #include "nurbsreg/engine/prepared_model.hpp"
 #include "nurbsreg/engine/projection.hpp"
 #include "nurbsreg/engine/synthetic_scan.hpp"
@@ -162,6 +164,47 @@ TEST_F(ModelFinderOrder, AnswersInSpatialOrderAreTheSameBits) {
   for (std::size_t s = 0; s < scan_.size(); ++s)
     stopped += ordered.stopped_borrowing(s);
   EXPECT_GT(stopped, 0u);
+}
+
+// A query cut short (cancelled, as Python's Ctrl-C does it) throws and leaves the finder able to
+// answer the next query without a reset(): afresh, exactly, and the same bits in both orders.
+TEST_F(ModelFinderOrder, AQueryCutShortLeavesTheNextOneExact) {
+  tbb::global_control limit(tbb::global_control::max_allowed_parallelism, 2);
+  ModelCorrespondenceFinder ordered(prepared_), plain(prepared_);
+  ordered.use_spatial_order(true);
+  plain.use_spatial_order(false);
+  ordered.reset(scan_.size());
+  plain.reset(scan_.size());
+  const std::vector<std::size_t> coarse = random_subset(kPoints / 2, 9);
+  find_both(ordered, plain, coarse, 0.0, 0.001);
+  for (ModelCorrespondenceFinder* finder : {&ordered, &plain}) {
+    CorrespondenceQuery query;
+    query.points = scan_;
+    std::vector<Correspondence> out(scan_.size());
+    tbb::task_group_context context;
+    tbb::task_group group(context);
+    bool threw = false;
+    group.run_and_wait([&] {
+      context.cancel_group_execution();
+      try {
+        finder->find(query, out);
+      } catch (const engine::Cancelled&) {
+        threw = true;
+      }
+    });
+    EXPECT_TRUE(threw);
+  }
+  find_both(ordered, plain, {}, 0.001, 0.001);
+  find_both(ordered, plain, {}, 0.0011, 0.0001);
+  engine::Projector reference(prepared_);
+  engine::ProjectionResults cold;
+  const engine::ProjectionResults& warm = ordered.last_results();
+  std::vector<Vec3> moved;
+  for (const Vec3& p : scan_)
+    moved.push_back(p + Vec3(0.0011, -0.00055, 0.00033));
+  reference.project(engine::PointView::of(moved), {}, cold);
+  for (std::size_t k = 0; k < scan_.size(); ++k)
+    ASSERT_NEAR(warm.distance[k], cold.distance[k], 1e-9 * prepared_.bounds().diagonal()) << k;
 }
 
 // Through the solver: a coarse-to-fine point-to-plane alignment of the scan from a small offset

@@ -121,6 +121,8 @@ class ModelCorrespondenceFinder final : public CorrespondenceFinder {
   bool uses_spatial_order() const { return use_spatial_order_; }
 
  private:
+  // find() itself, which forgets the previous query when this one throws.
+  void answer(const CorrespondenceQuery& query, std::span<Correspondence> out);
   bool beyond_edge(std::size_t k, const engine::Vec3& p, const Correspondence& c) const;
   double cell_side() const;
   // The previous query's answers as hints for this one (HintSource in the .cpp); after the
