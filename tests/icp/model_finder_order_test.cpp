@@ -75,7 +75,9 @@ class ModelFinderOrder : public ::testing::Test {
  protected:
   // A wavy sheet of 7 x 7 bicubic patches with an open edge, and a scan of it in random order:
   // points near the sheet, some beyond its edge, some far above it.
-  ModelFinderOrder() : prepared_(model()) {
+  ModelFinderOrder() : prepared_(model()), ordered_(prepared_), plain_(prepared_) {
+    ordered_.use_spatial_order(true);
+    plain_.use_spatial_order(false);
     std::mt19937_64 rng(31);
     const engine::NurbsSurface& s = prepared_.model().surfaces.front();
     const double du = s.domain_u().width(), dv = s.domain_v().width();
@@ -96,8 +98,14 @@ class ModelFinderOrder : public ::testing::Test {
 
   // The scan points `ids` (all when empty) moved by `shift`, to both finders; their answers and
   // states must agree bit for bit.
-  void find_both(ModelCorrespondenceFinder& ordered, ModelCorrespondenceFinder& plain,
-                 const std::vector<std::size_t>& ids, double shift, double expected_motion) {
+  void reset_both() {
+    ordered_.reset(scan_.size());
+    plain_.reset(scan_.size());
+  }
+
+  void find_both(const std::vector<std::size_t>& ids, double shift, double expected_motion) {
+    ModelCorrespondenceFinder& ordered = ordered_;
+    ModelCorrespondenceFinder& plain = plain_;
     std::vector<Vec3> points;
     const Vec3 offset(shift, -0.5 * shift, 0.3 * shift);
     if (ids.empty()) {
@@ -133,6 +141,8 @@ class ModelFinderOrder : public ::testing::Test {
 
   static constexpr std::size_t kPoints = 3 * ModelCorrespondenceFinder::kSpatialOrderMin;
   engine::PreparedModel prepared_;
+  // The same queries to both: one in spatial order, one in query order.
+  ModelCorrespondenceFinder ordered_, plain_;
   std::vector<Vec3> scan_;
 };
 
@@ -142,27 +152,23 @@ class ModelFinderOrder : public ::testing::Test {
 // query in between (not ordered) and every point after it, a query naming points twice.
 TEST_F(ModelFinderOrder, AnswersInSpatialOrderAreTheSameBits) {
   tbb::global_control limit(tbb::global_control::max_allowed_parallelism, 2);
-  ModelCorrespondenceFinder ordered(prepared_), plain(prepared_);
-  ordered.use_spatial_order(true);
-  plain.use_spatial_order(false);
-  ordered.reset(scan_.size());
-  plain.reset(scan_.size());
+  reset_both();
   const std::vector<std::size_t> coarse = random_subset(kPoints / 2, 7);
   const std::vector<std::size_t> small = random_subset(1000, 8);
-  find_both(ordered, plain, coarse, 0.0, 0.001);
-  find_both(ordered, plain, coarse, 0.001, 0.001);
-  find_both(ordered, plain, {}, 0.002, 0.001);
-  find_both(ordered, plain, {}, 0.0021, 0.0001);
-  find_both(ordered, plain, small, 0.0022, 0.0001);
-  find_both(ordered, plain, {}, 0.0023, 0.0001);
+  find_both(coarse, 0.0, 0.001);
+  find_both(coarse, 0.001, 0.001);
+  find_both({}, 0.002, 0.001);
+  find_both({}, 0.0021, 0.0001);
+  find_both(small, 0.0022, 0.0001);
+  find_both({}, 0.0023, 0.0001);
   std::vector<std::size_t> twice = coarse;
   twice.insert(twice.end(), coarse.begin(), coarse.begin() + 5000);
-  find_both(ordered, plain, twice, 0.0024, 0.0001);
+  find_both(twice, 0.0024, 0.0001);
   // The check compares something: the large queries borrowed certificates and some points
   // stopped borrowing.
   std::size_t stopped = 0;
   for (std::size_t s = 0; s < scan_.size(); ++s)
-    stopped += ordered.stopped_borrowing(s);
+    stopped += ordered_.stopped_borrowing(s);
   EXPECT_GT(stopped, 0u);
 }
 
@@ -170,14 +176,10 @@ TEST_F(ModelFinderOrder, AnswersInSpatialOrderAreTheSameBits) {
 // answer the next query without a reset(): afresh, exactly, and the same bits in both orders.
 TEST_F(ModelFinderOrder, AQueryCutShortLeavesTheNextOneExact) {
   tbb::global_control limit(tbb::global_control::max_allowed_parallelism, 2);
-  ModelCorrespondenceFinder ordered(prepared_), plain(prepared_);
-  ordered.use_spatial_order(true);
-  plain.use_spatial_order(false);
-  ordered.reset(scan_.size());
-  plain.reset(scan_.size());
+  reset_both();
   const std::vector<std::size_t> coarse = random_subset(kPoints / 2, 9);
-  find_both(ordered, plain, coarse, 0.0, 0.001);
-  for (ModelCorrespondenceFinder* finder : {&ordered, &plain}) {
+  find_both(coarse, 0.0, 0.001);
+  for (ModelCorrespondenceFinder* finder : {&ordered_, &plain_}) {
     CorrespondenceQuery query;
     query.points = scan_;
     std::vector<Correspondence> out(scan_.size());
@@ -194,11 +196,11 @@ TEST_F(ModelFinderOrder, AQueryCutShortLeavesTheNextOneExact) {
     });
     EXPECT_TRUE(threw);
   }
-  find_both(ordered, plain, {}, 0.001, 0.001);
-  find_both(ordered, plain, {}, 0.0011, 0.0001);
+  find_both({}, 0.001, 0.001);
+  find_both({}, 0.0011, 0.0001);
   engine::Projector reference(prepared_);
   engine::ProjectionResults cold;
-  const engine::ProjectionResults& warm = ordered.last_results();
+  const engine::ProjectionResults& warm = ordered_.last_results();
   std::vector<Vec3> moved;
   for (const Vec3& p : scan_)
     moved.push_back(p + Vec3(0.0011, -0.00055, 0.00033));
@@ -217,16 +219,13 @@ TEST_F(ModelFinderOrder, IcpGivesTheSamePose) {
   options.max_iterations = 5;
   const Eigen::Isometry3d init =
       engine::pose_from_euler_degrees(0.5, -0.3, 0.4, Vec3(0.02, -0.01, 0.03));
-  ModelCorrespondenceFinder ordered(prepared_), plain(prepared_);
-  ordered.use_spatial_order(true);
-  plain.use_spatial_order(false);
-  const IcpResult a = IcpSolver(options).align(ordered, scan_, init);
-  const IcpResult b = IcpSolver(options).align(plain, scan_, init);
+  const IcpResult a = IcpSolver(options).align(ordered_, scan_, init);
+  const IcpResult b = IcpSolver(options).align(plain_, scan_, init);
   EXPECT_EQ(a.T_model_scan.matrix(), b.T_model_scan.matrix());
   EXPECT_EQ(a.iterations, b.iterations);
   EXPECT_TRUE(same_bits(a.rms, b.rms));
   EXPECT_GE(a.iterations, 3);
-  expect_same_results(ordered.last_results(), plain.last_results());
+  expect_same_results(ordered_.last_results(), plain_.last_results());
 }
 
 // By default only models of many patches are answered in spatial order (where it pays).
