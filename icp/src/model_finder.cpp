@@ -3,8 +3,6 @@
 #include "blocks.hpp"
 
 #include <spdlog/spdlog.h>
-#include <tbb/blocked_range.h>
-#include <tbb/parallel_for.h>
 
 #include <algorithm>
 #include <atomic>
@@ -285,10 +283,11 @@ const engine::ProjectionResults& ModelCorrespondenceFinder::last_results() const
     const std::size_t n = results_.size();
     engine::ProjectionResults& to = query_order_results_;
     to.resize(n, !results_.foot.empty(), false);
+    // (for_each_block stops a cancelled copy with engine::Cancelled: never half put back.)
     const auto put = [&](auto& into, const auto& from) {
       if (into.empty()) return;
-      tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 16384), [&](const auto& r) {
-        for (std::size_t p = r.begin(); p < r.end(); ++p)
+      detail::for_each_block(n, true, [&](std::size_t begin, std::size_t end, std::size_t) {
+        for (std::size_t p = begin; p < end; ++p)
           into[order_[p]] = from[p];
       });
     };
