@@ -280,26 +280,8 @@ void ModelCorrespondenceFinder::insert_made_certificates(std::span<const engine:
 const engine::ProjectionResults& ModelCorrespondenceFinder::last_results() const {
   if (!ordered_) return results_;
   if (!query_order_current_) {
-    const std::size_t n = results_.size();
-    engine::ProjectionResults& to = query_order_results_;
-    to.resize(n, !results_.foot.empty(), false);
-    // (for_each_block stops a cancelled copy with engine::Cancelled: never half put back.)
-    const auto put = [&](auto& into, const auto& from) {
-      if (into.empty()) return;
-      detail::for_each_block(n, true, [&](std::size_t begin, std::size_t end, std::size_t) {
-        for (std::size_t p = begin; p < end; ++p)
-          into[order_[p]] = from[p];
-      });
-    };
-    put(to.foot, results_.foot);
-    put(to.distance, results_.distance);
-    put(to.signed_distance, results_.signed_distance);
-    put(to.entity, results_.entity);
-    put(to.u, results_.u);
-    put(to.v, results_.v);
-    put(to.normal, results_.normal);
-    put(to.status, results_.status);
-    put(to.on_trim_edge, results_.on_trim_edge);
+    query_order_results_.resize(results_.size(), !results_.foot.empty(), false);
+    query_order_results_.scatter_from(results_, order_);
     query_order_current_ = true;
   }
   return query_order_results_;

@@ -12,6 +12,7 @@
 
 #include "coarse.hpp"
 #include "features.hpp"
+#include "nurbsreg/engine/cancellation.hpp"
 #include "scan_shape.hpp"
 #include "verdict.hpp"
 
@@ -302,11 +303,11 @@ void Aligner::restore_scan_order(std::span<const engine::Vec3> scan, AlignmentRe
                       for (std::size_t i = r.begin(); i < r.end(); ++i)
                         frame.aligned[i] = T * scan[i];
                     });
+  engine::stop_if_cancelled();  // never half the points moved
   // Answer k of the ordered scan is scan point order_[k]'s. What last_projections() promises
   // (entity, u, v, distance, signed distance, status, trim edge), without feet and certificates.
-  order_ids_.assign(order_.begin(), order_.end());
   scan_order_projections_.resize(scan.size(), /*feet=*/false, /*certificates=*/false);
-  scan_order_projections_.scatter_from(last_projections(), order_ids_);
+  scan_order_projections_.scatter_from(last_projections(), order_);
   std::swap(completed_projections_, scan_order_projections_);
   completed_ = true;
 }

@@ -51,38 +51,52 @@ void ProjectionResults::copy_from(const ProjectionResults& part, std::size_t off
   put(certificate, part.certificate);
 }
 
-void ProjectionResults::scatter_from(const ProjectionResults& part,
-                                     std::span<const std::size_t> ids) {
+namespace {
+// ProjectionResults::scatter_from for either index type.
+template <class Index>
+void scatter_into(ProjectionResults& to, const ProjectionResults& part,
+                  std::span<const Index> ids) {
   if (part.size() != ids.size()) {
     throw std::logic_error("ProjectionResults::scatter_from: " + std::to_string(part.size()) +
                            " results for " + std::to_string(ids.size()) + " entries");
   }
-  for (const std::size_t i : ids) {
-    if (i >= size()) {
+  for (const Index i : ids) {
+    if (i >= to.size()) {
       throw std::logic_error("ProjectionResults::scatter_from: entry " + std::to_string(i) +
-                             " of " + std::to_string(size()));
+                             " of " + std::to_string(to.size()));
     }
   }
-  auto put = [&ids](auto& to, const auto& from, bool clear_missing) {
-    if (to.empty()) return;
+  auto put = [&ids](auto& into, const auto& from, bool clear_missing) {
+    if (into.empty()) return;
     for (std::size_t k = 0; k < ids.size(); ++k) {
       if (!from.empty()) {
-        to[ids[k]] = from[k];
+        into[ids[k]] = from[k];
       } else if (clear_missing) {
-        to[ids[k]] = {};
+        into[ids[k]] = {};
       }
     }
   };
-  put(foot, part.foot, false);
-  put(distance, part.distance, false);
-  put(signed_distance, part.signed_distance, false);
-  put(entity, part.entity, false);
-  put(u, part.u, false);
-  put(v, part.v, false);
-  put(normal, part.normal, false);
-  put(status, part.status, false);
-  put(on_trim_edge, part.on_trim_edge, false);
-  put(certificate, part.certificate, true);
+  put(to.foot, part.foot, false);
+  put(to.distance, part.distance, false);
+  put(to.signed_distance, part.signed_distance, false);
+  put(to.entity, part.entity, false);
+  put(to.u, part.u, false);
+  put(to.v, part.v, false);
+  put(to.normal, part.normal, false);
+  put(to.status, part.status, false);
+  put(to.on_trim_edge, part.on_trim_edge, false);
+  put(to.certificate, part.certificate, true);
+}
+}  // namespace
+
+void ProjectionResults::scatter_from(const ProjectionResults& part,
+                                     std::span<const std::size_t> ids) {
+  scatter_into(*this, part, ids);
+}
+
+void ProjectionResults::scatter_from(const ProjectionResults& part,
+                                     std::span<const std::uint32_t> ids) {
+  scatter_into(*this, part, ids);
 }
 
 Projector::Projector(const PreparedModel& model) : model_(model), impl_(std::make_unique<Impl>()) {}

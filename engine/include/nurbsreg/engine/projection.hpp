@@ -130,6 +130,9 @@ struct ProjectionResults {
   // does not hold is skipped; feet or normals `part` lacks leave those entries as they were,
   // certificates it lacks leave none there (an old certificate would not match the new answer).
   void scatter_from(const ProjectionResults& part, std::span<const std::size_t> ids);
+  // The same with 32-bit entries (an engine::spatial_order order: answer k of the ordered
+  // points to the point's own place).
+  void scatter_from(const ProjectionResults& part, std::span<const std::uint32_t> ids);
   ProjectionHint hint(std::size_t i) const {
     if (status[i] != ProjectionStatus::ok) return ProjectionHint{};
     return ProjectionHint{entity[i], u[i], v[i],

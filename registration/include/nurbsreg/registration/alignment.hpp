@@ -168,7 +168,6 @@ class Aligner {
   engine::FrameVector<std::uint32_t> order_;
   engine::SpatialOrderScratch order_scratch_;
   std::vector<engine::Vec3> ordered_scan_;
-  std::vector<std::size_t> order_ids_;  // order_ as ProjectionResults::scatter_from takes it
   engine::ProjectionResults scan_order_projections_;
 };
 
