@@ -5,6 +5,9 @@
 #include <cmath>
 #include <limits>
 #include <span>
+#include <vector>
+
+#include "nurbsreg/engine/spatial_order.hpp"
 
 namespace nurbsreg::io {
 
@@ -23,11 +26,29 @@ ProjectedCloud project_cloud(engine::Projector& projector, const PointCloud& clo
   const auto seconds = [&] {
     return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   };
+  // Blocks of the cloud's spatial order, not of its index order: a block of a cloud in no spatial
+  // order (a synthetic or merged scan) would otherwise spread over the whole model, and each
+  // block would walk every part of the hierarchy and every patch again.
+  const std::span<const engine::Vec3> all(cloud.points);
+  engine::FrameVector<std::uint32_t> order;
+  engine::SpatialOrderScratch order_scratch;
+  const bool ordered =
+      cloud.size() > block_size && cloud.size() <= std::numeric_limits<std::uint32_t>::max();
+  if (ordered) engine::spatial_order(engine::PointView::of(all), order, order_scratch);
+  std::vector<engine::Vec3> block_points;
   for (std::size_t begin = 0; begin < cloud.size(); begin += block_size) {
     const std::size_t end = std::min(cloud.size(), begin + block_size);
-    const std::span<const engine::Vec3> part(cloud.points.data() + begin, end - begin);
-    projector.project(engine::PointView::of(part), options, block);
-    out.results.copy_from(block, begin);
+    if (ordered) {
+      const std::span<const std::uint32_t> ids(order.data() + begin, end - begin);
+      block_points.resize(ids.size());
+      for (std::size_t k = 0; k < ids.size(); ++k)
+        block_points[k] = cloud.points[ids[k]];
+      projector.project(engine::PointView::of(block_points), options, block);
+      out.results.scatter_from(block, ids);
+    } else {
+      projector.project(engine::PointView::of(all.subspan(begin, end - begin)), options, block);
+      out.results.copy_from(block, begin);
+    }
     if (progress) progress(end, cloud.size(), seconds());
   }
   out.compute_seconds = seconds();

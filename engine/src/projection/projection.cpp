@@ -141,8 +141,12 @@ void Projector::project(PointView points, const ProjectionOptions& options, Proj
   tbb::parallel_for(
       tbb::blocked_range<std::size_t>(0, points.size(), std::max<std::size_t>(1, options.grain)),
       [&](const tbb::blocked_range<std::size_t>& range) {
-        project_range(points, options, out, hints, order, range.begin(), range.end(),
-                      impl_->states.local());
+        ThreadState& state = impl_->states.local();
+        if (order.empty()) {
+          project_range(points, options, out, hints, {}, range.begin(), range.end(), state);
+        } else {
+          project_block(points, options, order.subspan(range.begin(), range.size()), out, state);
+        }
       });
   nurbsreg::engine::stop_if_cancelled();
   if (counters) {
@@ -165,6 +169,38 @@ void Projector::project(PointView points, const ProjectionOptions& options, Proj
       counters->region_rejections += static_cast<std::uint64_t>(s.surface_stats.region_rejections);
     }
   }
+}
+
+namespace {
+// The caller's FootSink, told each point's own index instead of its place in a block.
+struct BlockSink {
+  FootSink sink;
+  std::span<const std::uint32_t> ids;
+
+  static void write(void* data, std::size_t k, const Vec3& foot, const Vec3& normal) {
+    const auto* self = static_cast<const BlockSink*>(data);
+    self->sink.write(self->sink.data, self->ids[k], foot, normal);
+  }
+};
+}  // namespace
+
+void Projector::project_block(PointView points, const ProjectionOptions& options,
+                              std::span<const std::uint32_t> ids, ProjectionResults& out,
+                              ThreadState& state) const {
+  // Points of a frame in no spatial order sit far apart in memory even when the order brings
+  // them together in space: projected in place, each one read its point and wrote a dozen
+  // entries of its answer to cache lines of its own. Gathered and written back in one pass
+  // each, those misses overlap, and the projection runs on contiguous memory.
+  state.staged_points.resize(ids.size());
+  for (std::size_t k = 0; k < ids.size(); ++k)
+    state.staged_points[k] = points[ids[k]];
+  BlockSink block_sink{options.foot_sink, ids};
+  ProjectionOptions block_options = options;
+  if (options.foot_sink) block_options.foot_sink = FootSink{&block_sink, &BlockSink::write};
+  state.staged.resize(ids.size(), !options.foot_sink, !out.certificate.empty());
+  project_range(PointView::of(state.staged_points), block_options, state.staged, {}, {}, 0,
+                ids.size(), state);
+  scatter_into(out, state.staged, ids);
 }
 
 void Projector::project_serial(PointView points, const ProjectionOptions& options,

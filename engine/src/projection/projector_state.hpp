@@ -9,6 +9,7 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <vector>
 
 #include "model/prepared_model_internals.hpp"
 #include "nurbsreg/engine/projection.hpp"
@@ -22,6 +23,10 @@ struct Projector::ThreadState {
   CurveProjectionStats curve_stats;
   Bvh::Scratch bvh_scratch;
   ProjectionCounters counters;
+  // A block of a frame in locality order, projected here in sequence and then put in place
+  // (Projector::project).
+  std::vector<Vec3> staged_points;
+  ProjectionResults staged;
 };
 
 struct Projector::Impl {

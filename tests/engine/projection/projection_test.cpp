@@ -75,6 +75,7 @@ HintView hints_of(const ProjectionResults& results) {
 class ProjectionTest : public ::testing::Test {
  protected:
   ProjectionTest() : prepared_(mixed_model()), points_(query_points(prepared_.bounds(), 3000, 7)) {}
+  void foot_sink_case(std::vector<Vec3> points);
   PreparedModel prepared_;
   std::vector<Vec3> points_;
 };
@@ -253,9 +254,16 @@ TEST_F(ProjectionTest, HintsReadInPlaceFromTheResultsEqualCopiedHints) {
 
 // FootSink: feet and normals go to the caller's records instead of the results (which keep no
 // foot or normal), bit for bit the same values, once per point answered `ok` and never for the
-// others; every other field unchanged. Surfaces and curves, NaN points, 2 threads.
+// others; every other field unchanged. Surfaces and curves, NaN points, 2 threads; a frame in
+// index order and one large enough for the locality order (whose blocks are projected apart and
+// must tell the sink each point's own index).
 TEST_F(ProjectionTest, FootSinkGetsTheFeetAndNormalsOfAnsweredPoints) {
-  std::vector<Vec3> points(points_);
+  for (const std::size_t n : {points_.size(), std::size_t{12000}}) {
+    foot_sink_case(n == points_.size() ? points_ : query_points(prepared_.bounds(), n, 41));
+  }
+}
+
+void ProjectionTest::foot_sink_case(std::vector<Vec3> points) {
   for (std::size_t i = 0; i < points.size(); i += 97)
     points[i] = Vec3(std::numeric_limits<double>::quiet_NaN(), 0.0, 0.0);
   struct Record {

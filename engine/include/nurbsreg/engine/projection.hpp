@@ -303,6 +303,11 @@ class Projector {
   void project_range(PointView points, const ProjectionOptions& options, ProjectionResults& out,
                      HintView hints, std::span<const std::uint32_t> order, std::size_t begin,
                      std::size_t end, ThreadState& state) const;
+  // Projects the frame's points ids (a block of its locality order, no hints) into a block of
+  // their own, then puts each answer at its point's index in `out`.
+  void project_block(PointView points, const ProjectionOptions& options,
+                     std::span<const std::uint32_t> ids, ProjectionResults& out,
+                     ThreadState& state) const;
   // One finite point's answer written to `out` (its certificate too), or the status to write
   // as missing (beyond_max_distance).
   ProjectionStatus project_surface_point(const Vec3& p, const ProjectionHint* hint, std::size_t i,
