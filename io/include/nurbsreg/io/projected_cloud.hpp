@@ -4,7 +4,9 @@
 // POST /v1/project compute, by one function, so that a cloud gives the same rows everywhere.
 //
 // project_cloud projects in blocks of kProjectBlock points (progress between blocks) without
-// hints or certificates, so the rows depend on neither the block size nor the thread count.
+// hints or certificates, so the rows depend on neither the block size nor the thread count. A
+// cloud of more than one block is taken in its spatial order (engine::spatial_order), each block
+// a compact part of it, and every row is put back at its point's index.
 // Surfaces add the columns signed_distance, normal_x, normal_y, normal_z. Thread safety: one
 // call at a time per Projector; allocates the results (not per point).
 
