@@ -35,6 +35,8 @@ using registration::ModelFeatureParts;
 using registration::ModelFeatures;
 
 constexpr char kMagic[8] = {'N', 'R', 'B', 'F', 'E', 'A', 'T', 'S'};
+// An entry of the area and keypoints alone (what an alignment from a given pose needs).
+constexpr char kSamplesMagic[8] = {'N', 'R', 'B', 'F', 'S', 'A', 'M', 'P'};
 // Bump when the entry's layout below changes (what the features are is
 // registration::kModelFeaturesRevision's, in the version).
 constexpr std::uint32_t kFormat = 1;
@@ -52,11 +54,9 @@ OptionBits bits_of(const FeatureOptions& o) {
           std::bit_cast<std::uint64_t>(o.feature_radius), o.seed};
 }
 
-std::string encode_payload(const ModelFeatures& f) {
-  f.build_all();
+// The area, the voxel and the keypoints (points, then normals): the start of both payloads.
+void write_samples(Writer& w, const ModelFeatures& f) {
   const registration::ModelKeypoints& k = f.keypoints();
-  const registration::FeatureDescriptors& d = f.descriptors();
-  Writer w;
   w.raw(f.surface_area());
   w.raw(f.voxel());
   w.u64(k.points.size());
@@ -64,6 +64,25 @@ std::string encode_payload(const ModelFeatures& f) {
     for (const engine::Vec3& p : *v)
       w.array(p.data(), 3);
   }
+}
+
+void read_samples(Reader& r, ModelFeatureParts& p) {
+  p.surface_area = r.raw<double>();
+  p.voxel = r.raw<double>();
+  const std::size_t n = r.count(6 * sizeof(double));  // a point and a normal each
+  p.keypoints.points.resize(n);
+  p.keypoints.normals.resize(n);
+  for (std::vector<engine::Vec3>* v : {&p.keypoints.points, &p.keypoints.normals}) {
+    for (engine::Vec3& x : *v)
+      r.array(x.data(), 3);
+  }
+}
+
+std::string encode_payload(const ModelFeatures& f) {
+  f.build_all();
+  const registration::FeatureDescriptors& d = f.descriptors();
+  Writer w;
+  write_samples(w, f);
   w.u64(static_cast<std::uint64_t>(d.cols()));
   w.u64(static_cast<std::uint64_t>(d.rows()));
   w.array(d.data(), static_cast<std::size_t>(d.size()));
@@ -79,15 +98,8 @@ std::string encode_payload(const ModelFeatures& f) {
 ModelFeatureParts decode_payload(std::string_view bytes) {
   Reader r(bytes);
   ModelFeatureParts p;
-  p.surface_area = r.raw<double>();
-  p.voxel = r.raw<double>();
-  const std::size_t n = r.count(6 * sizeof(double));  // a point and a normal each
-  p.keypoints.points.resize(n);
-  p.keypoints.normals.resize(n);
-  for (std::vector<engine::Vec3>* v : {&p.keypoints.points, &p.keypoints.normals}) {
-    for (engine::Vec3& x : *v)
-      r.array(x.data(), 3);
-  }
+  read_samples(r, p);
+  const std::size_t n = p.keypoints.points.size();
   const std::uint64_t cols = r.u64();
   if (cols != kFeatureDescriptorSize) {
     throw CacheEntryError("descriptors of " + std::to_string(cols) + " numbers, expected " +
@@ -112,8 +124,71 @@ ModelFeatureParts decode_payload(std::string_view bytes) {
   return p;
 }
 
+ModelFeatureParts decode_samples_payload(std::string_view bytes) {
+  Reader r(bytes);
+  ModelFeatureParts p;
+  read_samples(r, p);
+  if (!r.done()) throw CacheEntryError("bytes after the keypoints (corrupt)");
+  return p;
+}
+
+// An entry: the header (magic, format, byte order, version, model hash, options, payload size
+// and checksum), then the payload.
+std::string wrap_entry(const char (&magic)[8], const std::string& payload,
+                       const FeatureOptions& options, const ContentHash& model,
+                       const std::string& version) {
+  const OptionBits o = bits_of(options);
+  Writer w;
+  detail::write_entry_start(w, magic, kFormat, version);
+  w.u64(model.lo);
+  w.u64(model.hi);
+  w.raw(o);
+  w.u64(payload.size());
+  w.u64(hash_bytes(payload).lo);
+  w.bytes().append(payload);
+  return std::move(w.bytes());
+}
+
+// The payload of an entry whose header names this magic, version, model and options, with the
+// size and checksum it states; CacheEntryError naming what is wrong otherwise.
+std::string_view unwrap_entry(std::string_view bytes, const char (&magic)[8],
+                              const ContentHash& model_hash, const FeatureOptions& options,
+                              const std::string& version) {
+  Reader r = detail::read_entry_start(bytes, magic, kFormat, "features cache", version);
+  if (r.u64() != model_hash.lo || r.u64() != model_hash.hi)
+    throw CacheEntryError("made from another model (stale)");
+  if (r.raw<OptionBits>() != bits_of(options))
+    throw CacheEntryError("made with other feature options");
+  const std::uint64_t size = r.u64();
+  const std::uint64_t check = r.u64();
+  // Only a compare: the payload size never sizes anything.
+  if (r.left() != size)
+    throw CacheEntryError("its size does not match its header (truncated or corrupt)");
+  const std::string_view payload = bytes.substr(sizeof magic + r.offset());
+  if (hash_bytes(payload).lo != check) throw CacheEntryError("checksum mismatch (corrupt)");
+  return payload;
+}
+
 double seconds_since(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
+// Writes an entry atomically; a directory that cannot be made or written costs a warning, never
+// the alignment.
+template <class Encode>
+bool store_entry(const std::string& entry, const FeaturesCacheSettings& settings, Encode encode) {
+  try {
+    std::error_code ec;
+    std::filesystem::create_directories(settings.directory, ec);
+    const std::string bytes = encode();
+    write_atomically(entry, [&](std::ostream& out) {
+      out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+    });
+    return true;
+  } catch (const std::exception& e) {
+    spdlog::warn("could not store the model features in the cache ({}): {}", entry, e.what());
+    return false;
+  }
 }
 
 }  // namespace
@@ -134,17 +209,7 @@ FeaturesCacheSettings FeaturesCacheSettings::from_environment() {
 
 std::string encode_features_entry(const ModelFeatures& features, const ContentHash& model,
                                   const std::string& version) {
-  const std::string payload = encode_payload(features);
-  const OptionBits o = bits_of(features.options());
-  Writer w;
-  detail::write_entry_start(w, kMagic, kFormat, version);
-  w.u64(model.lo);
-  w.u64(model.hi);
-  w.raw(o);
-  w.u64(payload.size());
-  w.u64(hash_bytes(payload).lo);
-  w.bytes().append(payload);
-  return std::move(w.bytes());
+  return wrap_entry(kMagic, encode_payload(features), features.options(), model, version);
 }
 
 std::shared_ptr<const ModelFeatures> decode_features_entry(std::string_view bytes,
@@ -152,20 +217,29 @@ std::shared_ptr<const ModelFeatures> decode_features_entry(std::string_view byte
                                                            const ContentHash& model_hash,
                                                            const FeatureOptions& options,
                                                            const std::string& version) {
-  Reader r = detail::read_entry_start(bytes, kMagic, kFormat, "features cache", version);
-  if (r.u64() != model_hash.lo || r.u64() != model_hash.hi)
-    throw CacheEntryError("made from another model (stale)");
-  if (r.raw<OptionBits>() != bits_of(options))
-    throw CacheEntryError("made with other feature options");
-  const std::uint64_t size = r.u64();
-  const std::uint64_t check = r.u64();
-  // Only a compare: the payload size never sizes anything.
-  if (r.left() != size)
-    throw CacheEntryError("its size does not match its header (truncated or corrupt)");
-  const std::string_view payload = bytes.substr(sizeof kMagic + r.offset());
-  if (hash_bytes(payload).lo != check) throw CacheEntryError("checksum mismatch (corrupt)");
+  const std::string_view payload = unwrap_entry(bytes, kMagic, model_hash, options, version);
   try {
     return ModelFeatures::from_parts(model, options, decode_payload(payload));
+  } catch (const std::invalid_argument& e) {
+    throw CacheEntryError(e.what());
+  }
+}
+
+std::string encode_samples_entry(const ModelFeatures& features, const ContentHash& model,
+                                 const std::string& version) {
+  Writer w;
+  write_samples(w, features);
+  return wrap_entry(kSamplesMagic, w.bytes(), features.options(), model, version);
+}
+
+std::shared_ptr<const ModelFeatures> decode_samples_entry(std::string_view bytes,
+                                                          const engine::PreparedModel& model,
+                                                          const ContentHash& model_hash,
+                                                          const FeatureOptions& options,
+                                                          const std::string& version) {
+  const std::string_view payload = unwrap_entry(bytes, kSamplesMagic, model_hash, options, version);
+  try {
+    return ModelFeatures::from_samples(model, options, decode_samples_payload(payload));
   } catch (const std::invalid_argument& e) {
     throw CacheEntryError(e.what());
   }
@@ -178,6 +252,13 @@ std::string features_cache_entry_path(const FeaturesCacheSettings& settings,
   const std::uint64_t rest = hash_bytes(settings.version + '\0' + key).lo;
   return (std::filesystem::path(settings.directory) /
           (hex(model.lo) + hex(model.hi) + "-" + hex(rest) + ".nrbfeat"))
+      .string();
+}
+
+std::string features_cache_samples_path(const FeaturesCacheSettings& settings,
+                                        const ContentHash& model, const FeatureOptions& options) {
+  return std::filesystem::path(features_cache_entry_path(settings, model, options))
+      .replace_extension(".nrbsamp")
       .string();
 }
 
@@ -223,16 +304,9 @@ std::shared_ptr<const ModelFeatures> load_model_features(const engine::PreparedM
   const double build_seconds = seconds_since(start);
   const char* word = done == CacheOutcome::miss ? "miss" : "rebuilt";
   std::string what = fmt::format("built in {:.3f} s ({})", build_seconds, word);
-  try {
-    std::error_code ec;
-    std::filesystem::create_directories(settings.directory, ec);
-    const std::string bytes = encode_features_entry(*features, key, settings.version);
-    write_atomically(entry, [&](std::ostream& out) {
-      out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
-    });
+  if (store_entry(entry, settings,
+                  [&] { return encode_features_entry(*features, key, settings.version); })) {
     what += ", stored in the cache (" + entry + ")";
-  } catch (const std::exception& e) {
-    spdlog::warn("could not store the model features in the cache ({}): {}", entry, e.what());
   }
   return finish(std::move(features), done, what);
 }
@@ -242,34 +316,63 @@ std::shared_ptr<const ModelFeatures> cached_model_features(const engine::Prepare
                                                            const FeaturesCacheSettings& settings,
                                                            CacheOutcome* outcome) {
   const auto start = std::chrono::steady_clock::now();
-  const auto fresh = [&](CacheOutcome done, const char* why) {
-    if (outcome != nullptr) *outcome = done;
+  if (!settings.enabled) {
+    if (outcome != nullptr) *outcome = CacheOutcome::disabled;
     auto f = std::make_shared<const ModelFeatures>(model, options);
-    spdlog::debug("model features: {}; the area measured in {:.3f} s (the rest on first use)", why,
+    spdlog::debug("model features: no cache; the area measured in {:.3f} s (the rest on first use)",
+                  seconds_since(start));
+    return f;
+  }
+  const ContentHash key = hash_model(model.model());
+  const auto hit = [&](std::shared_ptr<const ModelFeatures> f, const std::string& entry,
+                       const char* what) {
+    if (outcome != nullptr) *outcome = CacheOutcome::hit;
+    spdlog::debug("model features: {}read from the cache (hit, {}) in {:.3f} s", what, entry,
                   seconds_since(start));
     return f;
   };
-  if (!settings.enabled) return fresh(CacheOutcome::disabled, "no cache");
-  const ContentHash key = hash_model(model.model());
-  const std::string entry = features_cache_entry_path(settings, key, options);
-  const std::optional<std::string> bytes = read_whole_file(entry);
-  if (!bytes) {
-    return fresh(CacheOutcome::miss, "not in the cache (an alignment from any pose stores them)");
+  // A full entry (an alignment from any pose stored it) first, then one of the area and
+  // keypoints alone (an earlier run like this one stored it).
+  const std::string full = features_cache_entry_path(settings, key, options);
+  if (const std::optional<std::string> bytes = read_whole_file(full)) {
+    try {
+      return hit(decode_features_entry(*bytes, model, key, options, settings.version), full, "");
+    } catch (const CacheEntryError& e) {
+      spdlog::warn(
+          "the model features cache entry {} is not usable: {}; the next alignment from any pose "
+          "replaces it",
+          full, e.what());
+    }
   }
-  try {
-    auto f = decode_features_entry(*bytes, model, key, options, settings.version);
-    if (outcome != nullptr) *outcome = CacheOutcome::hit;
-    spdlog::debug("model features: read from the cache (hit, {}) in {:.3f} s", entry,
-                  seconds_since(start));
-    return f;
-  } catch (const CacheEntryError& e) {
-    spdlog::warn(
-        "the model features cache entry {} is not usable: {}; measuring what this alignment "
-        "needs instead (the next alignment from any pose replaces the entry)",
-        entry, e.what());
-    // Not `rebuilt`: nothing was stored.
-    return fresh(CacheOutcome::miss, "the cache entry not usable");
+  const std::string samples = features_cache_samples_path(settings, key, options);
+  CacheOutcome done = CacheOutcome::miss;
+  if (const std::optional<std::string> bytes = read_whole_file(samples)) {
+    try {
+      return hit(decode_samples_entry(*bytes, model, key, options, settings.version), samples,
+                 "the area and keypoints ");
+    } catch (const CacheEntryError& e) {
+      spdlog::warn(
+          "the model features cache entry {} is not usable: {}; measuring the area and keypoints "
+          "again",
+          samples, e.what());
+      done = CacheOutcome::rebuilt;
+    }
   }
+  // Measured now (the alignment needs both: the area for the noise, the keypoints for the
+  // verdict's coverage) and stored alone: the descriptors would cost seconds, more than these
+  // runs take.
+  auto features = std::make_shared<const ModelFeatures>(model, options);
+  features->keypoints();
+  std::string what =
+      fmt::format("the area and keypoints measured in {:.3f} s ({})", seconds_since(start),
+                  done == CacheOutcome::miss ? "miss" : "rebuilt");
+  if (store_entry(samples, settings,
+                  [&] { return encode_samples_entry(*features, key, settings.version); })) {
+    what += ", stored in the cache (" + samples + ")";
+  }
+  if (outcome != nullptr) *outcome = done;
+  spdlog::debug("model features: {}", what);
+  return features;
 }
 
 }  // namespace nurbsreg::io

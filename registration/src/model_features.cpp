@@ -152,6 +152,34 @@ std::shared_ptr<const ModelFeatures> ModelFeatures::from_parts(const engine::Pre
       new ModelFeatures(FromParts{}, model, options, std::move(parts), std::move(described)));
 }
 
+ModelFeatures::ModelFeatures(FromSamples, const engine::PreparedModel& model,
+                             FeatureOptions options, ModelFeatureParts parts)
+    : model_(model),
+      options_(options),
+      area_(parts.surface_area),
+      voxel_(parts.voxel),
+      keypoints_(std::move(parts.keypoints)) {
+  // The keypoints are there: their build must never run (it would overwrite them). The rest
+  // is built from them on first use.
+  std::call_once(keypoints_once_, [] {});
+}
+
+std::shared_ptr<const ModelFeatures> ModelFeatures::from_samples(const engine::PreparedModel& model,
+                                                                 FeatureOptions options,
+                                                                 ModelFeatureParts parts) {
+  try {
+    check_model(model);
+  } catch (const std::runtime_error& e) {
+    throw std::invalid_argument(e.what());
+  }
+  if (parts.descriptors.size() != 0 || !parts.symmetries.empty()) {
+    fail("descriptors or symmetries given with the samples alone");
+  }
+  check_parts(parts, options, model);
+  return std::shared_ptr<const ModelFeatures>(
+      new ModelFeatures(FromSamples{}, model, options, std::move(parts)));
+}
+
 void ModelFeatures::build_all() const {
   descriptors();  // and the keypoints
   symmetries();

@@ -120,9 +120,10 @@ TEST_F(CliFeaturesCache, SecondAlignReadsTheFeaturesAndGivesTheSameOutput) {
   EXPECT_NE(align("again").err.find("(hit"), std::string::npos);
 }
 
-// From a pose (--init, --no-global) only the area and keypoints are needed: read from an entry
-// when one is there, never stored; the alignment and its verdict are the same either way.
-TEST_F(CliFeaturesCache, AlignFromAPoseReadsButNeverStores) {
+// From a pose (--init, --no-global) only the area and keypoints are needed: read from a full
+// entry when one is there, else from an entry of those two alone, which the first such run
+// stores; the alignment and its verdict are the same every way.
+TEST_F(CliFeaturesCache, AlignFromAPoseStoresOnlyTheAreaAndKeypoints) {
   std::ofstream(dir_ / "identity.txt") << "1 0 0 0\n0 1 0 0\n0 0 1 0\n0 0 0 1\n";
   const std::string near = dir_ / "near.pcd";  // in place: ICP from the identity converges
   ASSERT_EQ(run_nurbsreg("synth --model " + kPanel + " --points 2000 --noise 0.01 --out " + near,
@@ -137,22 +138,32 @@ TEST_F(CliFeaturesCache, AlignFromAPoseReadsButNeverStores) {
     EXPECT_NE(r.err.find("icp stage 0 iteration 0"), std::string::npos) << how << ": " << r.err;
     return r.err;
   };
+  const auto samples_entries = [&] {
+    std::vector<fs::path> out;
+    for (const auto& e : fs::directory_iterator(dir_ / "cache"))
+      if (e.path().extension() == ".nrbsamp") out.push_back(e.path());
+    return out;
+  };
   const std::string init = "--init " + (dir_ / "identity.txt");
-  for (const std::string& how : {std::string("--no-global"), init}) {
-    EXPECT_NE(from_pose(how, "missed").find("model features: not in the cache"), std::string::npos)
-        << how;
-  }
+  EXPECT_NE(from_pose("--no-global", "missed").find("the area and keypoints measured in"),
+            std::string::npos);
   EXPECT_TRUE(feature_entries(dir_ / "cache").empty());
-  // An alignment from any pose stores the entry; from a pose it is read, to the same answer.
+  ASSERT_EQ(samples_entries().size(), 1u);
+  EXPECT_NE(from_pose(init, "samples").find("the area and keypoints read from the cache (hit"),
+            std::string::npos);
+  EXPECT_TRUE(feature_entries(dir_ / "cache").empty());
+  // An alignment from any pose stores the full entry; from a pose it is read first.
   ASSERT_EQ(align("any").status, 0);
   ASSERT_EQ(feature_entries(dir_ / "cache").size(), 1u);
   EXPECT_NE(from_pose(init, "hit").find("model features: read from the cache (hit"),
             std::string::npos);
+  EXPECT_EQ(pose("samples"), pose("missed"));
   EXPECT_EQ(pose("hit"), pose("missed"));
   const auto fit = [&](const std::string& name) {
     const std::string report = read_text(dir_ / (name + ".json"));
     return report.substr(report.find("\"fit_details\""));
   };
+  EXPECT_EQ(fit("samples"), fit("missed"));
   EXPECT_EQ(fit("hit"), fit("missed"));
 }
 

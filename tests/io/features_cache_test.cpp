@@ -174,6 +174,24 @@ TEST_F(FeaturesCacheTest, FromPartsGivesThePartsAsGiven) {
   EXPECT_TRUE(f->symmetries().empty());
 }
 
+// from_samples builds no keypoints: the accessors give the samples as given (a moved keypoint
+// stays moved), and the parts built on first use are built from them.
+TEST_F(FeaturesCacheTest, FromSamplesGivesTheSamplesAsGiven) {
+  registration::ModelFeatureParts parts;
+  parts.surface_area = fresh_saddle().surface_area();
+  parts.voxel = fresh_saddle().voxel();
+  parts.keypoints = fresh_saddle().keypoints();
+  parts.keypoints.points.pop_back();
+  parts.keypoints.normals.pop_back();
+  const auto f = ModelFeatures::from_samples(saddle(), options_, parts);
+  EXPECT_EQ(f->keypoints().points.size(), parts.keypoints.points.size());
+  EXPECT_EQ(f->keypoints().points.back(), parts.keypoints.points.back());
+  f->build_all();
+  EXPECT_EQ(f->keypoints().points.size(), parts.keypoints.points.size());
+  EXPECT_EQ(f->described_keypoints().points.size(),
+            static_cast<std::size_t>(f->descriptors().rows()));
+}
+
 TEST_F(FeaturesCacheTest, HitAfterMissGivesTheSameAlignmentToTheBit) {
   CacheOutcome outcome{};
   const auto built = load(panel(), &outcome);
@@ -200,38 +218,138 @@ TEST_F(FeaturesCacheTest, HitAfterMissGivesTheSameAlignmentToTheBit) {
   EXPECT_EQ(std::bit_cast<std::uint64_t>(a.icp.rms), std::bit_cast<std::uint64_t>(b.icp.rms));
 }
 
-// The runs from a given pose read the entry when it is there and otherwise measure what they
-// need, storing nothing; an unusable entry costs a warning naming it and is left as it is.
-TEST_F(FeaturesCacheTest, CachedFeaturesReadAnEntryAndNeverStoreOne) {
+// The runs from a given pose read a full entry when there is one; otherwise they measure the
+// area and keypoints, store those alone and read them next time, never building the rest. The
+// features from those samples build the rest on first use, to the same bits as a fresh build.
+TEST_F(FeaturesCacheTest, CachedFeaturesStoreOnlyTheAreaAndKeypoints) {
+  const std::string samples =
+      features_cache_samples_path(settings_, hash_model(saddle().model()), options_);
+  const auto cached = [&](CacheOutcome& outcome, std::vector<std::string>* debug = nullptr) {
+    std::shared_ptr<const ModelFeatures> f;
+    const auto lines = test::log_lines_of(spdlog::level::debug, [&] {
+      f = cached_model_features(saddle(), options_, settings_, &outcome);
+    });
+    if (debug != nullptr) *debug = lines;
+    return f;
+  };
   CacheOutcome outcome{};
-  const auto missed = cached_model_features(saddle(), options_, settings_, &outcome);
+  const auto missed = cached(outcome);
   EXPECT_EQ(outcome, CacheOutcome::miss);
+  EXPECT_TRUE(fs::exists(samples));
   EXPECT_FALSE(fs::exists(entry(saddle())));
-  expect_same_bits(*missed, fresh_saddle());
-  EXPECT_FALSE(fs::exists(entry(saddle())));  // not even after building every part
+  const std::string stored = read_bytes(samples);
+  expect_same_bits(*missed, fresh_saddle());  // builds the descriptors and symmetries too
+  EXPECT_FALSE(fs::exists(entry(saddle())));  // not stored even then
+  EXPECT_EQ(read_bytes(samples), stored);
 
-  load(saddle(), nullptr);  // a full load stores the entry
-  const auto hit = cached_model_features(saddle(), options_, settings_, &outcome);
+  std::vector<std::string> debug;
+  const auto hit = cached(outcome, &debug);
   EXPECT_EQ(outcome, CacheOutcome::hit);
-  expect_same_bits(*hit, fresh_saddle());
+  ASSERT_EQ(debug.size(), 1u);
+  EXPECT_NE(debug[0].find("the area and keypoints read from the cache (hit, " + samples),
+            std::string::npos)
+      << debug[0];
+  expect_same_bits(*hit, fresh_saddle());  // descriptors and symmetries built from the samples
 
-  std::string bytes = read_bytes(entry(saddle()));
+  // A corrupt entry of the samples: a warning naming it, measured again and replaced.
+  std::string bytes = stored;
   bytes[bytes.size() / 2] ^= 0x10;
-  write_bytes(entry(saddle()), bytes);
+  write_bytes(samples, bytes);
   std::shared_ptr<const ModelFeatures> f;
   const auto warnings = test::log_lines_of(spdlog::level::warn, [&] {
     f = cached_model_features(saddle(), options_, settings_, &outcome);
   });
-  EXPECT_EQ(outcome, CacheOutcome::miss);
+  EXPECT_EQ(outcome, CacheOutcome::rebuilt);
   ASSERT_EQ(warnings.size(), 1u);
-  EXPECT_NE(warnings[0].find(entry(saddle())), std::string::npos) << warnings[0];
+  EXPECT_NE(warnings[0].find(samples), std::string::npos) << warnings[0];
   EXPECT_NE(warnings[0].find("checksum"), std::string::npos) << warnings[0];
-  EXPECT_EQ(read_bytes(entry(saddle())), bytes);  // left for a full load to replace
+  EXPECT_EQ(read_bytes(samples), stored);
+  expect_same_bits(*f, fresh_saddle());
+
+  // A full entry comes first: read even when the samples' entry is corrupt.
+  load(saddle(), nullptr);
+  write_bytes(samples, bytes);
+  cached(outcome, &debug);
+  EXPECT_EQ(outcome, CacheOutcome::hit);
+  ASSERT_EQ(debug.size(), 1u);
+  EXPECT_NE(debug[0].find("model features: read from the cache (hit, " + entry(saddle())),
+            std::string::npos)
+      << debug[0];
+  // A corrupt full entry: a warning naming it, left for a full load to replace; the samples'
+  // entry (corrupt too) is replaced.
+  std::string full = read_bytes(entry(saddle()));
+  full[full.size() / 2] ^= 0x10;
+  write_bytes(entry(saddle()), full);
+  const auto both = test::log_lines_of(spdlog::level::warn, [&] {
+    f = cached_model_features(saddle(), options_, settings_, &outcome);
+  });
+  EXPECT_EQ(outcome, CacheOutcome::rebuilt);
+  ASSERT_EQ(both.size(), 2u);
+  EXPECT_NE(both[0].find(entry(saddle())), std::string::npos) << both[0];
+  EXPECT_NE(both[1].find(samples), std::string::npos) << both[1];
+  EXPECT_EQ(read_bytes(entry(saddle())), full);
+  EXPECT_EQ(read_bytes(samples), stored);
   expect_same_bits(*f, fresh_saddle());
 
   settings_.enabled = false;
   cached_model_features(saddle(), options_, settings_, &outcome);
   EXPECT_EQ(outcome, CacheOutcome::disabled);
+}
+
+// The samples' entry: the area, voxel and keypoints bit for bit; every header check of the full
+// entry (magic: a full entry is not one of samples, nor the reverse), counts checked against
+// the bytes there, and from_samples's checks of the parts.
+TEST_F(FeaturesCacheTest, SamplesEntryRoundTripAndChecks) {
+  const ContentHash key = hash_model(saddle().model());
+  const std::string good = encode_samples_entry(fresh_saddle(), key, "v1");
+  const auto decoded = decode_samples_entry(good, saddle(), key, options_, "v1");
+  expect_same_bits(*decoded, fresh_saddle());
+  const auto fails = [&](const std::string& bytes, const std::string& why) {
+    try {
+      decode_samples_entry(bytes, saddle(), key, options_, "v1");
+      ADD_FAILURE() << "accepted; expected: " << why;
+    } catch (const CacheEntryError& e) {
+      EXPECT_NE(std::string(e.what()).find(why), std::string::npos) << e.what();
+    }
+  };
+  const std::string full = encode_features_entry(fresh_saddle(), key, "v1");
+  fails(full, "magic");
+  EXPECT_THROW(decode_features_entry(good, saddle(), key, options_, "v1"), CacheEntryError);
+  fails(good.substr(0, good.size() - 1), "truncated");
+  std::string flipped = good;
+  flipped[flipped.size() - 3] ^= 0x01;
+  fails(flipped, "checksum");
+  try {
+    decode_samples_entry(good, saddle(), hash_model(panel().model()), options_, "v1");
+    ADD_FAILURE() << "another model's entry accepted";
+  } catch (const CacheEntryError& e) {
+    EXPECT_NE(std::string(e.what()).find("another model"), std::string::npos) << e.what();
+  }
+  const std::string payload = good.substr(header_size("v1"));
+  // The well-formed entry around the payload decodes: the test's layout is the writer's.
+  EXPECT_NO_THROW(
+      decode_samples_entry(with_payload(good, "v1", payload), saddle(), key, options_, "v1"));
+  const std::uint64_t huge = std::uint64_t{1} << 40;
+  std::string p = payload;
+  std::memcpy(p.data() + 16, &huge, 8);
+  fails(with_payload(good, "v1", p), "count runs past the end");
+  fails(with_payload(good, "v1", payload + "x"), "bytes after the keypoints");
+  p = payload;
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  std::memcpy(p.data() + 16 + 8 + 8, &nan, 8);  // keypoint 0's y
+  fails(with_payload(good, "v1", p), "keypoint 0 is not finite");
+  p = payload;
+  const double area = 1.0;  // a finite area that does not give the stored voxel
+  std::memcpy(p.data(), &area, 8);
+  fails(with_payload(good, "v1", p), "voxel");
+  // from_samples takes no descriptors or symmetries.
+  registration::ModelFeatureParts parts;
+  parts.surface_area = fresh_saddle().surface_area();
+  parts.voxel = fresh_saddle().voxel();
+  parts.keypoints = fresh_saddle().keypoints();
+  EXPECT_NO_THROW(ModelFeatures::from_samples(saddle(), options_, parts));
+  parts.symmetries = fresh_saddle().symmetries();
+  EXPECT_THROW(ModelFeatures::from_samples(saddle(), options_, parts), std::invalid_argument);
 }
 
 TEST_F(FeaturesCacheTest, TruncatedEntryIsRebuilt) {

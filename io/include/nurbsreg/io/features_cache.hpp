@@ -16,7 +16,8 @@
 // 64-bit checksum of the payload), then the parts: area, voxel, keypoints (points, normals),
 // descriptors (rows x kFeatureDescriptorSize floats, one row per described keypoint: the
 // keypoints ModelFeatures::from_parts finds again on a surface), symmetries (the 3 x 4 affine part
-// of each turn). Every number is stored as its IEEE-754 bits: a hit gives the features a fresh
+// of each turn). An entry of the samples alone (.nrbsamp, its own magic, the same header) holds
+// the area, voxel and keypoints: what an alignment from a given pose needs. Every number is stored as its IEEE-754 bits: a hit gives the features a fresh
 // build gives, so the same alignments to the bit.
 //
 // Never used silently when wrong: an entry that is truncated, fails its checksum, whose counts
@@ -68,10 +69,25 @@ std::shared_ptr<const registration::ModelFeatures> decode_features_entry(
     std::string_view bytes, const engine::PreparedModel&& model, const ContentHash& model_hash,
     const registration::FeatureOptions& options, const std::string& version) = delete;
 
+// An entry of the area, the voxel and the keypoints alone (builds the keypoints if they are not
+// yet), and back: the same header and checks, its own magic; decoded into features that build
+// the descriptors and symmetries on first use (ModelFeatures::from_samples).
+std::string encode_samples_entry(const registration::ModelFeatures& features,
+                                 const ContentHash& model, const std::string& version);
+std::shared_ptr<const registration::ModelFeatures> decode_samples_entry(
+    std::string_view bytes, const engine::PreparedModel& model, const ContentHash& model_hash,
+    const registration::FeatureOptions& options, const std::string& version);
+std::shared_ptr<const registration::ModelFeatures> decode_samples_entry(
+    std::string_view bytes, const engine::PreparedModel&& model, const ContentHash& model_hash,
+    const registration::FeatureOptions& options, const std::string& version) = delete;
 // The entry file the features of a model with this hash and these options would use.
 std::string features_cache_entry_path(const FeaturesCacheSettings& settings,
                                       const ContentHash& model,
                                       const registration::FeatureOptions& options);
+// Its entry of the area and keypoints alone: the same name, extension .nrbsamp.
+std::string features_cache_samples_path(const FeaturesCacheSettings& settings,
+                                        const ContentHash& model,
+                                        const registration::FeatureOptions& options);
 
 // The features of `model` (which must outlive them) for `options`: on a hit the stored ones;
 // otherwise built in full (build_all) and stored for next time. Disabled: a fresh ModelFeatures,
@@ -86,11 +102,12 @@ std::shared_ptr<const registration::ModelFeatures> load_model_features(
 
 // For the runs that need only the features' cheap parts (an alignment from a given pose: the
 // area for the noise estimate and the keypoints for the verdict's coverage, together a few
-// tenths of a second on a large part): the stored features on a hit, which saves measuring
-// them again; otherwise (no entry, disabled, or an entry that is not usable: a warning names it
-// and what is wrong, and it is left for the next full load to replace) a fresh ModelFeatures
-// that measures the area now and builds the rest on first use, as without a cache. Never
-// builds the descriptors or stores anything: that costs seconds, more than these runs take.
+// tenths of a second on a large part): a full entry's features when there is one; else those of
+// an entry of the area and keypoints alone; else both measured now and stored as such an entry
+// for the next run (the descriptors are never built here: they cost seconds, more than these
+// runs take). An entry that is not usable gets a warning naming it and what is wrong: a full one
+// is left for the next full load to replace, one of the samples alone is replaced now. Disabled:
+// a fresh ModelFeatures, as without a cache.
 std::shared_ptr<const registration::ModelFeatures> cached_model_features(
     const engine::PreparedModel& model, const registration::FeatureOptions& options,
     const FeaturesCacheSettings& settings, CacheOutcome* outcome = nullptr);

@@ -14,7 +14,8 @@
 //
 // Stored: build_all() builds every part now, and from_parts() makes the object back from those
 // parts without building anything (io/features_cache.hpp keeps them on disk between runs; the
-// same parts give the same alignments to the bit).
+// same parts give the same alignments to the bit). from_samples() does the same with the area
+// and keypoints alone, which is what an alignment from a given pose needs.
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
@@ -88,6 +89,18 @@ class ModelFeatures {
                                                          FeatureOptions options,
                                                          ModelFeatureParts parts) = delete;
 
+  // The features of `model` and `options` from their area, voxel and keypoints alone (as the
+  // accessors gave them for the same model and options; parts.descriptors and parts.symmetries
+  // empty): what an alignment from a given pose needs. The descriptors and symmetries are built
+  // on first use, as in a fresh object, and are then the same bits. The same checks as
+  // from_parts, std::invalid_argument naming the part.
+  static std::shared_ptr<const ModelFeatures> from_samples(const engine::PreparedModel& model,
+                                                           FeatureOptions options,
+                                                           ModelFeatureParts parts);
+  static std::shared_ptr<const ModelFeatures> from_samples(const engine::PreparedModel&& model,
+                                                           FeatureOptions options,
+                                                           ModelFeatureParts parts) = delete;
+
   // Builds the keypoints, descriptors and symmetries now if they are not yet (what a cache
   // stores; the global alignment needs all three).
   void build_all() const;
@@ -115,6 +128,9 @@ class ModelFeatures {
   struct FromParts {};
   ModelFeatures(FromParts, const engine::PreparedModel& model, FeatureOptions options,
                 ModelFeatureParts parts, ModelKeypoints described);
+  struct FromSamples {};
+  ModelFeatures(FromSamples, const engine::PreparedModel& model, FeatureOptions options,
+                ModelFeatureParts parts);
 
   const engine::PreparedModel& model_;
   FeatureOptions options_;
