@@ -1,9 +1,11 @@
-// libFuzzer harness: the cache entries' decoders (decode_model_entry, decode_features_entry).
-// A checksum guards every payload, so mutated bytes alone would never get past it: the input's
-// first byte picks what it is, the rest is
+// libFuzzer harness: the cache entries' decoders (decode_model_entry, decode_features_entry,
+// decode_samples_entry). A checksum guards every payload, so mutated bytes alone would never get
+// past it: the input's first byte picks what it is, the rest is
 //   0: a converted-model payload, wrapped in a well-formed header with its size and checksum;
 //   1: a model-features payload, wrapped likewise (features of a small saddle model);
-//   2, 3: a whole model / features entry as it stands (the header checks themselves).
+//   2, 3: a whole model / features entry as it stands (the header checks themselves);
+//   4: a payload of the features' samples alone (area, voxel, keypoints), wrapped likewise;
+//   5: a whole entry of the samples as it stands.
 // A decode either gives what an entry can hold (a valid model; features whose parts fit the
 // model) or throws CacheEntryError with one printable line; anything else aborts.
 #include <cstdint>
@@ -31,13 +33,14 @@ struct Fixture {
   engine::PreparedModel prepared{test::saddle_model()};
   io::ContentHash model_hash = io::hash_model(model);
   registration::FeatureOptions options;
-  std::string model_entry, features_entry;
+  std::string model_entry, features_entry, samples_entry;
 
   Fixture() {
     options.keypoints = 20;  // small entries: the fuzzer's inputs stay short
     model_entry = io::encode_model_entry(model, model_hash, 1234, kVersion);
-    features_entry = io::encode_features_entry(registration::ModelFeatures(prepared, options),
-                                               model_hash, kVersion);
+    const registration::ModelFeatures features(prepared, options);
+    features_entry = io::encode_features_entry(features, model_hash, kVersion);
+    samples_entry = io::encode_samples_entry(features, model_hash, kVersion);
   }
 };
 
@@ -81,18 +84,25 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   if (size == 0) return 0;
   const Fixture& f = fixture();
   const std::string_view rest(reinterpret_cast<const char*>(data) + 1, size - 1);
-  const int kind = data[0] % 4;
+  const int kind = data[0] % 6;
   try {
     if (kind == 0 || kind == 2) {
       const std::string bytes = kind == 0 ? with_payload(f.model_entry, rest) : std::string(rest);
       const engine::Model m = io::decode_model_entry(bytes, f.model_hash, 1234, kVersion);
       if (m.validate()) std::abort();  // a decoded model is a valid one
     } else {
-      const std::string bytes =
-          kind == 1 ? with_payload(f.features_entry, rest) : std::string(rest);
-      const auto features =
-          io::decode_features_entry(bytes, f.prepared, f.model_hash, f.options, kVersion);
+      std::shared_ptr<const registration::ModelFeatures> features;
+      if (kind == 1 || kind == 3) {
+        const std::string bytes =
+            kind == 1 ? with_payload(f.features_entry, rest) : std::string(rest);
+        features = io::decode_features_entry(bytes, f.prepared, f.model_hash, f.options, kVersion);
+      } else {
+        const std::string bytes =
+            kind == 4 ? with_payload(f.samples_entry, rest) : std::string(rest);
+        features = io::decode_samples_entry(bytes, f.prepared, f.model_hash, f.options, kVersion);
+      }
       const auto& k = features->keypoints();
+      // Samples build the descriptors from their keypoints here: a build over what was read.
       if (k.normals.size() != k.points.size() ||
           static_cast<std::size_t>(features->descriptors().rows()) !=
               features->described_keypoints().points.size()) {
