@@ -71,6 +71,15 @@ void check_descriptors(const ModelFeatureParts& p, std::size_t described) {
   if (!p.descriptors.allFinite()) fail("a descriptor is not finite");
 }
 
+// check_model for the stored parts' factories: their errors are std::invalid_argument.
+void check_model_argument(const engine::PreparedModel& model) {
+  try {
+    check_model(model);
+  } catch (const std::runtime_error& e) {
+    throw std::invalid_argument(e.what());
+  }
+}
+
 // The checks from_parts promises (model_features.hpp), each naming the part.
 void check_parts(const ModelFeatureParts& p, const FeatureOptions& options,
                  const engine::PreparedModel& model) {
@@ -139,11 +148,7 @@ ModelFeatures::ModelFeatures(FromParts, const engine::PreparedModel& model, Feat
 std::shared_ptr<const ModelFeatures> ModelFeatures::from_parts(const engine::PreparedModel& model,
                                                                FeatureOptions options,
                                                                ModelFeatureParts parts) {
-  try {
-    check_model(model);
-  } catch (const std::runtime_error& e) {
-    throw std::invalid_argument(e.what());
-  }
+  check_model_argument(model);
   check_parts(parts, options, model);
   ModelKeypoints described = described_of(parts.keypoints, options, parts.voxel);
   check_descriptors(parts, described.points.size());
@@ -167,11 +172,7 @@ ModelFeatures::ModelFeatures(FromSamples, const engine::PreparedModel& model,
 std::shared_ptr<const ModelFeatures> ModelFeatures::from_samples(const engine::PreparedModel& model,
                                                                  FeatureOptions options,
                                                                  ModelFeatureParts parts) {
-  try {
-    check_model(model);
-  } catch (const std::runtime_error& e) {
-    throw std::invalid_argument(e.what());
-  }
+  check_model_argument(model);
   if (parts.descriptors.size() != 0 || !parts.symmetries.empty()) {
     fail("descriptors or symmetries given with the samples alone");
   }

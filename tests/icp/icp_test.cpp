@@ -195,18 +195,19 @@ struct RobustCase {
 
 class IcpOutliers : public ::testing::TestWithParam<RobustCase> {};
 
-// 10% of the points replaced by uniform points in a box around the scene. Outliers far from
-// the surfaces get weight ~0 (Tukey, Geman-McClure), bounded influence (Huber) or are trimmed;
-// the few that land within a few sigma of a surface act like extra noisy inliers. Bound:
-// 10 standard deviations of the clean problem (efficiency loss of the kernels <= 5%, the
-// rest is the bias of the near-surface outliers, which the test keeps few).
-TEST_P(IcpOutliers, RobustSettingsConverge) {
-  const RobustCase c = GetParam();
-  const std::vector<Primitive> primitives = scene();
-  UnionFinder finder(primitives);
+// The scene's 4000 samples with 10% of them replaced by uniform points in a box around it, in
+// the scan frame, with noise 1e-3 S; cov: the clean problem's pose covariance.
+struct OutlierScene {
+  std::vector<Primitive> primitives = scene();
+  std::vector<Vec3> scan;
+  Mat6 cov;
+};
+
+OutlierScene outlier_scene() {
+  OutlierScene out;
   const double sigma = 1e-3 * kSize;
-  std::vector<Vec3> model_points = sample_uniform(primitives, 4000, 11);
-  const Mat6 cov = reference_covariance(model_points, sigma);
+  std::vector<Vec3> model_points = sample_uniform(out.primitives, 4000, 11);
+  out.cov = reference_covariance(model_points, sigma);
   std::mt19937_64 rng(12);
   const auto uniform = [&](double lo, double hi) {
     return lo + (hi - lo) * static_cast<double>(rng() >> 11) * 0x1.0p-53;
@@ -214,8 +215,22 @@ TEST_P(IcpOutliers, RobustSettingsConverge) {
   for (std::size_t i = 0; i < model_points.size(); i += 10) {
     model_points[i] = Vec3(uniform(-60, 60), uniform(-60, 60), uniform(-20, 50));
   }
-  std::vector<Vec3> scan = to_scan(model_points, true_pose());
-  add_noise(scan, sigma, 13);
+  out.scan = to_scan(model_points, true_pose());
+  add_noise(out.scan, sigma, 13);
+  return out;
+}
+
+// 10% of the points replaced by uniform points in a box around the scene. Outliers far from
+// the surfaces get weight ~0 (Tukey, Geman-McClure), bounded influence (Huber) or are trimmed;
+// the few that land within a few sigma of a surface act like extra noisy inliers. Bound:
+// 10 standard deviations of the clean problem (efficiency loss of the kernels <= 5%, the
+// rest is the bias of the near-surface outliers, which the test keeps few).
+TEST_P(IcpOutliers, RobustSettingsConverge) {
+  const RobustCase c = GetParam();
+  const OutlierScene scene_10 = outlier_scene();
+  UnionFinder finder(scene_10.primitives);
+  const std::vector<Vec3>& scan = scene_10.scan;
+  const Mat6& cov = scene_10.cov;
   IcpOptions o = exact_options();
   o.kernel = c.kernel;
   o.keep_fraction = c.keep_fraction;
@@ -244,20 +259,10 @@ INSTANTIATE_TEST_SUITE_P(Kernels, IcpOutliers,
 TEST_P(IcpOutliers, RobustNewtonStepsReachTheSameEstimateSooner) {
   const RobustCase c = GetParam();
   if (c.kernel == RobustKernel::none) GTEST_SKIP() << "no kernel: the steps are Gauss-Newton";
-  const std::vector<Primitive> primitives = scene();
-  UnionFinder finder(primitives);
-  const double sigma = 1e-3 * kSize;
-  std::vector<Vec3> model_points = sample_uniform(primitives, 4000, 11);
-  const Mat6 cov = reference_covariance(model_points, sigma);
-  std::mt19937_64 rng(12);
-  const auto uniform = [&](double lo, double hi) {
-    return lo + (hi - lo) * static_cast<double>(rng() >> 11) * 0x1.0p-53;
-  };
-  for (std::size_t i = 0; i < model_points.size(); i += 10) {
-    model_points[i] = Vec3(uniform(-60, 60), uniform(-60, 60), uniform(-20, 50));
-  }
-  std::vector<Vec3> scan = to_scan(model_points, true_pose());
-  add_noise(scan, sigma, 13);
+  const OutlierScene scene_10 = outlier_scene();
+  UnionFinder finder(scene_10.primitives);
+  const std::vector<Vec3>& scan = scene_10.scan;
+  const Mat6& cov = scene_10.cov;
   IcpOptions o = exact_options();
   o.kernel = c.kernel;
   o.keep_fraction = c.keep_fraction;
