@@ -513,11 +513,14 @@ Step solve(IcpMethod method, const LinearSystem& sys, double threshold) {
     // that reduced Hessian is positive definite.
     if (k > 0 && sys.m.sum_curvature >= kCurvatureShare * sys.m.sum_w &&
         step_sigmas(sys, xi_s) <= kCurvatureWithinSigmas) {
-      const Eigen::Matrix<double, 6, Eigen::Dynamic> U = eigen.eigenvectors().rightCols(k);
-      const Eigen::MatrixXd reduced = U.transpose() * sys.m.H_curvature * U;
-      const Eigen::LLT<Eigen::MatrixXd> llt(reduced);
+      // At most 6 x 6: on the stack, no allocation per iteration.
+      using Reduced = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, 6, 6>;
+      using ReducedVector = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, 6, 1>;
+      const Eigen::Matrix<double, 6, Eigen::Dynamic, 0, 6, 6> U = eigen.eigenvectors().rightCols(k);
+      const Reduced reduced = U.transpose() * sys.m.H_curvature * U;
+      const Eigen::LLT<Reduced> llt(reduced);
       if (llt.info() == Eigen::Success) {
-        const Eigen::VectorXd y = llt.solve(-(U.transpose() * sys.m.g));
+        const ReducedVector y = llt.solve(-(U.transpose() * sys.m.g));
         if (y.allFinite()) xi_s = U * y;
       }
     }

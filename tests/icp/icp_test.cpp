@@ -203,6 +203,15 @@ struct OutlierScene {
   Mat6 cov;
 };
 
+// exact_options with the case's kernel and trimming, and room to converge.
+IcpOptions robust_options(const RobustCase& c) {
+  IcpOptions o = exact_options();
+  o.kernel = c.kernel;
+  o.keep_fraction = c.keep_fraction;
+  o.max_iterations = 100;
+  return o;
+}
+
 OutlierScene outlier_scene() {
   OutlierScene out;
   const double sigma = 1e-3 * kSize;
@@ -231,10 +240,7 @@ TEST_P(IcpOutliers, RobustSettingsConverge) {
   UnionFinder finder(scene_10.primitives);
   const std::vector<Vec3>& scan = scene_10.scan;
   const Mat6& cov = scene_10.cov;
-  IcpOptions o = exact_options();
-  o.kernel = c.kernel;
-  o.keep_fraction = c.keep_fraction;
-  o.max_iterations = 100;
+  IcpOptions o = robust_options(c);
   const IcpResult r = align(finder, scan, Isometry3d::Identity(), o);
   ASSERT_EQ(r.termination, IcpTermination::converged) << r.brief_report();
   const Vec6 xi = pose_error(r.T_model_scan, true_pose());
@@ -263,10 +269,7 @@ TEST_P(IcpOutliers, RobustNewtonStepsReachTheSameEstimateSooner) {
   UnionFinder finder(scene_10.primitives);
   const std::vector<Vec3>& scan = scene_10.scan;
   const Mat6& cov = scene_10.cov;
-  IcpOptions o = exact_options();
-  o.kernel = c.kernel;
-  o.keep_fraction = c.keep_fraction;
-  o.max_iterations = 100;
+  IcpOptions o = robust_options(c);
   // Only the statistical test ends the iteration: the other two would stop IRLS early.
   o.rotation_tolerance = 0.0;
   o.relative_rms_tolerance = 0.0;

@@ -17,8 +17,9 @@
 // descriptors (rows x kFeatureDescriptorSize floats, one row per described keypoint: the
 // keypoints ModelFeatures::from_parts finds again on a surface), symmetries (the 3 x 4 affine part
 // of each turn). An entry of the samples alone (.nrbsamp, its own magic, the same header) holds
-// the area, voxel and keypoints: what an alignment from a given pose needs. Every number is stored as its IEEE-754 bits: a hit gives the features a fresh
-// build gives, so the same alignments to the bit.
+// the area, voxel and keypoints: what an alignment from a given pose needs. Every number is stored
+// as its IEEE-754 bits: a hit gives the features a fresh build gives, so the same alignments to the
+// bit.
 //
 // Never used silently when wrong: an entry that is truncated, fails its checksum, whose counts
 // run past its end, whose numbers are not finite or whose parts do not fit together
