@@ -23,8 +23,11 @@ namespace {
 // Every weight exactly 1 (a polynomial patch, as most CAD surfaces' are): the homogeneous sums are
 // then the derivatives themselves, and the quotient rule (a division and ~50 operations, 9% of a
 // warm frame's time) would only divide by sums of the Bernstein values that rounding keeps
-// near 1 and 0.
-[[gnu::always_inline]] inline bool unit_weights(const double* cw, int count) {
+// near 1 and 0. The Newton asks once per patch and passes the answer to every evaluation: a
+// (3, 8) patch has 36 weights, and reading them at each evaluation cost as much as a sixth of it.
+[[gnu::always_inline]] inline bool unit_weights(const BezierPatch& patch) {
+  const double* cw = patch.cw.data()->data();
+  const int count = (patch.degree_u + 1) * (patch.degree_v + 1);
   bool unit = true;
   for (int k = 0; k < count; ++k)
     unit &= cw[4 * k + 3] == 1.0;
@@ -51,7 +54,8 @@ void rational_from_homogeneous(const Vec4& a00, const Vec4& a10, const Vec4& a01
 // inlined: called with constant degrees (below) the loops unroll fully.
 [[gnu::always_inline]] inline void tensor_derivatives(const Vec4* cw, int p, int q,
                                                       const double* const bu[3],
-                                                      const double* const bv[3], Vec3* out) {
+                                                      const double* const bv[3], bool unit,
+                                                      Vec3* out) {
   Vec4 a00 = Vec4::Zero(), a01 = Vec4::Zero(), a02 = Vec4::Zero(), a10 = Vec4::Zero(),
        a11 = Vec4::Zero(), a20 = Vec4::Zero();
   for (int i = 0; i <= p; ++i) {
@@ -69,7 +73,7 @@ void rational_from_homogeneous(const Vec4& a00, const Vec4& a10, const Vec4& a01
     a11 += bu[1][i] * r1;
     a20 += bu[2][i] * r0;
   }
-  if (unit_weights(cw->data(), (p + 1) * (q + 1))) {
+  if (unit) {
     out[0] = a00.head<3>();
     out[1] = a10.head<3>();
     out[2] = a01.head<3>();
@@ -85,7 +89,7 @@ void rational_from_homogeneous(const Vec4& a00, const Vec4& a10, const Vec4& a01
 // homogeneous coordinates at a time (any W gives the same values, see kLanes).
 template <int P, int Q, int W>
 [[gnu::always_inline]] inline void patch_derivatives_fixed(const BezierPatch& patch, double s,
-                                                           double t, Vec3* out) {
+                                                           double t, bool unit, Vec3* out) {
   using Lanes = typename LanesOf<W>::type;
   const auto load_lanes = [](const double* x, Lanes& v) { std::memcpy(&v, x, sizeof v); };
   const auto store_lanes = [](double* x, const Lanes& v) { std::memcpy(x, &v, sizeof v); };
@@ -136,7 +140,7 @@ template <int P, int Q, int W>
     store_lanes(a11 + h, s11);
     store_lanes(a02 + h, s02);
   }
-  if (unit_weights(cw, (P + 1) * (Q + 1))) {
+  if (unit) {
     for (int c = 0; c < 3; ++c) {
       out[0][c] = a00[c];
       out[1][c] = a10[c];
@@ -165,42 +169,42 @@ template <int P, int Q, int W>
 
 template <int W>
 [[gnu::always_inline]] inline void patch_derivatives_lanes(const BezierPatch& patch, double s,
-                                                           double t, Vec3* out) {
+                                                           double t, bool unit, Vec3* out) {
   const int p = patch.degree_u, q = patch.degree_v;
   // The common degrees of CAD surfaces get unrolled code; any other takes the generic loops.
-  if (p == 3 && q == 3) return patch_derivatives_fixed<3, 3, W>(patch, s, t, out);
-  if (p == 2 && q == 2) return patch_derivatives_fixed<2, 2, W>(patch, s, t, out);
-  if (p == 2 && q == 3) return patch_derivatives_fixed<2, 3, W>(patch, s, t, out);
-  if (p == 3 && q == 2) return patch_derivatives_fixed<3, 2, W>(patch, s, t, out);
+  if (p == 3 && q == 3) return patch_derivatives_fixed<3, 3, W>(patch, s, t, unit, out);
+  if (p == 2 && q == 2) return patch_derivatives_fixed<2, 2, W>(patch, s, t, unit, out);
+  if (p == 2 && q == 3) return patch_derivatives_fixed<2, 3, W>(patch, s, t, unit, out);
+  if (p == 3 && q == 2) return patch_derivatives_fixed<3, 2, W>(patch, s, t, unit, out);
   // Lofted sheets (blades, hulls): cubic across, degree 8 along the span.
-  if (p == 3 && q == 8) return patch_derivatives_fixed<3, 8, W>(patch, s, t, out);
-  if (p == 8 && q == 3) return patch_derivatives_fixed<8, 3, W>(patch, s, t, out);
+  if (p == 3 && q == 8) return patch_derivatives_fixed<3, 8, W>(patch, s, t, unit, out);
+  if (p == 8 && q == 3) return patch_derivatives_fixed<8, 3, W>(patch, s, t, unit, out);
   // What most of a machined part's area is: planes (1, 1), cylinders and cones (rational (2, 1)),
   // extrusions and fillets of a cubic profile (3, 1), ruled faces.
-  if (p == 1 && q == 1) return patch_derivatives_fixed<1, 1, W>(patch, s, t, out);
-  if (p == 2 && q == 1) return patch_derivatives_fixed<2, 1, W>(patch, s, t, out);
-  if (p == 1 && q == 2) return patch_derivatives_fixed<1, 2, W>(patch, s, t, out);
-  if (p == 3 && q == 1) return patch_derivatives_fixed<3, 1, W>(patch, s, t, out);
-  if (p == 1 && q == 3) return patch_derivatives_fixed<1, 3, W>(patch, s, t, out);
+  if (p == 1 && q == 1) return patch_derivatives_fixed<1, 1, W>(patch, s, t, unit, out);
+  if (p == 2 && q == 1) return patch_derivatives_fixed<2, 1, W>(patch, s, t, unit, out);
+  if (p == 1 && q == 2) return patch_derivatives_fixed<1, 2, W>(patch, s, t, unit, out);
+  if (p == 3 && q == 1) return patch_derivatives_fixed<3, 1, W>(patch, s, t, unit, out);
+  if (p == 1 && q == 3) return patch_derivatives_fixed<1, 3, W>(patch, s, t, unit, out);
   double bu[3][kMaxDegree + 1], bv[3][kMaxDegree + 1];
   bernstein_012(p, s, bu[0], bu[1], bu[2]);
   bernstein_012(q, t, bv[0], bv[1], bv[2]);
   const double* const u_rows[3] = {bu[0], bu[1], bu[2]};
   const double* const v_rows[3] = {bv[0], bv[1], bv[2]};
-  tensor_derivatives(patch.cw.data(), p, q, u_rows, v_rows, out);
+  tensor_derivatives(patch.cw.data(), p, q, u_rows, v_rows, unit, out);
 }
 
 #if NURBSREG_HOT_VERSIONS
 // Two versions instead of NURBSREG_HOT_CLONES: the AVX2 one does the four homogeneous
 // coordinates in one 4-wide pass (kLanes is 2 in a portable build, also inside a clone).
 NURBSREG_TARGET_V3
-void patch_derivatives(const BezierPatch& patch, double s, double t, Vec3* out) {
-  patch_derivatives_lanes<4>(patch, s, t, out);
+void patch_derivatives(const BezierPatch& patch, double s, double t, bool unit, Vec3* out) {
+  patch_derivatives_lanes<4>(patch, s, t, unit, out);
 }
 NURBSREG_TARGET_DEFAULT
 #endif
-void patch_derivatives(const BezierPatch& patch, double s, double t, Vec3* out) {
-  patch_derivatives_lanes<kLanes>(patch, s, t, out);
+void patch_derivatives(const BezierPatch& patch, double s, double t, bool unit, Vec3* out) {
+  patch_derivatives_lanes<kLanes>(patch, s, t, unit, out);
 }
 
 // S, S_s and S_t only (out[0..2]): the last evaluation of a Newton that is known to stop there
@@ -209,7 +213,7 @@ void patch_derivatives(const BezierPatch& patch, double s, double t, Vec3* out) 
 // bit-identical to patch_derivatives'.
 template <int P, int Q>
 [[gnu::always_inline]] inline void patch_first_derivatives_fixed(const BezierPatch& patch, double s,
-                                                                 double t, Vec3* out) {
+                                                                 double t, bool unit, Vec3* out) {
   double bu[3][P + 1], bv[3][Q + 1];
   bernstein_012_fixed<P>(s, bu[0], bu[1], bu[2]);
   bernstein_012_fixed<Q>(t, bv[0], bv[1], bv[2]);
@@ -226,7 +230,7 @@ template <int P, int Q>
     a01 += bu[0][i] * r1;
     a10 += bu[1][i] * r0;
   }
-  if (unit_weights(cw->data(), (P + 1) * (Q + 1))) {
+  if (unit) {
     out[0] = a00.head<3>();
     out[1] = a10.head<3>();
     out[2] = a01.head<3>();
@@ -241,19 +245,19 @@ template <int P, int Q>
 
 // false when the degrees have no first-derivative kernel (the caller evaluates in full).
 NURBSREG_HOT_CLONES
-bool patch_first_derivatives(const BezierPatch& patch, double s, double t, Vec3* out) {
+bool patch_first_derivatives(const BezierPatch& patch, double s, double t, bool unit, Vec3* out) {
   const int p = patch.degree_u, q = patch.degree_v;
-  if (p == 3 && q == 3) return patch_first_derivatives_fixed<3, 3>(patch, s, t, out), true;
-  if (p == 2 && q == 2) return patch_first_derivatives_fixed<2, 2>(patch, s, t, out), true;
-  if (p == 2 && q == 3) return patch_first_derivatives_fixed<2, 3>(patch, s, t, out), true;
-  if (p == 3 && q == 2) return patch_first_derivatives_fixed<3, 2>(patch, s, t, out), true;
-  if (p == 3 && q == 8) return patch_first_derivatives_fixed<3, 8>(patch, s, t, out), true;
-  if (p == 8 && q == 3) return patch_first_derivatives_fixed<8, 3>(patch, s, t, out), true;
-  if (p == 1 && q == 1) return patch_first_derivatives_fixed<1, 1>(patch, s, t, out), true;
-  if (p == 2 && q == 1) return patch_first_derivatives_fixed<2, 1>(patch, s, t, out), true;
-  if (p == 1 && q == 2) return patch_first_derivatives_fixed<1, 2>(patch, s, t, out), true;
-  if (p == 3 && q == 1) return patch_first_derivatives_fixed<3, 1>(patch, s, t, out), true;
-  if (p == 1 && q == 3) return patch_first_derivatives_fixed<1, 3>(patch, s, t, out), true;
+  if (p == 3 && q == 3) return patch_first_derivatives_fixed<3, 3>(patch, s, t, unit, out), true;
+  if (p == 2 && q == 2) return patch_first_derivatives_fixed<2, 2>(patch, s, t, unit, out), true;
+  if (p == 2 && q == 3) return patch_first_derivatives_fixed<2, 3>(patch, s, t, unit, out), true;
+  if (p == 3 && q == 2) return patch_first_derivatives_fixed<3, 2>(patch, s, t, unit, out), true;
+  if (p == 3 && q == 8) return patch_first_derivatives_fixed<3, 8>(patch, s, t, unit, out), true;
+  if (p == 8 && q == 3) return patch_first_derivatives_fixed<8, 3>(patch, s, t, unit, out), true;
+  if (p == 1 && q == 1) return patch_first_derivatives_fixed<1, 1>(patch, s, t, unit, out), true;
+  if (p == 2 && q == 1) return patch_first_derivatives_fixed<2, 1>(patch, s, t, unit, out), true;
+  if (p == 1 && q == 2) return patch_first_derivatives_fixed<1, 2>(patch, s, t, unit, out), true;
+  if (p == 3 && q == 1) return patch_first_derivatives_fixed<3, 1>(patch, s, t, unit, out), true;
+  if (p == 1 && q == 3) return patch_first_derivatives_fixed<1, 3>(patch, s, t, unit, out), true;
   return false;
 }
 

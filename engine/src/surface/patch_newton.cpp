@@ -45,8 +45,9 @@ double newton_core(const BezierPatch& patch, const Vec3& p, double s0, double s1
   // Set when the iteration ends at a stationary (KKT) point of the box, not by the iteration cap,
   // a failed line search or a non-finite step.
   bool stationary = false;
+  const bool unit = unit_weights(patch);
   Vec3 d[6];
-  patch_derivatives(patch, s, t, d);
+  patch_derivatives(patch, s, t, unit, d);
   Vec3 r = d[0] - p;
   double f = r.squaredNorm();
   long iterations = 0;
@@ -141,7 +142,7 @@ double newton_core(const BezierPatch& patch, const Vec3& p, double s0, double s1
       const double ns = s + ds, nt = t + dt;
       Vec3 first[3];
       if (ns > s0 && ns < s1 && nt > t0 && nt < t1 &&
-          patch_first_derivatives(patch, ns, nt, first)) {
+          patch_first_derivatives(patch, ns, nt, unit, first)) {
         const Vec3 nr = first[0] - p;
         const double nf = nr.squaredNorm();
         const double ngs = nr.dot(first[1]), ngt = nr.dot(first[2]);
@@ -169,7 +170,7 @@ double newton_core(const BezierPatch& patch, const Vec3& p, double s0, double s1
     for (int ls = 0; ls < 60; ++ls) {
       ns = std::clamp(s + step * ds, s0, s1);
       nt = std::clamp(t + step * dt, t0, t1);
-      patch_derivatives(patch, ns, nt, trial);
+      patch_derivatives(patch, ns, nt, unit, trial);
       const double nf = (trial[0] - p).squaredNorm();
       const double predicted = 2.0 * (gs * (ns - s) + gt * (nt - t));
       const double moved = std::max(std::abs(ns - s), std::abs(nt - t));

@@ -37,7 +37,8 @@ void generic_derivatives(const BezierPatch& patch, double s, double t, Vec3* out
   bernstein_012(patch.degree_v, t, bv[0], bv[1], bv[2]);
   const double* const u_rows[3] = {bu[0], bu[1], bu[2]};
   const double* const v_rows[3] = {bv[0], bv[1], bv[2]};
-  tensor_derivatives(patch.cw.data(), patch.degree_u, patch.degree_v, u_rows, v_rows, out);
+  tensor_derivatives(patch.cw.data(), patch.degree_u, patch.degree_v, u_rows, v_rows,
+                     unit_weights(patch), out);
 }
 
 TEST(PatchDerivatives, FixedDegreeKernelsEqualTheGenericLoopsBitForBit) {
@@ -48,15 +49,17 @@ TEST(PatchDerivatives, FixedDegreeKernelsEqualTheGenericLoopsBitForBit) {
     for (int q = 1; q <= kMaxDegree; ++q) {
       for (const bool rational : {false, true}) {
         const BezierPatch patch = random_patch(rng, p, q, rational);
+        const bool unit_weight = unit_weights(patch);
+        EXPECT_EQ(unit_weight, !rational);
         Vec3 probe[3];
-        const bool has_first = patch_first_derivatives(patch, 0.5, 0.5, probe);
+        const bool has_first = patch_first_derivatives(patch, 0.5, 0.5, unit_weight, probe);
         kernels += has_first;
         for (int k = 0; k < 12; ++k) {
           // The corners and edges first (Newton's box bounds), then interior points.
           const double s = k < 4 ? double(k % 2) : (k < 6 ? double(k - 4) : unit(rng));
           const double t = k < 4 ? double(k / 2) : (k < 6 ? unit(rng) : unit(rng));
           Vec3 fast[6], slow[6], reference[6];
-          patch_derivatives(patch, s, t, fast);
+          patch_derivatives(patch, s, t, unit_weight, fast);
           generic_derivatives(patch, s, t, slow);
           patch.derivatives(s, t, reference);
           for (int d = 0; d < 6; ++d) {
@@ -71,7 +74,7 @@ TEST(PatchDerivatives, FixedDegreeKernelsEqualTheGenericLoopsBitForBit) {
             }
           }
           Vec3 first[3];
-          if (patch_first_derivatives(patch, s, t, first)) {
+          if (patch_first_derivatives(patch, s, t, unit_weight, first)) {
             for (int d = 0; d < 3; ++d) {
               for (int c = 0; c < 3; ++c)
                 ASSERT_EQ(first[d][c], fast[d][c])
