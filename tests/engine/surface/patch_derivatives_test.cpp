@@ -33,8 +33,8 @@ BezierPatch random_patch(std::mt19937_64& rng, int p, int q, bool rational) {
 // The generic path of patch_derivatives_lanes (no fixed kernel).
 void generic_derivatives(const BezierPatch& patch, double s, double t, Vec3* out) {
   double bu[3][kMaxDegree + 1], bv[3][kMaxDegree + 1];
-  bernstein_012(patch.degree_u, s, bu[0], bu[1], bu[2]);
-  bernstein_012(patch.degree_v, t, bv[0], bv[1], bv[2]);
+  bernstein_012_loops(patch.degree_u, s, bu[0], bu[1], bu[2]);
+  bernstein_012_loops(patch.degree_v, t, bv[0], bv[1], bv[2]);
   const double* const u_rows[3] = {bu[0], bu[1], bu[2]};
   const double* const v_rows[3] = {bv[0], bv[1], bv[2]};
   tensor_derivatives(patch.cw.data(), patch.degree_u, patch.degree_v, u_rows, v_rows,
