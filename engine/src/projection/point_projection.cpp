@@ -66,11 +66,12 @@ bool valid_hint(const ProjectionHint* hint, std::size_t entities) {
 
 // Descent-only Newton over all of patch bp from best's local (s, t); best takes its point (s, t,
 // u, v, squared distance, foot, normal). True when it ended at a KKT point of the patch.
-bool newton_over_patch(const BezierPatch& bp, const Vec3& p, SurfaceHit& best) {
+bool newton_over_patch(const PreparedPatch& pp, const Vec3& p, SurfaceHit& best) {
+  const BezierPatch& bp = pp.patch;
   double s = best.s, t = best.t;
   bool stationary = false;
   best.distance_sq =
-      newton_to_proven_point(bp, p, 0.0, 1.0, 0.0, 1.0, s, t, best.foot, &best.normal, &stationary);
+      newton_to_proven_point(pp, p, 0.0, 1.0, 0.0, 1.0, s, t, best.foot, &best.normal, &stationary);
   best.s = s;
   best.t = t;
   best.u = bp.param_u.to_parent(s);
@@ -221,14 +222,15 @@ void warm_start(const PreparedModel& model, const ProjectionOptions& options,
                       !point.proven;
   SurfaceHit& best = point.best;
   // The hinted patch; a certificate's Newton may end on a neighbouring one of its box N.
-  const BezierPatch& bp = model.patch(static_cast<std::size_t>(point.hint_patch)).patch;
+  const PreparedPatch& hinted = model.patch(static_cast<std::size_t>(point.hint_patch));
+  const BezierPatch& bp = hinted.patch;
   if (!point.proven && !in_box) {
     s_loc = point.hint_s;
     t_loc = point.hint_t;
     // Settled at 1e-10 of the patch: the reach bounds prove its point, or the search starts
     // from it.
-    best.distance_sq = newton_to_proven_point(bp, p, 0.0, 1.0, 0.0, 1.0, s_loc, t_loc, best.foot,
-                                              &best.normal, &stationary);
+    best.distance_sq = newton_to_proven_point(hinted, p, 0.0, 1.0, 0.0, 1.0, s_loc, t_loc,
+                                              best.foot, &best.normal, &stationary);
     point.reach_proven = options.reach_bounds && stationary && best.distance_sq < limit_sq &&
                          reach_proves(model, point.hint_patch, s_loc, t_loc, p, best.foot,
                                       best.normal, best.distance_sq);
@@ -296,7 +298,7 @@ double seed_cold_start(const PreparedModel& model, const ProjectionOptions& opti
     return seed_sq;
   }
   const bool stationary =
-      newton_over_patch(model.patch(static_cast<std::size_t>(point.patch)).patch, p, best);
+      newton_over_patch(model.patch(static_cast<std::size_t>(point.patch)), p, best);
   point.hint_patch = point.patch;
   point.hint_s = best.s;
   point.hint_t = best.t;
@@ -401,7 +403,7 @@ void write_surface_answer(const PreparedModel& model, const ProjectionOptions& o
       // more than the clipping's accepted 1e-11 R). Polished on its patch as the clipping
       // polishes a corner value, by a descent-only Newton over the whole patch from it (at a
       // stationary point it stays put and only evaluates foot and normal there).
-      newton_over_patch(model_.patch(static_cast<std::size_t>(point.patch)).patch, p, point.best);
+      newton_over_patch(model_.patch(static_cast<std::size_t>(point.patch)), p, point.best);
     }
   }
   if (point.surface < 0) return ProjectionStatus::beyond_max_distance;

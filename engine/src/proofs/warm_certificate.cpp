@@ -543,8 +543,8 @@ double newton_on_certificate_box(const PreparedModel& model, std::int64_t anchor
     return std::numeric_limits<double>::infinity();
   }
   bool settled = false;
-  double f = newton_to_proven_point(model.patch(static_cast<std::size_t>(patch)).patch, p, box.s0,
-                                    box.s1, box.t0, box.t1, s, t, foot, &normal, &settled);
+  double f = newton_to_proven_point(model.patch(static_cast<std::size_t>(patch)), p, box.s0, box.s1,
+                                    box.t0, box.t1, s, t, foot, &normal, &settled);
   if (!settled) return f;
   // A side counts as touched within 1e-9 of the piece (Newton settles to ~1e-10 of it).
   constexpr double kTouch = 1e-9;
@@ -589,8 +589,8 @@ double newton_on_certificate_box(const PreparedModel& model, std::int64_t anchor
       Vec3 nfoot, nnormal;
       bool ok = false;
       const double nf =
-          newton_to_proven_point(model.patch(static_cast<std::size_t>(k)).patch, p, next.s0,
-                                 next.s1, next.t0, next.t1, ns, nt, nfoot, &nnormal, &ok);
+          newton_to_proven_point(model.patch(static_cast<std::size_t>(k)), p, next.s0, next.s1,
+                                 next.t0, next.t1, ns, nt, nfoot, &nnormal, &ok);
       if (!ok) return f;
       if (nf < f) {
         f = nf;

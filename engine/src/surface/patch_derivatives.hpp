@@ -23,9 +23,8 @@ namespace {
 // Every weight exactly 1 (a polynomial patch, as most CAD surfaces' are): the homogeneous sums are
 // then the derivatives themselves, and the quotient rule (a division and ~50 operations, 9% of a
 // warm frame's time) would only divide by sums of the Bernstein values that rounding keeps
-// near 1 and 0. The Newton asks once per patch and passes the answer to every evaluation: a
-// (3, 8) patch has 36 weights, and reading them at each evaluation cost as much as a sixth of it.
-[[gnu::always_inline]] inline bool unit_weights(const BezierPatch& patch) {
+// near 1 and 0. The caller knows it (NewtonPatch) and passes it to every evaluation.
+[[gnu::always_inline]] inline bool unit_weights_of(const BezierPatch& patch) {
   const double* cw = patch.cw.data()->data();
   const int count = (patch.degree_u + 1) * (patch.degree_v + 1);
   bool unit = true;

@@ -19,6 +19,9 @@ namespace {
 }
 }  // namespace
 
+NewtonPatch::NewtonPatch(const BezierPatch& bare)
+    : patch(bare), unit_weights(unit_weights_of(bare)) {}
+
 double newton_on_patch(const BezierPatch& patch, const Vec3& p, double s0, double s1, double t0,
                        double t1, double& s, double& t, Vec3& foot, SurfaceProjectionStats* stats,
                        Vec3* normal, bool* converged) {
@@ -26,26 +29,27 @@ double newton_on_patch(const BezierPatch& patch, const Vec3& p, double s0, doubl
                      std::numeric_limits<double>::infinity(), converged);
 }
 
-double newton_to_proven_point(const BezierPatch& patch, const Vec3& p, double s0, double s1,
-                              double t0, double t1, double& s, double& t, Vec3& foot, Vec3* normal,
+double newton_to_proven_point(const NewtonPatch& on, const Vec3& p, double s0, double s1, double t0,
+                              double t1, double& s, double& t, Vec3& foot, Vec3* normal,
                               bool* converged) {
   // 1e-10 of the patch's parameter range: the foot's error is then ~1e-10 of the patch's size
   // along the surface at most, and the squared distance's ~|H| 1e-20, far below the 1e-11 R the
   // clipping itself does not pursue.
-  return newton_core(patch, p, s0, s1, t0, t1, s, t, foot, nullptr, normal,
+  return newton_core(on, p, s0, s1, t0, t1, s, t, foot, nullptr, normal,
                      std::numeric_limits<double>::infinity(), converged, 1e-10);
 }
 
 NURBSREG_HOT_CLONES
-double newton_core(const BezierPatch& patch, const Vec3& p, double s0, double s1, double t0,
-                   double t1, double& s, double& t, Vec3& foot, SurfaceProjectionStats* stats,
-                   Vec3* normal, double abort_at, bool* converged, double settled_step) {
+double newton_core(const NewtonPatch& on, const Vec3& p, double s0, double s1, double t0, double t1,
+                   double& s, double& t, Vec3& foot, SurfaceProjectionStats* stats, Vec3* normal,
+                   double abort_at, bool* converged, double settled_step) {
   s = std::clamp(s, s0, s1);
   t = std::clamp(t, t0, t1);
   // Set when the iteration ends at a stationary (KKT) point of the box, not by the iteration cap,
   // a failed line search or a non-finite step.
   bool stationary = false;
-  const bool unit = unit_weights(patch);
+  const BezierPatch& patch = on.patch;
+  const bool unit = on.unit_weights;
   Vec3 d[6];
   patch_derivatives(patch, s, t, unit, d);
   Vec3 r = d[0] - p;

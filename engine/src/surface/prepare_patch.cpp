@@ -61,6 +61,8 @@ PreparedPatch prepare_patch(const BezierPatch& patch) {
   pp.cols = 2 * q + 1;
   const double w0 = patch.cw[0][3];
   pp.rational = false;
+  pp.unit_weights =
+      std::all_of(patch.cw.begin(), patch.cw.end(), [](const Vec4& c) { return c[3] == 1.0; });
   for (const Vec4& c : patch.cw) {
     if (std::abs(c[3] - w0) > 1e-14 * w0) pp.rational = true;
   }

@@ -149,8 +149,7 @@ struct Clipper {
       abort_at = target * target + round_err;
     }
     Vec3 foot, normal;
-    const double value =
-        newton_core(pp.patch, p, s0, s1, t0, t1, s, t, foot, &st, &normal, abort_at);
+    const double value = newton_core(pp, p, s0, s1, t0, t1, s, t, foot, &st, &normal, abort_at);
     if (std::isfinite(value) && admissible(s, t)) offer_exact(value, s, t, foot, normal);
   }
 

@@ -38,7 +38,7 @@ void generic_derivatives(const BezierPatch& patch, double s, double t, Vec3* out
   const double* const u_rows[3] = {bu[0], bu[1], bu[2]};
   const double* const v_rows[3] = {bv[0], bv[1], bv[2]};
   tensor_derivatives(patch.cw.data(), patch.degree_u, patch.degree_v, u_rows, v_rows,
-                     unit_weights(patch), out);
+                     unit_weights_of(patch), out);
 }
 
 TEST(PatchDerivatives, FixedDegreeKernelsEqualTheGenericLoopsBitForBit) {
@@ -49,7 +49,7 @@ TEST(PatchDerivatives, FixedDegreeKernelsEqualTheGenericLoopsBitForBit) {
     for (int q = 1; q <= kMaxDegree; ++q) {
       for (const bool rational : {false, true}) {
         const BezierPatch patch = random_patch(rng, p, q, rational);
-        const bool unit_weight = unit_weights(patch);
+        const bool unit_weight = unit_weights_of(patch);
         EXPECT_EQ(unit_weight, !rational);
         Vec3 probe[3];
         const bool has_first = patch_first_derivatives(patch, 0.5, 0.5, unit_weight, probe);

@@ -56,6 +56,7 @@ struct PreparedPatch {
   BoundingSphere sphere;
   Vec3 origin = Vec3::Zero();
   bool rational = false;      // false: all weights equal, D_ij == 1 exactly (F is a polynomial)
+  bool unit_weights = false;  // every weight exactly 1 (the Newton's derivatives need no quotient)
   int rows = 0;               // 2 * degree_u + 1
   int cols = 0;               // 2 * degree_v + 1
   std::vector<double> d;      // D_ij at [i * cols + j]
