@@ -403,31 +403,23 @@ template <bool kTrim>
       continue;
     }
     ++st.subdivisions;
-    // Split across the direction in which F varies most: that is where the box is "long".
-    double var_s = 0.0, var_t = 0.0;
-    if (!pp.rational) {
-      // The same maxima without the per-element branches (max is order-independent).
-      for (int k = 0; k + cols < count; ++k)
-        var_s = std::max(var_s, std::abs(n[k + cols] - n[k]));
-      for (int i = 0; i < rows; ++i) {
-        const double* row = n + i * cols;
-        for (int j = 0; j + 1 < cols; ++j)
-          var_t = std::max(var_t, std::abs(row[j + 1] - row[j]));
-      }
+    // Split across the direction in which F varies most: that is where the box is "long". F's
+    // coefficients are N's, or N / D's for a rational patch: those ratios are taken once each (a
+    // vector loop) rather than once per neighbour; max is order-independent, so the same maxima.
+    const double* f = n;
+    double ratios[SurfaceScratch::kGridCapacity];
+    if (pp.rational) {
+      for (int k = 0; k < count; ++k)
+        ratios[k] = n[k] / d[k];
+      f = ratios;
     }
-    for (int i = 0; pp.rational && i < rows; ++i) {
-      for (int j = 0; j < cols; ++j) {
-        const int k = i * cols + j;
-        const double f = pp.rational ? n[k] / d[k] : n[k];
-        if (i + 1 < rows) {
-          const double g = pp.rational ? n[k + cols] / d[k + cols] : n[k + cols];
-          var_s = std::max(var_s, std::abs(g - f));
-        }
-        if (j + 1 < cols) {
-          const double g = pp.rational ? n[k + 1] / d[k + 1] : n[k + 1];
-          var_t = std::max(var_t, std::abs(g - f));
-        }
-      }
+    double var_s = 0.0, var_t = 0.0;
+    for (int k = 0; k + cols < count; ++k)
+      var_s = std::max(var_s, std::abs(f[k + cols] - f[k]));
+    for (int i = 0; i < rows; ++i) {
+      const double* row = f + i * cols;
+      for (int j = 0; j + 1 < cols; ++j)
+        var_t = std::max(var_t, std::abs(row[j + 1] - row[j]));
     }
     double* high = n + kSlot;
     double* dn = n + SurfaceScratch::kGridCapacity;  // this box's own D (rational patches)
