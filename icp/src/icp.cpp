@@ -597,6 +597,34 @@ bool has_converged(const IcpOptions& o, const Tolerances& tol, const IcpIteratio
          std::abs(it.rms - previous_rms) <= o.relative_rms_tolerance * previous_rms;
 }
 
+// Tukey's cut-off c = 4.685 s: beyond it a residual weighs 0 (kernel_weight).
+double tukey_cutoff(double scale) {
+  return 4.685 * scale;
+}
+
+// A kept correspondence's residual |r| is its distance d up to rounding (an orthogonal foot, or
+// one on a free edge along its normal within 1e-6: reject_boundary drops the others; see
+// IcpOptions::kernel_bounded_search for the exception): a pass searched to `bound` keeps the
+// points that weigh when the cut-off stays below this share of it.
+constexpr double kSearchSlack = 1.0 - 1e-6;
+
+// IcpOptions::kernel_bounded_search: how far this pass searches. Twice the previous pass's
+// cut-off, plus twice the motion the last step gave the points: the scale of this pass, on
+// residuals each moved by about that much, stays well inside (and the caller checks it did).
+// The first pass (no scale yet), and the last stage's later passes, whose answers are the
+// result's, search to max_correspondence_distance.
+double search_bound(const IcpOptions& o, double previous_scale, double expected_motion,
+                    bool result_pass) {
+  const double full = o.max_correspondence_distance;
+  if (!o.kernel_bounded_search || o.kernel != RobustKernel::tukey || o.keep_fraction < 1.0 ||
+      !o.reject_boundary || result_pass || !(previous_scale > 0.0) ||
+      !std::isfinite(expected_motion)) {
+    return full;
+  }
+  const double kernel = o.kernel_scale > 0.0 ? o.kernel_scale : previous_scale;
+  return std::min(full, 2.0 * tukey_cutoff(kernel) + 2.0 * expected_motion);
+}
+
 // Predicted convergence (IcpOptions::predict_convergence): near the solution ICP contracts
 // linearly, xi_k+1 ~ rho xi_k, so with a clearly contracting observed rate the step after this
 // one is ~rho times this one. If that predicted step would pass the tests, the iteration that
@@ -718,6 +746,8 @@ IcpResult IcpSolver::align(CorrespondenceFinder& finder, std::span<const Vec3> s
   double rate = std::numeric_limits<double>::quiet_NaN();
   // The last step's displacement of the points (CorrespondenceQuery::expected_motion).
   double expected_motion = o.initial_expected_motion;
+  // The kernel scale of the previous pass (0: none yet), for IcpOptions::kernel_bounded_search.
+  double previous_scale = 0.0;
   for (std::size_t stage = 0; stage < stage_sizes.size(); ++stage) {
     const bool last_stage = stage + 1 == stage_sizes.size();
     const Tolerances tol{o.rotation_tolerance, translation_tolerance,
@@ -739,10 +769,24 @@ IcpResult IcpSolver::align(CorrespondenceFinder& finder, std::span<const Vec3> s
       final_system.reset();
       final_at_pose = false;
       transform_points(T, scan, b, o.parallel);
-      find_correspondences(finder, o.max_correspondence_distance, o.parallel, expected_motion, b);
+      const double bound =
+          search_bound(o, previous_scale, expected_motion, last_stage && iteration > 0);
+      find_correspondences(finder, bound, o.parallel, expected_motion, b);
       reject_outliers(o, b);
       IcpIteration it;
       it.kernel_scale = compute_weights(o, L, b);
+      if (bound < o.max_correspondence_distance &&
+          !(tukey_cutoff(it.kernel_scale) < kSearchSlack * bound)) {
+        // The cut-off came out beyond the bound (the scale grew): points that would weigh may
+        // have been left out. This pass again, searched to max_correspondence_distance.
+        spdlog::debug(
+            "icp: kernel cut-off {:.3g} beyond the search bound {:.3g}: searched again in full",
+            tukey_cutoff(it.kernel_scale), bound);
+        find_correspondences(finder, o.max_correspondence_distance, o.parallel, expected_motion, b);
+        reject_outliers(o, b);
+        it.kernel_scale = compute_weights(o, L, b);
+      }
+      previous_scale = it.kernel_scale;
       const Rejection kept = inlier_statistics(b);
       it.stage = static_cast<int>(stage);
       it.points = b.ids.size();

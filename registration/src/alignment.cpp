@@ -236,6 +236,9 @@ AlignmentResult Aligner::align_global(std::span<const engine::Vec3> scan, bool a
   // Near the optimum the kernel's IRLS steps shrink by only about a sixth each: the curvature
   // steps end the full-resolution passes one pass sooner (IcpOptions::robust_newton).
   fine.robust_newton = true;
+  // Outliers near the surface (clutter, a pocket's far wall) weigh nothing past the kernel's
+  // cut-off: the passes on the way search only about that far (IcpOptions::kernel_bounded_search).
+  fine.kernel_bounded_search = true;
   if (g.robust_fine && !std::isfinite(fine.max_correspondence_distance)) {
     fine.max_correspondence_distance = g.fine_max_distance_voxels * f.voxel();
   }

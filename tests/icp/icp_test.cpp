@@ -580,6 +580,79 @@ TEST(IcpFinderContract, StableScanIndicesAcrossStagesAndOneResetPerAlignment) {
   EXPECT_TRUE(third.T_model_scan.matrix() == first.T_model_scan.matrix());
 }
 
+// IcpOptions::kernel_bounded_search: the passes on the way search only about twice Tukey's
+// cut-off, so the outliers near the surfaces (the scene's uniform 10%, within the maximum
+// distance) get no exact foot there; the first pass (no scale yet) and the last stage's later
+// passes, whose answers are the result's, search to the maximum distance. The estimate is the
+// same to a small fraction of its standard deviation, with the same inliers.
+class BoundRecordingFinder : public CorrespondenceFinder {
+ public:
+  explicit BoundRecordingFinder(CorrespondenceFinder& inner) : inner_(inner) {}
+  void reset(std::size_t scan_size) override { inner_.reset(scan_size); }
+  void find(const CorrespondenceQuery& query, std::span<Correspondence> out) override {
+    inner_.find(query, out);
+    bounds.push_back(query.max_distance);
+    sizes.push_back(query.points.size());
+    answered.push_back(static_cast<std::size_t>(
+        std::count_if(out.begin(), out.end(), [](const Correspondence& c) { return c.valid; })));
+  }
+  std::vector<double> bounds;
+  std::vector<std::size_t> sizes, answered;
+
+ private:
+  CorrespondenceFinder& inner_;
+};
+
+TEST(IcpKernelBoundedSearch, OutliersGetNoFootOnTheWayAndTheResultIsTheSame) {
+  const OutlierScene scene_10 = outlier_scene();
+  UnionFinder inner(scene_10.primitives);
+  const std::vector<Vec3>& scan = scene_10.scan;
+  IcpOptions o = robust_options(RobustCase{"tukey", RobustKernel::tukey, 1.0});
+  o.max_correspondence_distance = 0.5 * kSize;  // every outlier of the scene's box is within
+  o.coarse_sizes = {800};
+  o.robust_newton = true;
+  BoundRecordingFinder full(inner);
+  const IcpResult plain = IcpSolver(o).align(full, scan, Isometry3d::Identity());
+  o.kernel_bounded_search = true;
+  BoundRecordingFinder bounded(inner);
+  const IcpResult fast = IcpSolver(o).align(bounded, scan, Isometry3d::Identity());
+  ASSERT_EQ(plain.termination, IcpTermination::converged) << plain.brief_report();
+  ASSERT_EQ(fast.termination, IcpTermination::converged) << fast.brief_report();
+  // One query a pass: no pass had to be searched again.
+  ASSERT_EQ(bounded.bounds.size(), fast.log.size());
+  EXPECT_EQ(bounded.bounds.front(), o.max_correspondence_distance);
+  int narrowed = 0;
+  for (std::size_t k = 0; k < fast.log.size(); ++k) {
+    const IcpIteration& it = fast.log[k];
+    const bool result_pass =
+        it.points == scan.size() && k > 0 && fast.log[k - 1].points == it.points;
+    if (result_pass) {
+      EXPECT_EQ(bounded.bounds[k], o.max_correspondence_distance) << "pass " << k;
+    }
+    if (bounded.bounds[k] < o.max_correspondence_distance) {
+      ++narrowed;
+      // No point that weighs was beyond the search: the cut-off stayed inside it.
+      EXPECT_LT(4.685 * it.kernel_scale, bounded.bounds[k]) << "pass " << k;
+      // ... and the far outliers were: fewer answers than points within the maximum distance.
+      EXPECT_LT(bounded.answered[k], static_cast<std::size_t>(0.95 * double(bounded.sizes[k])));
+    }
+  }
+  EXPECT_GE(narrowed, 2);
+  EXPECT_EQ(bounded.bounds.back(), o.max_correspondence_distance);
+  const Vec6 apart = pose_error(fast.T_model_scan, plain.T_model_scan);
+  for (int j = 0; j < 6; ++j) {
+    EXPECT_LT(std::abs(apart(j)), 0.05 * std::sqrt(scene_10.cov(j, j))) << "component " << j;
+  }
+  EXPECT_EQ(fast.inliers, plain.inliers);
+  EXPECT_NEAR(fast.rms, plain.rms, 1e-3 * plain.rms);
+  // Without the kernel's support (Huber weighs every point) the searches are never narrowed.
+  o.kernel = RobustKernel::huber;
+  BoundRecordingFinder huber(inner);
+  IcpSolver(o).align(huber, scan, Isometry3d::Identity());
+  for (const double bound : huber.bounds)
+    EXPECT_EQ(bound, o.max_correspondence_distance);
+}
+
 // IcpOptions::initial_expected_motion is the first query's expected motion (a caller that
 // knows its start to be close, e.g. the global stage's refined winner, lets the finder make
 // certificates from the first pass); later queries carry the previous step's motion; the

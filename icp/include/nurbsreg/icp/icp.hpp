@@ -92,6 +92,20 @@ struct IcpOptions {
   // the one before (1 - E[psi'] / E[w]), against 0.01 with the curvature. The statistics (the
   // step in standard deviations, the covariance) keep the IRLS weights. Off: IRLS steps only.
   bool robust_newton = false;
+  // With Tukey's kernel (whose weight is 0 beyond c = 4.685 s), reject_boundary and no
+  // trimming: every pass but the last stage's later ones searches only to twice the previous
+  // pass's cut-off (plus twice the last step's motion) instead of max_correspondence_distance.
+  // What is skipped is the outliers' exact feet, which near the surface (a pocket's far wall, a
+  // bore, clutter on a fixture) cost a full search each and weigh 0: a kept point's residual is
+  // its distance (its foot orthogonal, or on a free edge along the normal), except where Newton
+  // stopped just inside a face's edge reached off its normal (then |r| < d, and such a point
+  // beyond the bound is left out of those passes though its residual may weigh). A pass whose
+  // cut-off comes out beyond its bound (the scale grew) is searched again to the full distance.
+  // The kernel's scale is estimated without the points beyond (its first median counts fewer),
+  // so the poses on the way differ in their last digits; the last stage's later passes, whose
+  // answers and statistics are the result's, search to max_correspondence_distance as before.
+  // Off: every pass searches to max_correspondence_distance.
+  bool kernel_bounded_search = false;
   // Coarse-to-fine: strictly increasing subsample sizes; the solver first iterates on a
   // deterministic random subsample of each size smaller than the scan (seeded by
   // subsample_seed), then always on all points. The subsamples are nested (each is a prefix of
