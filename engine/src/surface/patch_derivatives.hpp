@@ -185,6 +185,13 @@ template <int W>
   if (p == 1 && q == 2) return patch_derivatives_fixed<1, 2, W>(patch, s, t, unit, out);
   if (p == 3 && q == 1) return patch_derivatives_fixed<3, 1, W>(patch, s, t, unit, out);
   if (p == 1 && q == 3) return patch_derivatives_fixed<1, 3, W>(patch, s, t, unit, out);
+  // Blends and lofts of higher degree (linkrods' degree-6 sweeps, the bearing's (4 and 5, 3)
+  // faces): the loops' own overhead was a third of an evaluation at these sizes.
+  if (p == 6 && q == 10) return patch_derivatives_fixed<6, 10, W>(patch, s, t, unit, out);
+  if (p == 6 && q == 8) return patch_derivatives_fixed<6, 8, W>(patch, s, t, unit, out);
+  if (p == 6 && q == 3) return patch_derivatives_fixed<6, 3, W>(patch, s, t, unit, out);
+  if (p == 5 && q == 3) return patch_derivatives_fixed<5, 3, W>(patch, s, t, unit, out);
+  if (p == 4 && q == 3) return patch_derivatives_fixed<4, 3, W>(patch, s, t, unit, out);
   double bu[3][kMaxDegree + 1], bv[3][kMaxDegree + 1];
   bernstein_012(p, s, bu[0], bu[1], bu[2]);
   bernstein_012(q, t, bv[0], bv[1], bv[2]);
