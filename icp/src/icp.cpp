@@ -242,6 +242,11 @@ Rejection inlier_statistics(const Buffers& b) {
   return r;
 }
 
+// Tukey's cut-off c = 4.685 s: beyond it a residual weighs 0 (kernel_weight).
+double tukey_cutoff(double scale) {
+  return 4.685 * scale;
+}
+
 // IRLS weight for residual r and scale s (Zhang 1997, M-estimators).
 double kernel_weight(RobustKernel kernel, double r, double s) {
   const double a = std::abs(r);
@@ -253,7 +258,7 @@ double kernel_weight(RobustKernel kernel, double r, double s) {
       return a <= k ? 1.0 : k / a;
     }
     case RobustKernel::tukey: {
-      const double c = 4.685 * s;
+      const double c = tukey_cutoff(s);
       if (a >= c) return 0.0;
       const double u = 1.0 - (a / c) * (a / c);
       return u * u;
@@ -277,7 +282,7 @@ double kernel_curvature(RobustKernel kernel, double r, double s) {
     case RobustKernel::huber:
       return a <= 1.345 * s ? 1.0 : 0.0;
     case RobustKernel::tukey: {
-      const double c = 4.685 * s;
+      const double c = tukey_cutoff(s);
       if (a >= c) return 0.0;
       const double u2 = (a / c) * (a / c);
       return std::max(0.0, (1.0 - u2) * (1.0 - 5.0 * u2));
@@ -597,11 +602,6 @@ bool has_converged(const IcpOptions& o, const Tolerances& tol, const IcpIteratio
          std::abs(it.rms - previous_rms) <= o.relative_rms_tolerance * previous_rms;
 }
 
-// Tukey's cut-off c = 4.685 s: beyond it a residual weighs 0 (kernel_weight).
-double tukey_cutoff(double scale) {
-  return 4.685 * scale;
-}
-
 // A kept correspondence's residual |r| is its distance d up to rounding (an orthogonal foot, or
 // one on a free edge along its normal within 1e-6: reject_boundary drops the others; see
 // IcpOptions::kernel_bounded_search for the exception): a pass searched to `bound` keeps the
@@ -769,12 +769,16 @@ IcpResult IcpSolver::align(CorrespondenceFinder& finder, std::span<const Vec3> s
       final_system.reset();
       final_at_pose = false;
       transform_points(T, scan, b, o.parallel);
+      // Steps 2-4 with correspondences searched to `bound`: the kernel's scale.
+      const auto correspond = [&](double bound) {
+        find_correspondences(finder, bound, o.parallel, expected_motion, b);
+        reject_outliers(o, b);
+        return compute_weights(o, L, b);
+      };
       const double bound =
           search_bound(o, previous_scale, expected_motion, last_stage && iteration > 0);
-      find_correspondences(finder, bound, o.parallel, expected_motion, b);
-      reject_outliers(o, b);
       IcpIteration it;
-      it.kernel_scale = compute_weights(o, L, b);
+      it.kernel_scale = correspond(bound);
       if (bound < o.max_correspondence_distance &&
           !(tukey_cutoff(it.kernel_scale) < kSearchSlack * bound)) {
         // The cut-off came out beyond the bound (the scale grew): points that would weigh may
@@ -782,9 +786,7 @@ IcpResult IcpSolver::align(CorrespondenceFinder& finder, std::span<const Vec3> s
         spdlog::debug(
             "icp: kernel cut-off {:.3g} beyond the search bound {:.3g}: searched again in full",
             tukey_cutoff(it.kernel_scale), bound);
-        find_correspondences(finder, o.max_correspondence_distance, o.parallel, expected_motion, b);
-        reject_outliers(o, b);
-        it.kernel_scale = compute_weights(o, L, b);
+        it.kernel_scale = correspond(o.max_correspondence_distance);
       }
       previous_scale = it.kernel_scale;
       const Rejection kept = inlier_statistics(b);
