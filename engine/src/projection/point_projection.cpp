@@ -330,6 +330,24 @@ Vec3 foot_normal(const PreparedModel& model, const SurfacePoint& point) {
   return n;
 }
 
+// Does a foot on a trimmed face's patch lie on the face's boundary? The trimmed clipping offers
+// any point of the region, and one on the region's edge (a trim loop's vertex, where a patch corner
+// or a box-constrained Newton lands) can tie with, or round just below, the edge pieces' exact
+// answer, which then never replaces it. The answer's distance is the face's minimum, and a
+// minimum inside the face is stationary: p - foot along the normal. So an offset clearly off the
+// normal (the test ICP's beyond_edge uses too) puts the foot on the boundary. The floor keeps
+// Newton's last digits on a point on (or nearly on) the face from counting as off the normal.
+bool off_normal_on_trimmed_face(const PreparedModel& model, const SurfacePoint& point,
+                                const Vec3& p, const Vec3& n) {
+  if (point.edge >= 0 || model.surface_region(point.surface) == nullptr || n.isZero(0.0))
+    return false;
+  const Vec3 offset = p - point.best.foot;
+  const double along = std::abs(offset.dot(n));
+  const double distance = offset.norm();
+  const double tangential = (offset - offset.dot(n) * n).norm();
+  return along < (1.0 - 1e-6) * distance && tangential > 1e-9 * model.bounds().diagonal();
+}
+
 // Point i's answer on the surfaces (status is written by the caller).
 void write_surface_answer(const PreparedModel& model, const ProjectionOptions& options,
                           const Vec3& p, std::size_t i, SurfacePoint& point,
@@ -349,7 +367,7 @@ void write_surface_answer(const PreparedModel& model, const ProjectionOptions& o
   out.entity[i] = point.surface;
   out.u[i] = best.u;
   out.v[i] = best.v;
-  out.on_trim_edge[i] = point.edge >= 0 ? 1 : 0;
+  out.on_trim_edge[i] = point.edge >= 0 || off_normal_on_trimmed_face(model, point, p, n) ? 1 : 0;
 }
 
 }  // namespace

@@ -342,6 +342,73 @@ TEST(TrimmedProjection, WarmHintsThreadsAndMaxDistanceGiveTheColdAnswer) {
   EXPECT_GT(within, 100);
 }
 
+// A foot at a trim loop's vertex is an edge foot: points in the outward cone of a star face's
+// tips have the tip as their closest point, off the plane's normal. The trimmed clipping may
+// offer the tip itself (a corner of a box or a box-constrained Newton lands on it, in the
+// region), and the edge pieces then tie with it; the answer must still say "trim edge", cold
+// and from the hints of slightly moved points (ICP's next pass), or ICP would fit the point to
+// the plane through the tip (model_finder's beyond_edge trusts the flag). A foot inside the
+// face stays a surface foot.
+TEST(TrimmedProjection, FeetAtATrimLoopsVertexAreTrimEdgeFeet) {
+  NurbsSurface s = flat_panel();
+  s.trim_loops.clear();
+  const Vec2 centre(0.5, 0.5);
+  constexpr int kTips = 7;
+  constexpr double kPhase = 0.3, kOuter = 0.4, kInner = 0.15;
+  s.trim_loops.push_back(star_loop(centre, kInner, kOuter, kTips, kPhase));
+  const PreparedModel model(single(s));
+  // Points on each tip's bisector outwards, at heights above and below the plane; and points
+  // over the face's core, whose feet are inside.
+  std::vector<Vec3> pts;
+  std::vector<Vec3> tips;
+  for (int k = 0; k < kTips; ++k) {
+    const double a = kPhase + 2.0 * kPi * k / kTips;
+    const Vec2 dir(std::cos(a), std::sin(a));
+    const Vec2 tip = 10.0 * (centre + kOuter * dir);
+    for (double r : {0.01, 0.3, 1.0, 2.5}) {
+      for (double z : {-2.0, -0.1, 0.0, 0.05, 1.0, 4.0}) {
+        pts.emplace_back(tip.x() + r * dir.x(), tip.y() + r * dir.y(), z);
+        tips.emplace_back(tip.x(), tip.y(), 0.0);
+      }
+    }
+  }
+  const std::size_t at_tips = pts.size();
+  for (double z : {-1.0, 0.3, 2.0}) {
+    for (double x : {4.2, 5.0, 5.8})
+      pts.emplace_back(x, 5.0, z);
+  }
+  std::mt19937_64 rng(7003);
+  std::normal_distribution<double> gauss(0.0, 1.0);
+  std::vector<Vec3> moved;
+  for (const Vec3& p : pts)
+    moved.push_back(p + 0.02 * Vec3(gauss(rng), gauss(rng), gauss(rng)));
+  Projector projector(model);
+  ProjectionOptions options;
+  options.certify = true;
+  ProjectionResults cold, previous, warm;
+  projector.project_serial(PointView::of(pts), options, cold);
+  projector.project_serial(PointView::of(moved), options, previous);
+  std::vector<ProjectionHint> hints;
+  for (std::size_t i = 0; i < pts.size(); ++i)
+    hints.push_back(previous.hint(i));
+  projector.project_serial(PointView::of(pts), options, warm, hints);
+  const double tol = 1e-9 * diagonal(model);
+  for (const ProjectionResults* out : {&cold, &warm}) {
+    const char* which = out == &cold ? "cold" : "warm";
+    for (std::size_t i = 0; i < pts.size(); ++i) {
+      ASSERT_EQ(out->status[i], ProjectionStatus::ok) << which << " " << i;
+      if (i < at_tips) {
+        EXPECT_NEAR(out->distance[i], (pts[i] - tips[i]).norm(), tol) << which << " " << i;
+        EXPECT_NEAR((out->foot[i] - tips[i]).norm(), 0.0, 1e-6) << which << " " << i;
+        EXPECT_EQ(out->on_trim_edge[i], 1) << which << " point " << i << " " << pts[i].transpose();
+      } else {
+        EXPECT_NEAR(out->distance[i], std::abs(pts[i].z()), tol) << which << " " << i;
+        EXPECT_EQ(out->on_trim_edge[i], 0) << which << " " << i;
+      }
+    }
+  }
+}
+
 // Seed 001's Theorem 2 (the boundary-row reduction) must not be used in a box that straddles a
 // loop: a single cubic patch S(u, v) = (10u, 10v, h(u)) and points p with F(0, v) below every
 // Bézier coefficient of F (so Theorem 2 hands the whole patch to its edge u = 0), while along u
