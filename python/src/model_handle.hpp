@@ -23,11 +23,13 @@ namespace nurbsreg::python {
 class ModelHandle {
  public:
   ModelHandle(std::string path, engine::Model model)
-      : path_(std::move(path)), prepared_(std::move(model)) {}
+      : path_(std::move(path)), model_(model), prepared_(std::move(model)) {}
 
   const std::string& path() const { return path_; }
   const engine::PreparedModel& prepared() const { return prepared_; }
-  const engine::Model& model() const { return prepared_.model(); }
+  // The model as the file gave it (info, warnings): the prepared one may hold some faces in
+  // another form (engine::PreparedModel::rectangle_face).
+  const engine::Model& model() const { return model_; }
 
   // A Projector for one call, returned to the pool when the lease ends. Thread-safe.
   class Lease {
@@ -74,6 +76,7 @@ class ModelHandle {
   }
 
   std::string path_;
+  const engine::Model model_;
   const engine::PreparedModel prepared_;
   std::mutex mutex_;
   std::vector<std::unique_ptr<engine::Projector>> idle_;

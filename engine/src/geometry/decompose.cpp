@@ -74,12 +74,11 @@ std::vector<double> to_reach(const std::vector<double>& knots, const std::vector
   return insert;
 }
 
-// Clamps a homogeneous control polygon: inserts the domain ends to multiplicity `degree`, then
-// drops the knots and points outside the domain (the curve is unchanged on the domain).
-void clamp_polygon(int degree, std::vector<double>& knots, std::vector<Vec4>& pw) {
-  const int count = static_cast<int>(pw.size());
-  const double lo = knots[degree];
-  const double hi = knots[count];
+// Restricts a homogeneous control polygon to [lo, hi] (within its domain): inserts lo and hi to
+// multiplicity `degree`, then drops the knots and points outside (the curve is unchanged on
+// [lo, hi], its end knots clamped there).
+void restrict_polygon(int degree, std::vector<double>& knots, std::vector<Vec4>& pw, double lo,
+                      double hi) {
   std::vector<double> new_knots;
   std::vector<Vec4> new_pw;
   refine(degree, knots, pw, to_reach(knots, {lo, hi}, degree), new_knots, new_pw);
@@ -97,6 +96,13 @@ void clamp_polygon(int degree, std::vector<double>& knots, std::vector<Vec4>& pw
   knots.back() = hi;
   const int new_count = static_cast<int>(knots.size()) - degree - 1;
   pw.assign(new_pw.begin() + start, new_pw.begin() + start + new_count);
+}
+
+// Clamps a homogeneous control polygon: restricted to its own domain.
+void clamp_polygon(int degree, std::vector<double>& knots, std::vector<Vec4>& pw) {
+  const double lo = knots[static_cast<std::size_t>(degree)];
+  const double hi = knots[pw.size()];
+  restrict_polygon(degree, knots, pw, lo, hi);
 }
 
 std::vector<double> distinct_interior(const std::vector<double>& knots, int degree, int count) {
@@ -256,6 +262,23 @@ NurbsSurface clamp(const NurbsSurface& s) {
     return k;
   });
   return surface_from_grid(s, std::move(knots_u), std::move(knots_v), g);
+}
+
+NurbsSurface restrict_domain(const NurbsSurface& s, ParamInterval u, ParamInterval v) {
+  HomogeneousGrid g = grid_of(s);
+  auto knots_u = transform_lines(g, true, [&](std::vector<Vec4>& pts) {
+    std::vector<double> k = s.knots_u;
+    restrict_polygon(s.degree_u, k, pts, u.lo, u.hi);
+    return k;
+  });
+  auto knots_v = transform_lines(g, false, [&](std::vector<Vec4>& pts) {
+    std::vector<double> k = s.knots_v;
+    restrict_polygon(s.degree_v, k, pts, v.lo, v.hi);
+    return k;
+  });
+  NurbsSurface out = surface_from_grid(s, std::move(knots_u), std::move(knots_v), g);
+  out.reversed = s.reversed;
+  return out;
 }
 
 std::vector<BezierCurve> decompose(const NurbsCurve& curve) {

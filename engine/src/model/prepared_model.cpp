@@ -10,11 +10,13 @@
 #include <exception>
 #include <iterator>
 #include <limits>
+#include <optional>
 #include <stdexcept>
 
 #include "model/prepared_model_internals.hpp"
 #include "nurbsreg/engine/decompose.hpp"
 #include "proofs/reach_bounds.hpp"
+#include "trim/rectangle_face.hpp"
 
 namespace nurbsreg::engine {
 namespace {
@@ -153,6 +155,15 @@ bool c1_across_spans(const NurbsSurface& s) {
 PreparedModel::PreparedModel(Model model)
     : model_(std::move(model)), reach_(std::make_shared<ReachState>()), serial_(next_serial++) {
   if (auto error = model_.validate()) throw std::invalid_argument(*error);
+  // A face that is a rectangle of its surface's domain: that rectangle of the surface, untrimmed.
+  rectangle_face_.assign(model_.surfaces.size(), 0);
+  for (std::size_t s = 0; s < model_.surfaces.size(); ++s) {
+    NurbsSurface& surface = model_.surfaces[s];
+    if (const std::optional<UvRectangle> r = rectangle_of_face(surface)) {
+      surface = restrict_domain(surface, r->u, r->v);
+      rectangle_face_[s] = 1;
+    }
+  }
   // The trimmed regions first, in parallel (each is built from its own surface alone, so they are
   // the same for any number of threads); the error of the first invalid one, in surface order,
   // is the one reported, as in a serial build.

@@ -333,14 +333,18 @@ Vec3 foot_normal(const PreparedModel& model, const SurfacePoint& point) {
 // Does a foot on a trimmed face's patch lie on the face's boundary? The trimmed clipping offers
 // any point of the region, and one on the region's edge (a trim loop's vertex, where a patch corner
 // or a box-constrained Newton lands) can tie with, or round just below, the edge pieces' exact
-// answer, which then never replaces it. The answer's distance is the face's minimum, and a
-// minimum inside the face is stationary: p - foot along the normal. So an offset clearly off the
-// normal (the test ICP's beyond_edge uses too) puts the foot on the boundary. The floor keeps
-// Newton's last digits on a point on (or nearly on) the face from counting as off the normal.
+// answer, which then never replaces it; a rectangle face (PreparedModel::rectangle_face) has no
+// edge pieces at all, its border is its surface's. The answer's distance is the face's minimum,
+// and a minimum inside the face is stationary: p - foot along the normal. So an offset clearly
+// off the normal (the test ICP's beyond_edge uses too) puts the foot on the boundary. The floor
+// keeps Newton's last digits on a point on (or nearly on) the face from counting as off the
+// normal.
 bool off_normal_on_trimmed_face(const PreparedModel& model, const SurfacePoint& point,
                                 const Vec3& p, const Vec3& n) {
-  if (point.edge >= 0 || model.surface_region(point.surface) == nullptr || n.isZero(0.0))
+  if (point.edge >= 0 || n.isZero(0.0)) return false;
+  if (model.surface_region(point.surface) == nullptr && !model.rectangle_face(point.surface)) {
     return false;
+  }
   const Vec3 offset = p - point.best.foot;
   const double along = std::abs(offset.dot(n));
   const double distance = offset.norm();

@@ -602,7 +602,9 @@ class BruteForce {
 void check_against_brute_force(const NurbsSurface& surface, const std::vector<Vec3>& pts,
                                int grid) {
   const PreparedModel model(single(surface));
-  const NurbsSurface& s = model.model().surfaces[0];
+  // The face as given (the prepared model may hold it in another form: PreparedModel::
+  // rectangle_face).
+  const NurbsSurface& s = surface;
   BruteForce reference(s, grid);
   Projector projector(model);
   ProjectionResults out;
@@ -719,6 +721,41 @@ TEST(TrimmedProjection, ExamplesPanelWithStarHoleMatchesBruteForce) {
   for (const Vec3& p : near_points(s, 200, 7252, 5.0))
     pts.push_back(p);
   check_against_brute_force(s, pts, 300);
+}
+
+// A face that is a rectangle of its domain (PreparedModel::rectangle_face: projected as that
+// rectangle of the surface, untrimmed) against the brute force of the trimmed face as given; on
+// a polynomial and a rational surface, the rectangle's sides inside knot spans. A foot on its
+// border off the normal is a trim-edge foot, as on any trimmed face.
+TEST(TrimmedProjection, RectangleFaceMatchesBruteForce) {
+  for (const bool rational : {false, true}) {
+    NurbsSurface s = test::random_surface(7261, 3, 3, 8, 7, rational);
+    const ParamInterval du = s.domain_u(), dv = s.domain_v();
+    const double u0 = du.to_parent(0.13), u1 = du.to_parent(0.71);
+    const double v0 = dv.to_parent(0.3), v1 = dv.to_parent(0.94);
+    s.trim_loops.push_back(polygon_loop({{u0, v0}, {u1, v0}, {u1, v1}, {u0, v1}}));
+    const PreparedModel model(single(s));
+    ASSERT_TRUE(model.rectangle_face(0));
+    std::vector<Vec3> pts = box_points(control_box(s), 150, 7262, 0.2);
+    for (const Vec3& p : near_points(s, 200, 7263, 0.8))
+      pts.push_back(p);
+    check_against_brute_force(s, pts, 300);
+    ProjectionResults out;
+    Projector(model).project_serial(PointView::of(pts), {}, out);
+    int border = 0;
+    for (std::size_t i = 0; i < pts.size(); ++i) {
+      const Vec3 offset = pts[i] - out.foot[i];
+      const bool off_normal = std::abs(offset.dot(out.normal[i])) < 0.99 * out.distance[i];
+      const bool inside = out.u[i] > u0 && out.u[i] < u1 && out.v[i] > v0 && out.v[i] < v1;
+      if (off_normal) {
+        ++border;
+        EXPECT_EQ(out.on_trim_edge[i], 1) << rational << " " << i;
+      } else if (inside) {
+        EXPECT_EQ(out.on_trim_edge[i], 0) << rational << " " << i;
+      }
+    }
+    EXPECT_GT(border, 20);
+  }
 }
 
 TEST(TrimmedProjection, RationalExtremeWeightsMatchesBruteForce) {

@@ -22,6 +22,9 @@ NurbsCurve clamp(const NurbsCurve& curve);
 NurbsSurface refine_knots_u(const NurbsSurface& surface, std::span<const double> insert);
 NurbsSurface refine_knots_v(const NurbsSurface& surface, std::span<const double> insert);
 NurbsSurface clamp(const NurbsSurface& surface);
+// The surface on the rectangle u x v of its domain (non-empty, within it): the same function of
+// (u, v) there, clamped end knots at the rectangle's sides; trim loops dropped, orientation kept.
+NurbsSurface restrict_domain(const NurbsSurface& surface, ParamInterval u, ParamInterval v);
 
 // One rational Bézier piece per non-empty knot span of the domain, in parameter order.
 std::vector<BezierCurve> decompose(const NurbsCurve& curve);

@@ -3,7 +3,9 @@
 // patches with their cached squared-distance coefficients and bounds, every curve into pieces,
 // and a bounding volume hierarchy over all patches (and one over all pieces).
 //
-// Trimmed surfaces (NurbsSurface::trim_loops): each gets a TrimRegion, and each of its patches
+// Trimmed surfaces (NurbsSurface::trim_loops): a face that is a rectangle of its domain becomes
+// that rectangle of the surface, untrimmed (rectangle_face); every other gets a TrimRegion, and
+// each of its patches
 // is classified on its parameter box: patches outside the region are left out of the hierarchy
 // (never visited), patches inside it are projected as untrimmed ones, patches that may straddle a
 // loop run the trimmed clipping (project_onto_patch with the region). The face's 3-D trim edges
@@ -63,6 +65,11 @@ class PreparedModel {
     const int r = surface_region_[static_cast<std::size_t>(s)];
     return r < 0 ? nullptr : &regions_[static_cast<std::size_t>(r)];
   }
+
+  // Surface s is a face whose trim loop cut out a rectangle of its domain: model() holds that
+  // rectangle of the surface, untrimmed (the same (u, v); trim/rectangle_face.hpp). Its border is
+  // the face's trim edge (ProjectionResults::on_trim_edge).
+  bool rectangle_face(int s) const { return rectangle_face_[static_cast<std::size_t>(s)] != 0; }
 
   // Surface s's parameter domain (NurbsSurface::domain_u / domain_v, read from its knots) and
   // orientation: kept side by side, since every answer and hint reads them (the surfaces
@@ -194,6 +201,7 @@ class PreparedModel {
   std::vector<SurfacePatches> surface_patches_;
   std::vector<SpanCell> patch_span_;           // per patch
   std::vector<std::uint8_t> surface_c1_;       // per surface (surface_c1)
+  std::vector<std::uint8_t> rectangle_face_;   // per surface (rectangle_face)
   std::vector<SurfaceDomain> surface_domain_;  // per surface (surface_domain)
   std::vector<RegionClass> patch_class_;
   std::vector<TrimRegion> regions_;
