@@ -103,10 +103,13 @@ void run_align(const AlignArgs& args) {
   std::cout << fmt::format("rms {:.6g} over {}/{} inliers, {} iterations, {} ({})\n", result.rms,
                            result.inliers, result.points, result.iterations,
                            icp::to_string(result.termination), result.message);
+  // The bound and what it left out: with clutter in the scan, "of N points" alone reads as the
+  // whole scan.
   std::cout << fmt::format(
-      "deviation |d| of {} points within max distance: mean {:.4g}  rms {:.4g}  median {:.4g}  "
-      "p95 {:.4g}  p99 {:.4g}  max {:.4g}\n",
-      dev.count, dev.mean, dev.rms, dev.p50, dev.p95, dev.p99, dev.max);
+      "deviation |d| of {} points within {:.4g} (the max distance; {} beyond): mean {:.4g}  rms "
+      "{:.4g}  median {:.4g}  p95 {:.4g}  p99 {:.4g}  max {:.4g}\n",
+      dev.count, dev.within, result.points - std::min(result.points, dev.count), dev.mean, dev.rms,
+      dev.p50, dev.p95, dev.p99, dev.max);
   if (result.degeneracy.degenerate()) {
     std::cout << "degenerate: unconstrained " << result.degeneracy.describe() << "\n";
   }

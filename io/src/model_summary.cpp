@@ -84,8 +84,10 @@ ModelSummary summarize_model(const engine::Model& model) {
   // The trimmed geometry's boxes need the prepared form (trim regions, edges).
   const engine::PreparedModel prepared(model);
   summary.geometry = prepared.geometry_bounds();
-  for (std::size_t k = 0; k < summary.surfaces.size(); ++k)
+  for (std::size_t k = 0; k < summary.surfaces.size(); ++k) {
     summary.surfaces[k].geometry = engine::compute_surface_bounds(prepared, static_cast<int>(k));
+    summary.surfaces[k].trimmed_to_rectangle = prepared.rectangle_face(static_cast<int>(k));
+  }
   for (EntitySummary& e : summary.curves) {
     e.geometry.box = e.geometry.witnessed = e.box;
     e.geometry.exact = false;
@@ -114,7 +116,9 @@ std::string format_model_summary(const ModelSummary& m, const std::string& model
            "], v [" + number(e.domain_v.lo) + ", " + number(e.domain_v.hi) + "]";
     if (e.trim_loops > 0) {
       out += ", trimmed (" + std::to_string(e.trim_loops) + " loops, " +
-             std::to_string(e.trim_curves) + " curves)";
+             std::to_string(e.trim_curves) + " curves" +
+             (e.trimmed_to_rectangle ? ": a rectangle of its domain, projected untrimmed" : "") +
+             ")";
     }
     out += e.reversed ? ", reversed\n" : "\n";
   }
@@ -161,6 +165,7 @@ std::string model_summary_to_json(const ModelSummary& m) {
       j["trimmed"] = e.trim_loops > 0;
       j["trim_loops"] = e.trim_loops;
       j["trim_curves"] = e.trim_curves;
+      j["trimmed_to_rectangle"] = e.trimmed_to_rectangle;
       j["reversed"] = e.reversed;
     } else {
       j["degree"] = e.degree_u;

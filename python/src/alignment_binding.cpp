@@ -198,6 +198,7 @@ void bind_alignment(py::module_& m) {
                                const registration::DeviationSummary& d = f.result.deviation;
                                py::dict out;
                                out["count"] = d.count;
+                               out["within"] = d.within;
                                out["mean"] = d.mean;
                                out["rms"] = d.rms;
                                out["median"] = d.p50;

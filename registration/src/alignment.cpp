@@ -399,6 +399,7 @@ AlignmentResult Aligner::finish(std::span<const engine::Vec3> scan, AlignmentRes
     if (proj.distance[i] <= max_distance) inlier_distances.push_back(proj.distance[i]);
   }
   frame.deviation = summarise_deviations(std::move(inlier_distances));
+  frame.deviation.within = max_distance;
   frame.failure = failure_of(result, used, frame.sizes);
   if (frame.failure) return frame;
 

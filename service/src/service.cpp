@@ -528,8 +528,9 @@ void Service::Impl::align(const httplib::Request& req, httplib::Response& res,
   Json answer = Json::parse(io::report_to_json(report));
   answer["model"] = model->id;
   const registration::DeviationSummary& d = frame.deviation;
-  answer["deviation"] = Json{{"count", d.count}, {"mean", d.mean}, {"rms", d.rms}, {"p50", d.p50},
-                             {"p95", d.p95},     {"p99", d.p99},   {"max", d.max}};
+  answer["deviation"] =
+      Json{{"count", d.count}, {"within", d.within}, {"mean", d.mean}, {"rms", d.rms},
+           {"p50", d.p50},     {"p95", d.p95},       {"p99", d.p99},   {"max", d.max}};
   answer["init"] = init ? (session && !param(req, "init") ? "session" : "request") : "global";
   if (session) {
     answer["session"] = session->id;

@@ -118,6 +118,46 @@ TEST(Cli, InfoReportsTheExamplePanel) {
   EXPECT_EQ(doc["surfaces"].size(), 1u);
 }
 
+// A face whose loop is a rectangle of its domain is named so (the engine projects it untrimmed);
+// a triangle's face is not.
+TEST(Cli, InfoNamesTheFacesTrimmedToARectangle) {
+  ScratchDir dir("info_rectangle");
+  const auto face = [](const std::string& name, const std::string& loop) {
+    return R"({"name": ")" + name +
+           R"(", "degree": [1, 1], "knots_u": [0, 0, 1, 1], "knots_v": [0, 0, 1, 1],
+        "control_points": [[[0, 0, 0], [0, 10, 0]], [[10, 0, 0], [10, 10, 0]]],
+        "trim_loops": [{"curves": [)" +
+           loop + "]}]}";
+  };
+  const auto side = [](double u0, double v0, double u1, double v1) {
+    return R"({"uv": {"degree": 1, "knots": [0, 0, 1, 1], "control_points": [[)" +
+           std::to_string(u0) + ", " + std::to_string(v0) + "], [" + std::to_string(u1) + ", " +
+           std::to_string(v1) + "]]}}";
+  };
+  const std::string half = side(0, 0.5, 1, 0.5) + ", " + side(1, 0.5, 1, 1) + ", " +
+                           side(1, 1, 0, 1) + ", " + side(0, 1, 0, 0.5);
+  const std::string triangle = side(0, 0, 1, 0) + ", " + side(1, 0, 0, 1) + ", " + side(0, 1, 0, 0);
+  const std::string model = dir / "faces.json";
+  std::ofstream(model) << R"({"nurbsreg_model": 1, "surfaces": [)" + face("half", half) + ", " +
+                              face("triangle", triangle) + "]}";
+  const CommandResult json = run_nurbsreg("info --json --model " + model, dir.path());
+  ASSERT_EQ(json.status, 0) << json.err;
+  const auto doc = nlohmann::json::parse(json.out);
+  EXPECT_EQ(doc["surfaces"][0]["trimmed_to_rectangle"], true);
+  EXPECT_EQ(doc["surfaces"][1]["trimmed_to_rectangle"], false);
+  const CommandResult text = run_nurbsreg("info --model " + model, dir.path());
+  ASSERT_EQ(text.status, 0) << text.err;
+  const std::size_t half_line = text.out.find("\"half\"");
+  ASSERT_NE(half_line, std::string::npos) << text.out;
+  EXPECT_NE(text.out.substr(half_line, text.out.find('\n', half_line) - half_line)
+                .find("a rectangle of its domain, projected untrimmed"),
+            std::string::npos)
+      << text.out;
+  EXPECT_EQ(text.out.find("a rectangle of its domain", text.out.find("\"triangle\"")),
+            std::string::npos)
+      << text.out;
+}
+
 TEST(Cli, ProjectWritesTheContractColumnsAndSkipsNaN) {
   ScratchDir dir("project");
   std::string out;
@@ -209,8 +249,10 @@ TEST(Cli, AlignDeviationSummaryMatchesTheAlignedScan) {
       {"mean", sum / d.size()}, {"rms", std::sqrt(sum_sq / d.size())},
       {"median", at(0.5)},      {"p95", at(0.95)},
       {"p99", at(0.99)},        {"max", d.back()}};
-  const std::size_t line = align.out.find("deviation |d| of 5000 points");
+  const std::size_t line = align.out.find("deviation |d| of 5000 points within ");
   ASSERT_NE(line, std::string::npos) << align.out;
+  // The bound is named, and no point of this clean scan lies beyond it.
+  EXPECT_NE(align.out.find("(the max distance; 0 beyond): ", line), std::string::npos) << align.out;
   const std::size_t colon = align.out.find(": ", line);  // after "within max distance"
   std::istringstream words(align.out.substr(colon + 2, align.out.find('\n', line) - colon - 2));
   std::string word;

@@ -37,6 +37,9 @@ struct EntitySummary {
   // Surfaces (CAD faces): trimming and orientation. Curves: 0 and false.
   std::size_t trim_loops = 0;
   std::size_t trim_curves = 0;
+  // The trim loop cuts out a rectangle of the domain (iso-parametric sides): the engine projects
+  // the face as that rectangle of its surface, untrimmed (engine::PreparedModel::rectangle_face).
+  bool trimmed_to_rectangle = false;
   bool reversed = false;
 };
 
