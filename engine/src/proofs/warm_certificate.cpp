@@ -531,12 +531,43 @@ PatchCertificate certify_patch(const PreparedPatch& pp, const Vec3& a, double s,
 
 double newton_on_certificate_box(const PreparedModel& model, std::int64_t anchor_patch, float s0,
                                  float s1, float t0, float t1, const Vec3& p, std::int64_t& patch,
-                                 double& s, double& t, Vec3& foot, Vec3& normal, bool& stationary) {
+                                 double& s, double& t, Vec3& foot, Vec3& normal, bool& stationary,
+                                 bool predict) {
   stationary = false;
   const int surface = model.patch_surface(static_cast<std::size_t>(anchor_patch));
-  const PreparedModel::SpanCell anchor = model.patch_span(static_cast<std::size_t>(anchor_patch));
+  const PreparedModel::SpanCell cell = model.patch_span(static_cast<std::size_t>(anchor_patch));
+  // The tangent plane's least-squares step from the foot f = S(s, t) towards p (whatever point f
+  // was the foot of, it lay on f's normal, so p - f has the same tangential part), in the anchor
+  // patch's grid units (N's coordinates), kept in N. Only the start changes, not the proof. It
+  // replaces the Newton's first full evaluation with a first-derivative one, so only where the
+  // degrees have that kernel, and on polynomial patches (measured: on NIST's rational cylinders
+  // the quotient rule made it cost more than it saved).
+  Vec3 d[3];
+  if (predict && patch == anchor_patch &&
+      model.patch(static_cast<std::size_t>(patch)).unit_weights &&
+      patch_tangents(model.patch(static_cast<std::size_t>(patch)), s, t, d)) {
+    const Vec3 delta = p - d[0];
+    const double a = d[1].squaredNorm(), b = d[1].dot(d[2]), c = d[2].squaredNorm();
+    const double det = a * c - b * b;
+    if (det > 1e-12 * a * c) {
+      const double rs = d[1].dot(delta), rt = d[2].dot(delta);
+      const double ps = std::clamp(s + (c * rs - b * rt) / det, double(s0), double(s1));
+      const double pt = std::clamp(t + (a * rt - b * rs) / det, double(t0), double(t1));
+      // The piece holding it; on a side between two, the one inside N.
+      int pi = static_cast<int>(std::floor(ps)), pj = static_cast<int>(std::floor(pt));
+      if (pi >= s1) --pi;
+      if (pj >= t1) --pj;
+      LocalBox box;
+      const std::int64_t k = model.patch_at(surface, cell.a + pi, cell.b + pj);
+      if (k >= 0 && span_piece(s0, s1, t0, t1, pi, pj, box.s0, box.s1, box.t0, box.t1)) {
+        patch = k;
+        s = std::clamp(ps - pi, box.s0, box.s1);
+        t = std::clamp(pt - pj, box.t0, box.t1);
+      }
+    }
+  }
   const PreparedModel::SpanCell here = model.patch_span(static_cast<std::size_t>(patch));
-  int i = here.a - anchor.a, j = here.b - anchor.b;
+  int i = here.a - cell.a, j = here.b - cell.b;
   LocalBox box;
   if (model.patch_surface(static_cast<std::size_t>(patch)) != surface ||
       !span_piece(s0, s1, t0, t1, i, j, box.s0, box.s1, box.t0, box.t1)) {
@@ -581,8 +612,7 @@ double newton_on_certificate_box(const PreparedModel& model, std::int64_t anchor
                       next.t1)) {
         continue;  // a corner piece outside N (N's corner is there)
       }
-      const std::int64_t k =
-          model.patch_at(surface, anchor.a + i + step[0], anchor.b + j + step[1]);
+      const std::int64_t k = model.patch_at(surface, cell.a + i + step[0], cell.b + j + step[1]);
       // The same point from the neighbour's side: local 1 becomes 0 across a side, and so on.
       double ns = step[0] < 0 ? 1.0 : (step[0] > 0 ? 0.0 : s);
       double nt = step[1] < 0 ? 1.0 : (step[1] > 0 ? 0.0 : t);

@@ -29,6 +29,10 @@ double newton_on_patch(const BezierPatch& patch, const Vec3& p, double s0, doubl
                      std::numeric_limits<double>::infinity(), converged);
 }
 
+bool patch_tangents(const NewtonPatch& on, double s, double t, Vec3* out) {
+  return patch_first_derivatives(on.patch, s, t, on.unit_weights, out);
+}
+
 double newton_to_proven_point(const NewtonPatch& on, const Vec3& p, double s0, double s1, double t0,
                               double t1, double& s, double& t, Vec3& foot, Vec3* normal,
                               bool* converged) {

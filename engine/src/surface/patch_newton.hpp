@@ -36,4 +36,9 @@ double newton_to_proven_point(const NewtonPatch& on, const Vec3& p, double s0, d
                               double t1, double& s, double& t, Vec3& foot, Vec3* normal,
                               bool* converged);
 
+// S, S_s and S_t at local (s, t) (out[0..2]) from the unrolled first-derivative kernel of the
+// patch's degrees; false (nothing written) when they have none: a full evaluation would cost as
+// much as a Newton iteration.
+bool patch_tangents(const NewtonPatch& on, double s, double t, Vec3* out);
+
 }  // namespace nurbsreg::engine

@@ -340,6 +340,54 @@ INSTANTIATE_TEST_SUITE_P(RadiusCaps, WarmAnchorAnswers,
                          ::testing::Values(Claim{0.0, 1}, Claim{0.03, 1},
                                            Claim{0.03, kMaxCertificateSpan}));
 
+// A borrowed certificate's Newton may start where the tangent plane at the anchor's foot puts the
+// query's foot (newton_on_certificate_box's `predict`): the same minimum on N as from the foot
+// itself, for queries across the ball, on boxes that span patches.
+TEST(WarmAnchorCertificate, APredictedStartFindsTheSameMinimumOnN) {
+  int compared = 0, elsewhere = 0;
+  for (const Model& model : test_models()) {
+    const PreparedModel pm{Model(model)};
+    const double diagonal = pm.bounds().diagonal();
+    ProjectionOptions options;
+    options.certify = true;
+    options.certificate_radius = 0.03 * diagonal;
+    options.certificate_span = kMaxCertificateSpan;
+    const std::vector<Vec3> anchors = query_points(pm, 240, 31);
+    ProjectionResults first;
+    Projector(pm).project(PointView::of(anchors), options, first);
+    std::mt19937_64 rng(32);
+    for (std::size_t i = 0; i < anchors.size(); ++i) {
+      const WarmCertificate& c = first.certificate[i];
+      if (!(c.radius > 0.0f) || c.patch < 0) continue;
+      const BezierPatch& bp = pm.patch(static_cast<std::size_t>(c.patch)).patch;
+      const double s_foot = std::clamp(bp.param_u.to_local(first.u[i]), 0.0, 1.0);
+      const double t_foot = std::clamp(bp.param_v.to_local(first.v[i]), 0.0, 1.0);
+      for (int k = 0; k < 4; ++k) {
+        const Vec3 q = anchors[i] + uniform(rng, 0.2, 1.0) * c.radius * random_direction(rng);
+        double f[2];
+        std::int64_t patch[2];
+        Vec3 foot[2];
+        bool stationary[2];
+        for (int predict = 0; predict < 2; ++predict) {
+          patch[predict] = c.patch;
+          double s = s_foot, t = t_foot;
+          Vec3 normal;
+          f[predict] = newton_on_certificate_box(pm, c.patch, c.s0, c.s1, c.t0, c.t1, q,
+                                                 patch[predict], s, t, foot[predict], normal,
+                                                 stationary[predict], predict == 1);
+        }
+        if (!stationary[0] || !stationary[1]) continue;
+        ++compared;
+        elsewhere += patch[0] != c.patch;
+        EXPECT_NEAR(std::sqrt(f[1]), std::sqrt(f[0]), 1e-10 * diagonal) << "point " << i;
+        EXPECT_LE((foot[1] - foot[0]).norm(), 1e-6 * diagonal) << "point " << i;
+      }
+    }
+  }
+  EXPECT_GT(compared, 200);
+  EXPECT_GT(elsewhere, 20) << "too few queries whose foot lies on another patch of N";
+}
+
 // One bicubic patch, flat along x for most of it, then ramping up 6 units over its last third:
 // F is not convex over the whole patch for points above the ramp's bowl, so their certificates'
 // boxes N are sub-boxes, while the flat and gently curved parts give them wide radii.
