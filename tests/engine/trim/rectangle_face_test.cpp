@@ -121,7 +121,8 @@ TEST(RectangleFace, RestrictDomainIsTheSameSurfaceOnTheRectangle) {
   for (const bool rational : {false, true}) {
     for (int trial = 0; trial < 6; ++trial) {
       NurbsSurface s =
-          test::random_surface(8200 + trial, 1 + trial % 3, 2 + trial % 2, 7, 8, rational);
+          test::random_surface(8200 + trial, 1 + trial % 3, 2 + trial % 2, 7, 8, rational,
+                               trial != 5);  // trial 5: unclamped knot vectors
       s.reversed = trial % 2 == 1;
       const ParamInterval du = s.domain_u(), dv = s.domain_v();
       // Trial 0: the whole domain; 1: ends on interior knots; others: anywhere.
