@@ -2,6 +2,7 @@
 // Trim loops made of straight uv segments, for tests and benchmarks of trimmed faces: the engine
 // computes their exact 3-D edges itself (no 3-D curves given).
 
+#include <algorithm>
 #include <vector>
 
 #include "nurbsreg/engine/nurbs_surface.hpp"
@@ -24,6 +25,20 @@ inline engine::TrimLoop polygon_loop(const std::vector<engine::Vec2>& corners) {
   for (std::size_t k = 0; k < corners.size(); ++k)
     loop.curves.push_back({uv_line(corners[k], corners[(k + 1) % corners.size()]), std::nullopt});
   return loop;
+}
+
+// The rectangle [u0, u1] x [v0, v1] as a polygon loop, counter-clockwise (clockwise when
+// `reverse`), each side split into `pieces` segments.
+inline engine::TrimLoop rectangle_loop(double u0, double u1, double v0, double v1, int pieces = 1,
+                                       bool reverse = false) {
+  const engine::Vec2 c[4] = {{u0, v0}, {u1, v0}, {u1, v1}, {u0, v1}};
+  std::vector<engine::Vec2> corners;
+  for (int k = 0; k < 4; ++k) {
+    for (int i = 0; i < pieces; ++i)
+      corners.push_back(c[k] + (c[(k + 1) % 4] - c[k]) * (double(i) / pieces));
+  }
+  if (reverse) std::reverse(corners.begin(), corners.end());
+  return polygon_loop(corners);
 }
 
 }  // namespace nurbsreg::test

@@ -187,14 +187,11 @@ bool newton_on_certificate(const PreparedModel& model, const WarmCertificate& c,
   // Infinity when the hinted patch is not in N (then the usual warm start).
   std::int64_t piece_patch = point.hint_patch;
   // A point well away from the certificate's anchor (a new query's first pass borrows its
-  // neighbours' certificates) whose box N spans patches: its foot may lie pieces away from the
-  // hinted one, where a predicted start goes directly (the blade's 5 cm strips). Within one
-  // patch the Newton's own first step does as well.
+  // neighbours' certificates): its foot may lie pieces away from the hinted one.
   constexpr double kBorrowed = 0.1;
-  const bool spans = c.s0 < 0.0f || c.s1 > 1.0f || c.t0 < 0.0f || c.t1 > 1.0f;
   const double f = newton_on_certificate_box(model, c.patch, c.s0, c.s1, c.t0, c.t1, p, piece_patch,
                                              s, t, point.best.foot, point.best.normal, stationary,
-                                             spans && moved > kBorrowed * c.radius);
+                                             moved > kBorrowed * c.radius);
   if (!(f < std::numeric_limits<double>::infinity())) return false;
   point.best.distance_sq = f;
   point.hint_patch = piece_patch;

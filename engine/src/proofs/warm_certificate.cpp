@@ -539,11 +539,13 @@ double newton_on_certificate_box(const PreparedModel& model, std::int64_t anchor
   // The tangent plane's least-squares step from the foot f = S(s, t) towards p (whatever point f
   // was the foot of, it lay on f's normal, so p - f has the same tangential part), in the anchor
   // patch's grid units (N's coordinates), kept in N. Only the start changes, not the proof. It
-  // replaces the Newton's first full evaluation with a first-derivative one, so only where the
-  // degrees have that kernel, and on polynomial patches (measured: on NIST's rational cylinders
-  // the quotient rule made it cost more than it saved).
+  // replaces the Newton's first full evaluation with a first-derivative one, so only on a box
+  // that spans patches (within one, Newton's own first step does as well; the blade's 5 cm strips
+  // are where it pays), where the degrees have that kernel, and on polynomial patches (measured:
+  // on NIST's rational cylinders the quotient rule made it cost more than it saved).
+  const bool spans = s0 < 0.0f || s1 > 1.0f || t0 < 0.0f || t1 > 1.0f;
   Vec3 d[3];
-  if (predict && patch == anchor_patch &&
+  if (predict && spans && patch == anchor_patch &&
       model.patch(static_cast<std::size_t>(patch)).unit_weights &&
       patch_tangents(model.patch(static_cast<std::size_t>(patch)), s, t, d)) {
     const Vec3 delta = p - d[0];

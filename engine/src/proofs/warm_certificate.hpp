@@ -107,9 +107,9 @@ SpanCertificate certify_span(const PreparedModel& model, std::size_t patch, cons
 // touching piece improves is N's minimum. On return patch, s, t, foot and normal are that
 // minimum's; `stationary` is false when a Newton did not settle or the moves ran out (then the
 // point is only an upper bound). Returns the squared distance. `predict`: (s, t) is the foot of
-// a point far from p (a certificate borrowed from another point): Newton then starts where the
-// tangent plane at (s, t) puts p's foot, on the piece of N that holds it, rather than walking
-// there piece by piece.
+// a point far from p (a certificate borrowed from another point): on an N that spans patches,
+// Newton then starts where the tangent plane at (s, t) puts p's foot, on the piece that holds
+// it, rather than walking there piece by piece.
 double newton_on_certificate_box(const PreparedModel& model, std::int64_t anchor_patch, float s0,
                                  float s1, float t0, float t1, const Vec3& p, std::int64_t& patch,
                                  double& s, double& t, Vec3& foot, Vec3& normal, bool& stationary,

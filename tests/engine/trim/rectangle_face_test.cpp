@@ -18,6 +18,7 @@ namespace nurbsreg::engine {
 namespace {
 
 using test::polygon_loop;
+using test::rectangle_loop;
 using test::uv_line;
 
 NurbsSurface unit_sheet() {
@@ -27,25 +28,11 @@ NurbsSurface unit_sheet() {
   return s;
 }
 
-// The rectangle [u0, u1] x [v0, v1] as a loop of `pieces` curves a side (counter-clockwise, or
-// clockwise when `reverse`).
-TrimLoop rectangle(double u0, double u1, double v0, double v1, int pieces = 1,
-                   bool reverse = false) {
-  std::vector<Vec2> corners;
-  const Vec2 c[4] = {{u0, v0}, {u1, v0}, {u1, v1}, {u0, v1}};
-  for (int k = 0; k < 4; ++k) {
-    for (int i = 0; i < pieces; ++i)
-      corners.push_back(c[k] + (c[(k + 1) % 4] - c[k]) * (double(i) / pieces));
-  }
-  if (reverse) std::reverse(corners.begin(), corners.end());
-  return polygon_loop(corners);
-}
-
 TEST(RectangleFace, AnIsoParametricRectangleLoopIsOneClippedToTheDomain) {
   NurbsSurface s = unit_sheet();
   for (const bool reverse : {false, true}) {
     for (const int pieces : {1, 3}) {
-      s.trim_loops = {rectangle(0.2, 0.7, 0.5, 1.0, pieces, reverse)};
+      s.trim_loops = {rectangle_loop(0.2, 0.7, 0.5, 1.0, pieces, reverse)};
       const std::optional<UvRectangle> r = rectangle_of_face(s);
       ASSERT_TRUE(r.has_value()) << reverse << " " << pieces;
       EXPECT_EQ(r->u.lo, 0.2);
@@ -55,15 +42,15 @@ TEST(RectangleFace, AnIsoParametricRectangleLoopIsOneClippedToTheDomain) {
     }
   }
   // The domain's own border, and a loop beyond it (clipped: the face is the whole domain).
-  s.trim_loops = {rectangle(0.0, 1.0, 0.0, 1.0)};
+  s.trim_loops = {rectangle_loop(0.0, 1.0, 0.0, 1.0)};
   ASSERT_TRUE(rectangle_of_face(s).has_value());
-  s.trim_loops = {rectangle(-0.1, 1.0, 0.0, 1.2)};
+  s.trim_loops = {rectangle_loop(-0.1, 1.0, 0.0, 1.2)};
   const std::optional<UvRectangle> clipped = rectangle_of_face(s);
   ASSERT_TRUE(clipped.has_value());
   EXPECT_EQ(clipped->u.lo, 0.0);
   EXPECT_EQ(clipped->v.hi, 1.0);
   // A side's u off by a last bit (a conversion's rounding) is still on the line.
-  TrimLoop nudged = rectangle(0.2, 0.7, 0.5, 1.0);
+  TrimLoop nudged = rectangle_loop(0.2, 0.7, 0.5, 1.0);
   nudged.curves[1].uv.control_points[1].x() = std::nextafter(0.7, 1.0);
   s.trim_loops = {nudged};
   EXPECT_TRUE(rectangle_of_face(s).has_value());
@@ -77,13 +64,13 @@ TEST(RectangleFace, OtherLoopsAreNot) {
   };
   EXPECT_FALSE(is_one({}));  // untrimmed: nothing to convert
   // Two loops (a rectangle with a hole).
-  EXPECT_FALSE(is_one({rectangle(0.1, 0.9, 0.1, 0.9), rectangle(0.4, 0.6, 0.4, 0.6)}));
+  EXPECT_FALSE(is_one({rectangle_loop(0.1, 0.9, 0.1, 0.9), rectangle_loop(0.4, 0.6, 0.4, 0.6)}));
   // A triangle; a rectangle with one corner cut; a side bowed inwards (a quadratic whose middle
   // control point is off the line).
   EXPECT_FALSE(is_one({polygon_loop({{0.1, 0.1}, {0.9, 0.1}, {0.9, 0.9}})}));
   EXPECT_FALSE(
       is_one({polygon_loop({{0.1, 0.1}, {0.9, 0.1}, {0.9, 0.8}, {0.8, 0.9}, {0.1, 0.9}})}));
-  TrimLoop bowed = rectangle(0.1, 0.9, 0.1, 0.9);
+  TrimLoop bowed = rectangle_loop(0.1, 0.9, 0.1, 0.9);
   NurbsCurve side;
   side.degree = 2;
   side.dimension = 2;
@@ -92,25 +79,25 @@ TEST(RectangleFace, OtherLoopsAreNot) {
   bowed.curves[0].uv = side;
   EXPECT_FALSE(is_one({bowed}));
   // A side off its line by more than the allowance.
-  TrimLoop tilted = rectangle(0.1, 0.9, 0.1, 0.9);
+  TrimLoop tilted = rectangle_loop(0.1, 0.9, 0.1, 0.9);
   tilted.curves[1].uv.control_points[1].x() = 0.9 + 1e-9;
   EXPECT_FALSE(is_one({tilted}));
   // A loop along the border that does not go around it: out along the bottom and up the right
   // side, then back the same way (no area).
   EXPECT_FALSE(is_one({polygon_loop({{0.1, 0.1}, {0.9, 0.1}, {0.9, 0.9}, {0.9, 0.1}})}));
   // Around twice.
-  TrimLoop twice = rectangle(0.1, 0.9, 0.1, 0.9);
+  TrimLoop twice = rectangle_loop(0.1, 0.9, 0.1, 0.9);
   const TrimLoop again = twice;
   twice.curves.insert(twice.curves.end(), again.curves.begin(), again.curves.end());
   EXPECT_FALSE(is_one({twice}));
   // Curves on the border with a gap that cuts a corner (the engine closes gaps with straight
   // segments: the face would miss that corner).
-  TrimLoop gap = rectangle(0.1, 0.9, 0.1, 0.9);
+  TrimLoop gap = rectangle_loop(0.1, 0.9, 0.1, 0.9);
   gap.curves[0].uv = uv_line({0.1, 0.1}, {0.85, 0.1});
   gap.curves[1].uv = uv_line({0.9, 0.15}, {0.9, 0.9});
   EXPECT_FALSE(is_one({gap}));
   // A rectangle wholly outside the domain.
-  EXPECT_FALSE(is_one({rectangle(1.5, 2.0, 0.2, 0.4)}));
+  EXPECT_FALSE(is_one({rectangle_loop(1.5, 2.0, 0.2, 0.4)}));
 }
 
 // restrict_domain is the same function of (u, v) on the rectangle, with the rectangle as its
@@ -165,9 +152,9 @@ TEST(RectangleFace, RestrictDomainIsTheSameSurfaceOnTheRectangle) {
 TEST(RectangleFace, PreparedModelMakesTheRectangleAnUntrimmedSurface) {
   Model m;
   NurbsSurface half = unit_sheet();
-  half.trim_loops = {rectangle(0.0, 1.0, 0.5, 1.0, 2, true)};
+  half.trim_loops = {rectangle_loop(0.0, 1.0, 0.5, 1.0, 2, true)};
   NurbsSurface holed = unit_sheet();
-  holed.trim_loops = {rectangle(0.0, 1.0, 0.0, 1.0), rectangle(0.4, 0.6, 0.4, 0.6)};
+  holed.trim_loops = {rectangle_loop(0.0, 1.0, 0.0, 1.0), rectangle_loop(0.4, 0.6, 0.4, 0.6)};
   m.surfaces = {half, holed};
   const PreparedModel prepared(m);
   EXPECT_TRUE(prepared.rectangle_face(0));

@@ -30,11 +30,8 @@ namespace {
 constexpr double kPi = 3.14159265358979323846;
 
 using test::polygon_loop;
+using test::rectangle_loop;
 using test::uv_line;
-
-TrimLoop rectangle_loop(double u0, double u1, double v0, double v1) {
-  return polygon_loop({{u0, v0}, {u1, v0}, {u1, v1}, {u0, v1}});
-}
 
 // A star with `tips` points around c (radii alternating r_out, r_in), rotated by `phase`.
 TrimLoop star_loop(const Vec2& c, double r_in, double r_out, int tips, double phase) {
@@ -429,7 +426,12 @@ TEST(TrimmedProjection, InteriorMinimumBehindAHumpIsNotLostToACutAwayEdge) {
     for (int j = 0; j < 4; ++j)
       s.control_points.emplace_back(10.0 * i / 3.0, 10.0 * j / 3.0, z[i]);
   }
-  s.trim_loops.push_back(rectangle_loop(0.25, 0.98, 0.02, 0.98));
+  // The face u >= 0.25 (within a margin) with a corner cut far from the answers: a plain rectangle
+  // would be projected as that rectangle of the surface, untrimmed (PreparedModel::
+  // rectangle_face), which is checked too, but the straddling boxes are the point here.
+  const TrimLoop cut =
+      polygon_loop({{0.25, 0.02}, {0.98, 0.02}, {0.98, 0.98}, {0.3, 0.98}, {0.25, 0.93}});
+  s.trim_loops.push_back(cut);
   auto squared_distance_u = [&](double u) {
     const Vec3 x = s.evaluate(u, 0.5);
     return (x.x() - px) * (x.x() - px) + (x.z() - pz) * (x.z() - pz);
@@ -452,16 +454,20 @@ TEST(TrimmedProjection, InteriorMinimumBehindAHumpIsNotLostToACutAwayEdge) {
   best = std::min(best, squared_distance_u(0.5 * (a + b)));
   ASSERT_GT(best_u, 0.5);  // the interior minimum, not the loop u = 0.25
   ASSERT_LT(best + 5.0, squared_distance_u(0.25));
-  const PreparedModel model(single(s));
   std::vector<Vec3> pts;
   for (double py : {2.5, 3.7, 5.0, 6.1, 7.9})
     pts.emplace_back(px, py, pz);
-  ProjectionResults out;
-  Projector(model).project_serial(PointView::of(pts), {}, out);
-  for (std::size_t i = 0; i < pts.size(); ++i) {
-    EXPECT_NEAR(out.distance[i], std::sqrt(best), 1e-9 * diagonal(model)) << i;
-    EXPECT_NEAR(out.u[i], 0.5 * (a + b), 1e-6) << i;
-    EXPECT_NEAR(out.v[i], pts[i].y() / 10.0, 1e-9) << i;
+  for (const bool rectangle : {false, true}) {
+    s.trim_loops = {rectangle ? rectangle_loop(0.25, 0.98, 0.02, 0.98) : cut};
+    const PreparedModel model(single(s));
+    ASSERT_EQ(model.rectangle_face(0), rectangle);
+    ProjectionResults out;
+    Projector(model).project_serial(PointView::of(pts), {}, out);
+    for (std::size_t i = 0; i < pts.size(); ++i) {
+      EXPECT_NEAR(out.distance[i], std::sqrt(best), 1e-9 * diagonal(model)) << rectangle << i;
+      EXPECT_NEAR(out.u[i], 0.5 * (a + b), 1e-6) << rectangle << i;
+      EXPECT_NEAR(out.v[i], pts[i].y() / 10.0, 1e-9) << rectangle << i;
+    }
   }
 }
 
@@ -733,7 +739,7 @@ TEST(TrimmedProjection, RectangleFaceMatchesBruteForce) {
     const ParamInterval du = s.domain_u(), dv = s.domain_v();
     const double u0 = du.to_parent(0.13), u1 = du.to_parent(0.71);
     const double v0 = dv.to_parent(0.3), v1 = dv.to_parent(0.94);
-    s.trim_loops.push_back(polygon_loop({{u0, v0}, {u1, v0}, {u1, v1}, {u0, v1}}));
+    s.trim_loops.push_back(rectangle_loop(u0, u1, v0, v1));
     const PreparedModel model(single(s));
     ASSERT_TRUE(model.rectangle_face(0));
     std::vector<Vec3> pts = box_points(control_box(s), 150, 7262, 0.2);
