@@ -173,6 +173,14 @@ NurbsSurface surface_from_grid(const NurbsSurface& like, std::vector<double> kno
   return out;
 }
 
+// `refined` (a new knot vector of `s`: the same function of (u, v)) with s's face: its trim loops
+// and orientation.
+NurbsSurface same_face(const NurbsSurface& s, NurbsSurface refined) {
+  refined.trim_loops = s.trim_loops;
+  refined.reversed = s.reversed;
+  return refined;
+}
+
 // Applies `op` (knots, line of points) -> (new knots, new line) to every line along u
 // (along_u) or v, rebuilding the grid. All lines get the same new knot vector.
 template <typename Op>
@@ -234,7 +242,7 @@ NurbsSurface refine_knots_u(const NurbsSurface& s, std::span<const double> inser
     pts = std::move(out);
     return k;
   });
-  return surface_from_grid(s, std::move(knots), s.knots_v, g);
+  return same_face(s, surface_from_grid(s, std::move(knots), s.knots_v, g));
 }
 
 NurbsSurface refine_knots_v(const NurbsSurface& s, std::span<const double> insert) {
@@ -246,7 +254,7 @@ NurbsSurface refine_knots_v(const NurbsSurface& s, std::span<const double> inser
     pts = std::move(out);
     return k;
   });
-  return surface_from_grid(s, s.knots_u, std::move(knots), g);
+  return same_face(s, surface_from_grid(s, s.knots_u, std::move(knots), g));
 }
 
 NurbsSurface clamp(const NurbsSurface& s) {

@@ -13,39 +13,15 @@
 #include <optional>
 #include <stdexcept>
 
+#include "model/patch_frame.hpp"
 #include "model/prepared_model_internals.hpp"
+#include "model/search_refinement.hpp"
 #include "nurbsreg/engine/decompose.hpp"
 #include "proofs/reach_bounds.hpp"
 #include "trim/rectangle_face.hpp"
 
 namespace nurbsreg::engine {
 namespace {
-
-// The frame of a patch's control net: a = the direction between its first and last rows, n the
-// normal of the net's two diagonals' plane made orthogonal to a, b = n x a. Any orthonormal
-// frame gives a valid bound (the control points are projected on each axis); this one makes the
-// box thin along the normal for a nearly flat patch.
-void oriented_axes(const BezierPatch& bp, Vec3 axis[3]) {
-  const int p = bp.degree_u, q = bp.degree_v;
-  auto point = [&](int i, int j) -> Vec3 {
-    const Vec4& c = bp.at(i, j);
-    return c.head<3>() / c[3];
-  };
-  Vec3 a = point(p, 0) + point(p, q) - point(0, 0) - point(0, q);
-  Vec3 b = point(0, q) + point(p, q) - point(0, 0) - point(p, 0);
-  Vec3 n = a.cross(b);
-  if (!(a.norm() > 0.0) || !(n.norm() > 1e-12 * a.norm() * b.norm())) {
-    axis[0] = Vec3::UnitX();
-    axis[1] = Vec3::UnitY();
-    axis[2] = Vec3::UnitZ();
-    return;
-  }
-  a.normalize();
-  n.normalize();
-  axis[0] = a;
-  axis[1] = n.cross(a).normalized();
-  axis[2] = n;
-}
 
 // Does the 2-D rational Bézier curve (homogeneous (w u, w v, -, w)) meet the open box
 // (u0, u1) x (v0, v1)? Conservative: true unless the control points' box of the curve, or of
@@ -191,17 +167,33 @@ PreparedModel::PreparedModel(Model model)
   for (const std::exception_ptr& e : region_errors) {
     if (e) std::rethrow_exception(e);
   }
+  // The patches the search works on: each surface's Bézier patches, cut finer where they are far
+  // from flat (refine_for_search: the same function of (u, v); model_ keeps the surface as
+  // given). A task per surface, each from its own surface alone: the same patches for any number
+  // of threads.
+  std::vector<std::vector<BezierPatch>> surface_pieces(model_.surfaces.size());
+  std::vector<Aabb> given_boxes(model_.surfaces.size());
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, model_.surfaces.size()),
+                    [&](const tbb::blocked_range<std::size_t>& r) {
+                      for (std::size_t s = r.begin(); s != r.end(); ++s) {
+                        const SpanPieces cut = search_pieces(model_.surfaces[s]);
+                        surface_pieces[s] = decompose(refine_for_search(model_.surfaces[s], cut));
+                        given_boxes[s] = cut.control_box;
+                      }
+                    });
+  nurbsreg::engine::stop_if_cancelled();
+  for (const Aabb& box : given_boxes)
+    bounds_.extend(box);
   for (std::size_t s = 0; s < model_.surfaces.size(); ++s) {
     const NurbsSurface& surface = model_.surfaces[s];
     SurfacePatches layout;
     layout.first = patches_.size();
-    const std::vector<BezierPatch> pieces = decompose(model_.surfaces[s]);
+    const std::vector<BezierPatch> pieces = std::move(surface_pieces[s]);
     surface_certifiable_.push_back(0);
     for (const BezierPatch& patch : pieces) {
       patches_.push_back(prepare_patch(patch));
       patch_surface_.push_back(static_cast<int>(s));
       patch_class_.push_back(RegionClass::inside);
-      bounds_.extend(patches_.back().box);
       surface_certifiable_.back() = 1;
       any_certifiable_ = true;
     }
@@ -263,18 +255,7 @@ PreparedModel::PreparedModel(Model model)
     const BezierPatch& bp = patches_[i].patch;
     OrientedBox ob;
     oriented_axes(bp, ob.axis);
-    for (int k = 0; k < 3; ++k) {
-      ob.lo[k] = std::numeric_limits<double>::infinity();
-      ob.hi[k] = -ob.lo[k];
-    }
-    for (const Vec4& c : bp.cw) {
-      const Vec3 x = c.head<3>() / c[3];
-      for (int k = 0; k < 3; ++k) {
-        const double y = ob.axis[k].dot(x);
-        ob.lo[k] = std::min(ob.lo[k], y);
-        ob.hi[k] = std::max(ob.hi[k], y);
-      }
-    }
+    extents_along(bp, ob.axis, ob.lo, ob.hi);
     // Rounding in the projections (relative 1e-15 of |x|): widen so the box still holds every
     // control point's true projection.
     for (int k = 0; k < 3; ++k) {

@@ -19,6 +19,8 @@ NurbsCurve insert_knot(const NurbsCurve& curve, double u, int times);
 // The same curve on its domain with clamped end knots (multiplicity degree + 1).
 NurbsCurve clamp(const NurbsCurve& curve);
 
+// The surface with the sorted values `insert` added to its u (or v) knots: the same function of
+// (u, v), the same trim loops and orientation.
 NurbsSurface refine_knots_u(const NurbsSurface& surface, std::span<const double> insert);
 NurbsSurface refine_knots_v(const NurbsSurface& surface, std::span<const double> insert);
 NurbsSurface clamp(const NurbsSurface& surface);
