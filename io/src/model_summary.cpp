@@ -87,6 +87,8 @@ ModelSummary summarize_model(const engine::Model& model) {
   for (std::size_t k = 0; k < summary.surfaces.size(); ++k) {
     summary.surfaces[k].geometry = engine::compute_surface_bounds(prepared, static_cast<int>(k));
     summary.surfaces[k].trimmed_to_rectangle = prepared.rectangle_face(static_cast<int>(k));
+    summary.surfaces[k].search_patches = prepared.surface_patch_count(static_cast<int>(k));
+    summary.search_patches += summary.surfaces[k].search_patches;
   }
   for (EntitySummary& e : summary.curves) {
     e.geometry.box = e.geometry.witnessed = e.box;
@@ -103,17 +105,26 @@ std::string format_model_summary(const ModelSummary& m, const std::string& model
   for (const auto& e : m.curves)
     rational_curves += e.rational ? 1 : 0;
   std::string out = "model: " + model_label + " (units " + m.units + ")\n";
-  out += "surfaces: " + std::to_string(m.surfaces.size()) + " (" +
-         std::to_string(rational_surfaces) + " rational" +
-         (m.trimmed_surfaces > 0 ? ", " + std::to_string(m.trimmed_surfaces) + " trimmed" : "") +
-         "), Bézier patches: " + std::to_string(m.bezier_patches) + "\n";
+  out +=
+      "surfaces: " + std::to_string(m.surfaces.size()) + " (" + std::to_string(rational_surfaces) +
+      " rational" +
+      (m.trimmed_surfaces > 0 ? ", " + std::to_string(m.trimmed_surfaces) + " trimmed" : "") +
+      "), Bézier patches: " + std::to_string(m.bezier_patches) +
+      (m.search_patches != m.bezier_patches ? " (searched as " + std::to_string(m.search_patches) +
+                                                  ": patches far from flat are cut finer)"
+                                            : "") +
+      "\n";
   for (const auto& e : m.surfaces) {
     out += "  " + label("surface", e) + ": degree (" + std::to_string(e.degree_u) + ", " +
            std::to_string(e.degree_v) + "), " + std::to_string(e.count_u) + " x " +
            std::to_string(e.count_v) + " control points, " +
            (e.rational ? "rational" : "polynomial") + ", " + std::to_string(e.bezier_pieces) +
-           " Bézier patches, u [" + number(e.domain_u.lo) + ", " + number(e.domain_u.hi) +
-           "], v [" + number(e.domain_v.lo) + ", " + number(e.domain_v.hi) + "]";
+           " Bézier patches" +
+           (e.search_patches != e.bezier_pieces
+                ? " (searched as " + std::to_string(e.search_patches) + ")"
+                : "") +
+           ", u [" + number(e.domain_u.lo) + ", " + number(e.domain_u.hi) + "], v [" +
+           number(e.domain_v.lo) + ", " + number(e.domain_v.hi) + "]";
     if (e.trim_loops > 0) {
       out += ", trimmed (" + std::to_string(e.trim_loops) + " loops, " +
              std::to_string(e.trim_curves) + " curves" +
@@ -166,6 +177,7 @@ std::string model_summary_to_json(const ModelSummary& m) {
       j["trim_loops"] = e.trim_loops;
       j["trim_curves"] = e.trim_curves;
       j["trimmed_to_rectangle"] = e.trimmed_to_rectangle;
+      j["search_patches"] = e.search_patches;
       j["reversed"] = e.reversed;
     } else {
       j["degree"] = e.degree_u;
@@ -197,6 +209,7 @@ std::string model_summary_to_json(const ModelSummary& m) {
                {"surfaces", std::move(surfaces)},
                {"curves", std::move(curves)},
                {"bezier_patches", m.bezier_patches},
+               {"search_patches", m.search_patches},
                {"bezier_curve_pieces", m.bezier_curve_pieces},
                {"bounding_box", box_json(m.geometry.box)},
                {"bounding_box_kind", m.geometry.kind()},

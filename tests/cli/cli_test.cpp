@@ -118,6 +118,45 @@ TEST(Cli, InfoReportsTheExamplePanel) {
   EXPECT_EQ(doc["surfaces"].size(), 1u);
 }
 
+// `info` says how many patches the engine searches where it cuts a surface's own finer: a long
+// twisted strip is cut along its length; a plane is not.
+TEST(Cli, InfoCountsThePatchesTheSearchCutsFiner) {
+  ScratchDir dir("info_search_patches");
+  std::string strip = "[";
+  for (int i = 0; i < 4; ++i) {
+    const double a = 1.0 * i, x = 100.0 * i / 3;
+    strip += std::string(i ? ", " : "") + "[[" + std::to_string(x) + ", " +
+             std::to_string(-0.5 * std::cos(a)) + ", " + std::to_string(-0.5 * std::sin(a)) +
+             "], [" + std::to_string(x) + ", " + std::to_string(0.5 * std::cos(a)) + ", " +
+             std::to_string(0.5 * std::sin(a)) + "]]";
+  }
+  strip += "]";
+  const std::string model = dir / "strip.json";
+  std::ofstream(model)
+      << R"({"nurbsreg_model": 1, "surfaces": [{"name": "twisted", "degree": [3, 1],
+      "knots_u": [0, 0, 0, 0, 1, 1, 1, 1], "knots_v": [0, 0, 1, 1], "control_points": )" +
+             strip + R"(}, {"name": "plane", "degree": [1, 1],
+      "knots_u": [0, 0, 1, 1], "knots_v": [0, 0, 1, 1],
+      "control_points": [[[0, 0, 5], [0, 10, 5]], [[10, 0, 5], [10, 10, 5]]]}]})";
+  const CommandResult json = run_nurbsreg("info --json --model " + model, dir.path());
+  ASSERT_EQ(json.status, 0) << json.err;
+  const auto doc = nlohmann::json::parse(json.out);
+  EXPECT_EQ(doc["surfaces"][0]["bezier_patches"], 1);
+  EXPECT_GT(doc["surfaces"][0]["search_patches"].get<int>(), 1);
+  EXPECT_EQ(doc["surfaces"][1]["search_patches"], 1);
+  EXPECT_EQ(doc["search_patches"].get<int>(), doc["surfaces"][0]["search_patches"].get<int>() + 1);
+  const CommandResult text = run_nurbsreg("info --model " + model, dir.path());
+  ASSERT_EQ(text.status, 0) << text.err;
+  EXPECT_NE(text.out.find("patches far from flat are cut finer"), std::string::npos) << text.out;
+  const std::size_t twisted = text.out.find("\"twisted\"");
+  ASSERT_NE(twisted, std::string::npos) << text.out;
+  EXPECT_NE(text.out.substr(twisted, text.out.find('\n', twisted) - twisted).find("(searched as "),
+            std::string::npos)
+      << text.out;
+  EXPECT_EQ(text.out.find("(searched as ", text.out.find("\"plane\"")), std::string::npos)
+      << text.out;
+}
+
 // A face whose loop is a rectangle of its domain is named so (the engine projects it untrimmed);
 // a triangle's face is not.
 TEST(Cli, InfoNamesTheFacesTrimmedToARectangle) {

@@ -91,6 +91,12 @@ class PreparedModel {
   }
   bool any_certifiable() const { return any_certifiable_; }
 
+  // The Bézier patches the search uses for surface s: its own, cut finer where they are far from
+  // flat (the same function of (u, v); see model/search_refinement.hpp).
+  std::size_t surface_patch_count(int s) const {
+    const SurfacePatches& layout = surface_patches_[static_cast<std::size_t>(s)];
+    return static_cast<std::size_t>(layout.spans_u) * static_cast<std::size_t>(layout.spans_v);
+  }
   // Where patch i sits in its surface's grid of Bézier patches: u span a, v span b.
   struct SpanCell {
     int a = 0, b = 0;

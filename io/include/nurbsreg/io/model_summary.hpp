@@ -30,6 +30,9 @@ struct EntitySummary {
   int count_v = 0;   // curves: 1
   bool rational = false;
   std::size_t bezier_pieces = 0;  // patches (surfaces) or pieces (curves)
+  // Surfaces: the patches the engine searches (bezier_pieces, cut finer where they are far from
+  // flat: engine::PreparedModel::surface_patch_count).
+  std::size_t search_patches = 0;
   engine::ParamInterval domain_u;
   engine::ParamInterval domain_v;  // curves: [0, 0]
   engine::Aabb box;
@@ -48,6 +51,7 @@ struct ModelSummary {
   std::vector<EntitySummary> surfaces;
   std::vector<EntitySummary> curves;
   std::size_t bezier_patches = 0;       // over all surfaces
+  std::size_t search_patches = 0;       // over all surfaces
   std::size_t bezier_curve_pieces = 0;  // over all curves
   engine::Aabb box;                     // over everything (control points, untrimmed)
   engine::ModelBounds geometry;         // over everything: trimmed faces, edges, curves
@@ -66,8 +70,9 @@ std::string format_model_summary(const ModelSummary& summary, const std::string&
 // "bezier_patches", "bezier_curve_pieces", "bounding_box": {"min": [..], "max": [..]},
 // "bounding_box_kind": "exact" | "proven bound", "bounding_box_excess", "control_point_box",
 // "trimmed_surfaces", "skipped_faces": [{"face", "reason"}]}; each surface also has "trimmed",
-// "trim_loops", "trim_curves" and "reversed", and its "bounding_box" is its trimmed face's (with
-// "bounding_box_kind", "bounding_box_excess" and "control_point_box").
+// "trim_loops", "trim_curves", "reversed" and "search_patches" (also a total), and its
+// "bounding_box" is its trimmed face's (with "bounding_box_kind", "bounding_box_excess" and
+// "control_point_box").
 std::string model_summary_to_json(const ModelSummary& summary);
 
 }  // namespace nurbsreg::io
