@@ -43,10 +43,21 @@ void bind_model(py::module_& m) {
       .def_property_readonly(
           "bounds",
           [](const ModelHandle& h) {
+            const engine::Aabb& box = h.prepared().geometry_bounds().box;
+            return py::make_tuple(vector3(box.lo), vector3(box.hi));
+          },
+          "(min, max) corners of the model's bounding box: its faces as trimmed, their edges and "
+          "its curves (info()[\"bounding_box\"], a proven bound; "
+          "info()[\"bounding_box_kind\"] says whether it is exact).")
+      .def_property_readonly(
+          "control_point_box",
+          [](const ModelHandle& h) {
             return py::make_tuple(vector3(h.prepared().bounds().lo),
                                   vector3(h.prepared().bounds().hi));
           },
-          "(min, max) corners of the prepared model's bounding box.")
+          "(min, max) corners of the box of every control point, trimmed away or not "
+          "(info()[\"control_point_box\"]): far larger than bounds where faces are small pieces "
+          "of large surfaces.")
       .def(
           "info",
           [](const ModelHandle& h) {

@@ -1,5 +1,7 @@
 """nurbsreg.project: the CLI's rows, every accepted array layout, and the errors."""
 
+import json
+
 import numpy as np
 import pytest
 
@@ -154,3 +156,39 @@ def test_bad_options_name_the_argument(panel, points):
 def test_scan_far_larger_than_the_model_warns_as_the_cli(panel):
     with pytest.warns(nurbsreg.NurbsregWarning, match="the scan is .* times the size of the model"):
         nurbsreg.project(panel, np.array([[0.0, 0, 0], [5000, 5000, 5000]]))
+
+
+def test_model_size_is_its_trimmed_faces_as_in_the_cli(tmp_path):
+    """A face cut from a large surface is as large as the face: Model.bounds is info's
+    bounding_box (not the control points' box), and project's scan-size warning measures the
+    scan against it, word for word as `nurbsreg project` does."""
+    side = lambda u0, v0, u1, v1: {"uv": {"degree": 1, "knots": [0, 0, 1, 1],
+                                          "control_points": [[u0, v0], [u1, v1]]}}
+    corner = {"nurbsreg_model": 1, "surfaces": [{
+        "name": "corner", "degree": [1, 1], "knots_u": [0, 0, 1, 1], "knots_v": [0, 0, 1, 1],
+        "control_points": [[[0, 0, 0], [0, 1000, 0]], [[1000, 0, 0], [1000, 1000, 0]]],
+        "trim_loops": [{"curves": [side(0, 0, 0.01, 0), side(0.01, 0, 0, 0.01),
+                                   side(0, 0.01, 0, 0)]}]}]}
+    path = tmp_path / "corner.json"
+    path.write_text(json.dumps(corner))
+    model = nurbsreg.load_model(path)
+    info = model.info()
+    lo, hi = model.bounds
+    assert lo.tolist() == info["bounding_box"]["min"] and hi.tolist() == info["bounding_box"]["max"]
+    assert np.linalg.norm(hi - lo) == pytest.approx(10 * np.sqrt(2), rel=1e-9)
+    c_lo, c_hi = model.control_point_box
+    assert c_lo.tolist() == info["control_point_box"]["min"]
+    assert np.linalg.norm(c_hi - c_lo) == pytest.approx(1000 * np.sqrt(2), rel=1e-9)
+    # 20 times the face's size, a fifth of the surface's: the CLI warns, and so must Python.
+    points = np.array([[0.0, 0, 0], [200, 200, 0], [5, 1, 0], [100, 0, 0]])
+    scan = tmp_path / "scan.xyz"
+    np.savetxt(scan, points)
+    cli = run_cli("project", "--model", str(path), "--points", str(scan),
+                  "--out", str(tmp_path / "r.csv"))
+    cli_lines = [line for line in cli.stderr.splitlines() if "times the size of the model" in line]
+    assert len(cli_lines) == 1, cli.stderr
+    with pytest.warns(nurbsreg.NurbsregWarning) as caught:
+        nurbsreg.project(model, points)
+    notes = [str(w.message) for w in caught if "times the size of the model" in str(w.message)]
+    assert len(notes) == 1 and "20 times" in notes[0]
+    assert notes[0].split("points: ", 1)[1] in cli_lines[0]

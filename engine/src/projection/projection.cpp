@@ -138,6 +138,10 @@ void Projector::project(PointView points, const ProjectionOptions& options, Proj
     spatial_order(points, impl_->order, impl_->order_scratch);
     order = impl_->order;
   }
+  // The default certificate cap is a share of the model's trimmed size: computed once per model
+  // (single-threaded, milliseconds), here rather than by the first task of the loop while the
+  // others wait for it.
+  if (!(options.certificate_radius > 0.0)) (void)model_.geometry_bounds();
   tbb::parallel_for(
       tbb::blocked_range<std::size_t>(0, points.size(), std::max<std::size_t>(1, options.grain)),
       [&](const tbb::blocked_range<std::size_t>& range) {

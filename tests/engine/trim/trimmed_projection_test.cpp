@@ -847,5 +847,44 @@ TEST(TrimmedProjection, MultiFaceModelIsTheBestOfItsFaces) {
     EXPECT_NE(std::count(all.entity.begin(), all.entity.end(), f), 0) << f;
 }
 
+// The default certificate radius is a share of the model's size as trimmed (issue 26, item 4): a
+// face that is a corner of a large plane (a triangle 10 wide cut from a plane 1000 wide) gets
+// certificates of at most 1e-3 of its own diagonal, not of the plane's.
+TEST(TrimmedProjection, DefaultCertificateRadiusFollowsTheTrimmedFaces) {
+  NurbsSurface s;
+  s.name = "corner of a large plane";
+  s.degree_u = s.degree_v = 1;
+  s.knots_u = s.knots_v = {0, 0, 1, 1};
+  s.count_u = s.count_v = 2;
+  s.control_points = {Vec3(0, 0, 0), Vec3(0, 1000, 0), Vec3(1000, 0, 0), Vec3(1000, 1000, 0)};
+  s.trim_loops.push_back(polygon_loop({Vec2(0, 0), Vec2(0.01, 0), Vec2(0, 0.01)}));
+  const PreparedModel model(single(s));
+  const double size = model.geometry_bounds().box.diagonal();
+  ASSERT_NEAR(size, 10.0 * std::sqrt(2.0), 1e-9);
+  ASSERT_GT(model.bounds().diagonal(), 1000.0);
+  std::vector<Vec3> pts;
+  for (double x : {1.0, 2.0, 3.0}) {
+    for (double y : {1.0, 2.0, 3.0}) {
+      for (double z : {0.5, -1.0})
+        pts.emplace_back(x, y, z);
+    }
+  }
+  Projector projector(model);
+  ProjectionOptions options;
+  options.certify = true;
+  ProjectionResults out;
+  projector.project_serial(PointView::of(pts), options, out);
+  int made = 0;
+  for (std::size_t i = 0; i < pts.size(); ++i) {
+    ASSERT_EQ(out.status[i], ProjectionStatus::ok) << i;
+    EXPECT_NEAR(out.distance[i], std::abs(pts[i].z()), 1e-12) << i;
+    const WarmCertificate& c = out.certificate[i];
+    if (!(c.radius > 0.0f)) continue;
+    ++made;
+    EXPECT_LE(c.radius, 1e-3 * size) << i;
+  }
+  EXPECT_GT(made, 0);
+}
+
 }  // namespace
 }  // namespace nurbsreg::engine

@@ -171,7 +171,7 @@ struct ProjectionOptions {
   // points come back near where they were (ICP iterations, tracking frames).
   bool certify = false;
   // Largest anchor radius sought (the certificate's radius is also limited by convexity); <= 0:
-  // 0.1% of the model's bounding-box diagonal.
+  // 0.1% of the diagonal of the model's trimmed faces' box (PreparedModel::geometry_bounds).
   double certificate_radius = 0.0;
   // How many patches beyond the foot's, on each side, a certificate's box may reach on a surface
   // of several patches (1 .. kMaxCertificateSpan). Wider boxes serve larger balls where the
