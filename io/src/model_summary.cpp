@@ -34,6 +34,13 @@ nlohmann::ordered_json box_json(const engine::Aabb& box) {
 }  // namespace
 
 ModelSummary summarize_model(const engine::Model& model) {
+  // The trimmed geometry's boxes need the prepared form (trim regions, edges).
+  return summarize_model(model, engine::PreparedModel(model));
+}
+
+// The entities as the file gives them (`model`: the prepared form's own copy holds the faces
+// trimmed to a rectangle as untrimmed surfaces), the trimmed boxes from `prepared`.
+ModelSummary summarize_model(const engine::Model& model, const engine::PreparedModel& prepared) {
   ModelSummary summary;
   summary.units = model.units;
   for (std::size_t k = 0; k < model.surfaces.size(); ++k) {
@@ -81,8 +88,6 @@ ModelSummary summarize_model(const engine::Model& model) {
     summary.curves.push_back(std::move(e));
   }
   summary.skipped_faces = model.skipped_faces;
-  // The trimmed geometry's boxes need the prepared form (trim regions, edges).
-  const engine::PreparedModel prepared(model);
   summary.geometry = prepared.geometry_bounds();
   for (std::size_t k = 0; k < summary.surfaces.size(); ++k) {
     summary.surfaces[k].geometry = engine::compute_surface_bounds(prepared, static_cast<int>(k));

@@ -61,7 +61,8 @@ void bind_model(py::module_& m) {
       .def(
           "info",
           [](const ModelHandle& h) {
-            const std::string text = io::model_summary_to_json(io::summarize_model(h.model()));
+            const std::string text =
+                io::model_summary_to_json(io::summarize_model(h.model(), h.prepared()));
             return py::module_::import("json").attr("loads")(text);
           },
           "What `nurbsreg info --json` says of the model, as a dict: units, surfaces (faces: "

@@ -9,7 +9,8 @@
 // surface, can be many times its size. `geometry` (per surface and overall) is the proven box of
 // the trimmed faces, their edges and the curves (engine/model_bounds.hpp), exact or a proven
 // bound at most `excess` beyond them: the model's size that `info` reports as its bounding box.
-// summarize_model prepares the model once (allocates; load-time code). Thread-safe.
+// summarize_model prepares the model once (allocates; load-time code), or uses the given
+// PreparedModel made from it (and its geometry_bounds, computed once per model). Thread-safe.
 
 #include <cstddef>
 #include <string>
@@ -18,6 +19,7 @@
 #include "nurbsreg/engine/bounds.hpp"
 #include "nurbsreg/engine/model.hpp"
 #include "nurbsreg/engine/model_bounds.hpp"
+#include "nurbsreg/engine/prepared_model.hpp"
 
 namespace nurbsreg::io {
 
@@ -60,6 +62,8 @@ struct ModelSummary {
 };
 
 ModelSummary summarize_model(const engine::Model& model);
+// `prepared` must have been made from `model`.
+ModelSummary summarize_model(const engine::Model& model, const engine::PreparedModel& prepared);
 
 // Human-readable, one line per entity, e.g.
 //   surface 0 "hood": degree (3, 3), 7 x 6 control points, rational, 12 Bézier patches, ...
