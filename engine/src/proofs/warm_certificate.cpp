@@ -696,6 +696,20 @@ SpanCertificate certify_span(const PreparedModel& model, std::size_t patch, cons
       c.patches[c.count++] = k;
     }
   }
+  // Each piece's grid of F (its numerator), made once: the convexity proof (once or twice) and
+  // the bound beside N read it. In the scratch's grids after the ones the proofs use.
+  constexpr int kFirstPieceGrid = 12;
+  static_assert((kFirstPieceGrid + SpanCertificate::kMaxPatches) * SurfaceScratch::kGridCapacity <=
+                (SurfaceScratch::kStackCapacity + 1) * 2 * SurfaceScratch::kGridCapacity);
+  bool made[SpanCertificate::kMaxPatches] = {};
+  const auto numerator_of = [&](int k) {
+    double* f = scratch.grids.data() + (kFirstPieceGrid + k) * SurfaceScratch::kGridCapacity;
+    if (!made[k]) {
+      pieces[k].pp->numerator(a, f);
+      made[k] = true;
+    }
+    return static_cast<const double*>(f);
+  };
   // Every piece strictly convex, or (an edge foot) every piece increasing away from the edge: the
   // same kind of proof on all of them, so that they add up to one on N.
   const auto radius_over_pieces = [&](bool edge) {
@@ -704,8 +718,7 @@ SpanCertificate certify_span(const PreparedModel& model, std::size_t patch, cons
       const PreparedPatch& pp = *pieces[k].pp;
       const LocalBox& b = pieces[k].box;
       const double ws = b.s1 - b.s0, wt = b.t1 - b.t0;
-      pp.numerator(a, full);
-      restrict_grid(full, grid, work, strip, pp.rows, pp.cols, b);
+      restrict_grid(numerator_of(k), grid, work, strip, pp.rows, pp.cols, b);
       radius = edge ? edge_radius(grid, pp.rows, pp.cols, s_edge, t_edge, pp.e_s * ws, pp.e_t * wt,
                                   pp.e_ss * ws * ws, pp.e_tt * wt * wt, radius)
                     : grid_convexity_radius(grid, pp.rows, pp.cols, pp.e_ss * ws * ws,
@@ -724,10 +737,9 @@ SpanCertificate certify_span(const PreparedModel& model, std::size_t patch, cons
     const LocalBox& b = pieces[k].box;
     if (b.s0 == 0.0 && b.s1 == 1.0 && b.t0 == 0.0 && b.t1 == 1.0) continue;  // all inside N
     const double reach = pp.sphere.radius + (a - pp.origin).norm();
-    pp.numerator(a, full);
     c.outside_sq =
-        std::min(c.outside_sq, tiled_lower_bound<false>(full, nullptr, pp.rows, pp.cols, b, target,
-                                                        1e-14 * reach * reach,
+        std::min(c.outside_sq, tiled_lower_bound<false>(numerator_of(k), nullptr, pp.rows, pp.cols,
+                                                        b, target, 1e-14 * reach * reach,
                                                         work + SurfaceScratch::kGridCapacity));
     if (!(c.outside_sq > (d + 2.0 * floor) * (d + 2.0 * floor))) return SpanCertificate{};
   }

@@ -93,8 +93,9 @@ struct SpanCertificate {
 // surface's own edge or corner, F_q increasing away from it on every piece and convex along it.
 // Gives up (radius 0) as soon as it cannot serve moves beyond `floor`: radius <= floor, or the
 // overlapped patches within d + 2 floor of a. Polynomial patches only; on a trimmed face every
-// piece of N must be proven inside the region (box_in_region). Uses the scratch's first 11
-// grids; no heap allocation.
+// piece of N must be proven inside the region (box_in_region). Uses the scratch's first 12
+// grids and one more per patch N overlaps (each patch's grid of F made once); no heap
+// allocation.
 SpanCertificate certify_span(const PreparedModel& model, std::size_t patch, const Vec3& a, double s,
                              double t, double d, double r_max, double half_s, double half_t,
                              double floor, int reach, SurfaceScratch& scratch);
