@@ -140,6 +140,10 @@ double tiled_lower_bound(const double* full_n, const double* full_d, int rows, i
   for (int a = 0; a < 3; ++a) {
     const double s0 = s_cuts[a], s1 = s_cuts[a + 1];
     if (!(s1 > s0)) continue;
+    // A column beside N whose every coefficient (ratio) is at least the bound so far cannot lower
+    // it: its tiles' coefficients are convex combinations of its own. On a box that spans several
+    // patches the columns beyond it mostly lie farther than the target.
+    if (a != 1 && smallest(column[0][a], column[kGrids - 1][a]) >= bound) continue;
     // The column's tiles, transposed (cols x rows, t along rows): the smallest coefficient
     // does not change.
     for (int g = 0; g < kGrids; ++g) {
