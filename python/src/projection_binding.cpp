@@ -101,7 +101,7 @@ FramePtr project(const ModelPtr& model, const py::handle& points_object, const s
   // The CLI's warning for a scan far larger or smaller than the model (registration::scan_size
   // on the finite points, against the trimmed faces' box as there).
   const registration::ScanSize sizes{frame->results.size() > frame->skipped ? box.diagonal() : 0.0,
-                                     model->prepared().geometry_bounds().box.diagonal(), m.units};
+                                     registration::model_size(model->prepared()), m.units};
   if (const auto note = sizes.warning()) frame->warnings.push_back("points: " + *note);
   return frame;
 }

@@ -8,8 +8,11 @@ ScanSize scan_size(std::span<const engine::Vec3> scan, const engine::PreparedMod
   engine::Aabb box;
   for (const engine::Vec3& p : scan)
     box.extend(p);
-  // The trimmed faces' box: a face cut from a large surface is as large as the face.
-  return {box.diagonal(), model.geometry_bounds().box.diagonal(), model.model().units};
+  return {box.diagonal(), model_size(model), model.model().units};
+}
+
+double model_size(const engine::PreparedModel& model) {
+  return model.geometry_bounds().box.diagonal();
 }
 
 std::optional<std::string> ScanSize::note(double smaller, double larger) const {

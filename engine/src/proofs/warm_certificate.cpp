@@ -66,6 +66,8 @@ double smallest_of(const double* x, int n) {
 
 struct LocalBox {
   double s0, s1, t0, t1;
+  // All of the patch's [0, 1]^2.
+  bool whole() const { return s0 == 0.0 && s1 == 1.0 && t0 == 0.0 && t1 == 1.0; }
 };
 
 // `out` = the grid `in` restricted to the box (s first, then t), through `work` and `strip`.
@@ -728,8 +730,7 @@ SpanCertificate certify_span(const PreparedModel& model, std::size_t patch, cons
       // by its widths, as is the widening): the piece's own test, which needs its grid
       // restricted (the most costly step here on the IEA blade's degree-(3, 8) strips), only
       // where the patch's does not hold. On a piece that is the whole patch the two are one.
-      const bool whole = b.s0 == 0.0 && b.s1 == 1.0 && b.t0 == 0.0 && b.t1 == 1.0;
-      if (!edge && !whole &&
+      if (!edge && !b.whole() &&
           grid_convexity_radius(f, pp.rows, pp.cols, pp.e_ss, pp.e_tt, pp.e_st, radius) >= radius) {
         continue;
       }
@@ -750,7 +751,7 @@ SpanCertificate certify_span(const PreparedModel& model, std::size_t patch, cons
   for (int k = 0; k < c.count; ++k) {
     const PreparedPatch& pp = *pieces[k].pp;
     const LocalBox& b = pieces[k].box;
-    if (b.s0 == 0.0 && b.s1 == 1.0 && b.t0 == 0.0 && b.t1 == 1.0) continue;  // all inside N
+    if (b.whole()) continue;  // all inside N
     const double reach = pp.sphere.radius + (a - pp.origin).norm();
     c.outside_sq =
         std::min(c.outside_sq, tiled_lower_bound<false>(numerator_of(k), nullptr, pp.rows, pp.cols,

@@ -28,5 +28,8 @@ struct ScanSize {
 };
 
 ScanSize scan_size(std::span<const engine::Vec3> scan, const engine::PreparedModel& model);
+// The model's size for these checks: the diagonal of its trimmed faces' box (a face cut from a
+// large surface is as large as the face), PreparedModel::geometry_bounds.
+double model_size(const engine::PreparedModel& model);
 
 }  // namespace nurbsreg::registration
