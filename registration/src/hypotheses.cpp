@@ -10,6 +10,7 @@
 #include <unordered_set>
 
 #include "coarse_detail.hpp"
+#include "grid_cell.hpp"
 #include "nurbsreg/engine/cancellation.hpp"
 
 namespace nurbsreg::registration::detail {
@@ -45,9 +46,7 @@ class Occupancy {
 
  private:
   std::array<std::int64_t, 3> cell_of(const Vec3& p) const {
-    return {static_cast<std::int64_t>(std::floor(p.x() * inv_)),
-            static_cast<std::int64_t>(std::floor(p.y() * inv_)),
-            static_cast<std::int64_t>(std::floor(p.z() * inv_))};
+    return {cell_index(p.x() * inv_), cell_index(p.y() * inv_), cell_index(p.z() * inv_)};
   }
   static std::uint64_t pack(std::int64_t x, std::int64_t y, std::int64_t z) {
     const auto b = [](std::int64_t v) {

@@ -6,6 +6,8 @@
 #include <functional>
 #include <numeric>
 
+#include "grid_cell.hpp"
+
 namespace nurbsreg::registration::detail {
 namespace {
 
@@ -25,9 +27,7 @@ engine::Vec3 lower_corner(std::span<const engine::Vec3> points) {
 std::array<std::int64_t, 3> cell_coordinates(const engine::Vec3& p, const engine::Vec3& origin,
                                              double cell) {
   const engine::Vec3 s = (p - origin) / cell;
-  return {static_cast<std::int64_t>(std::floor(s.x())),
-          static_cast<std::int64_t>(std::floor(s.y())),
-          static_cast<std::int64_t>(std::floor(s.z()))};
+  return {cell_index(s.x()), cell_index(s.y()), cell_index(s.z())};
 }
 
 // The point indices in the order of (packed cell key, index), keys[i] being point i's packed key,
@@ -101,9 +101,7 @@ std::uint64_t PointGrid::pack(std::int64_t x, std::int64_t y, std::int64_t z) {
 
 PointGrid::Key PointGrid::key_of(const engine::Vec3& p) const {
   const engine::Vec3 s = (p - origin_) / cell_;
-  return {static_cast<std::int64_t>(std::floor(s.x())),
-          static_cast<std::int64_t>(std::floor(s.y())),
-          static_cast<std::int64_t>(std::floor(s.z()))};
+  return {cell_index(s.x()), cell_index(s.y()), cell_index(s.z())};
 }
 
 PointGrid::PointGrid(std::span<const engine::Vec3> points, double cell)

@@ -9,14 +9,15 @@
 #include <unordered_set>
 #include <vector>
 
+#include "grid_cell.hpp"
+
 namespace nurbsreg::registration::detail {
 namespace {
 
 std::uint64_t voxel_key(const engine::Vec3& p, double voxel, std::int64_t dx = 0,
                         std::int64_t dy = 0, std::int64_t dz = 0) {
   const auto c = [&](double x, std::int64_t d) {
-    return static_cast<std::uint64_t>(static_cast<std::int64_t>(std::floor(x / voxel)) + d +
-                                      (std::int64_t{1} << 20)) &
+    return static_cast<std::uint64_t>(cell_index(x / voxel) + d + (std::int64_t{1} << 20)) &
            ((std::uint64_t{1} << 21) - 1);
   };
   return (c(p.x(), dx) << 42) | (c(p.y(), dy) << 21) | c(p.z(), dz);

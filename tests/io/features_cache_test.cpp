@@ -192,6 +192,22 @@ TEST_F(FeaturesCacheTest, FromSamplesGivesTheSamplesAsGiven) {
             static_cast<std::size_t>(f->descriptors().rows()));
 }
 
+// Found by fuzz_cache_entry (its seed samples_tiny_area): an entry's area, with the voxel it
+// gives, may be tiny; the descriptors' grids then have cells of 1e-150, and a keypoint's cell
+// coordinate overflowed the conversion to an integer (undefined; the sanitizer build stops on
+// it). The build now completes on clamped cells, with finite descriptors.
+TEST_F(FeaturesCacheTest, SamplesWithATinyAreaStillBuildFiniteDescriptors) {
+  registration::ModelFeatureParts parts;
+  parts.surface_area = 2e-299;
+  parts.voxel = std::sqrt(parts.surface_area /
+                          static_cast<double>(std::max<std::size_t>(options_.keypoints, 16)));
+  parts.keypoints = fresh_saddle().keypoints();
+  const auto f = ModelFeatures::from_samples(saddle(), options_, parts);
+  EXPECT_EQ(f->described_keypoints().points.size(),
+            static_cast<std::size_t>(f->descriptors().rows()));
+  EXPECT_TRUE(f->descriptors().allFinite());
+}
+
 TEST_F(FeaturesCacheTest, HitAfterMissGivesTheSameAlignmentToTheBit) {
   CacheOutcome outcome{};
   const auto built = load(panel(), &outcome);

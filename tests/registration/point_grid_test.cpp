@@ -15,6 +15,7 @@
 #include <utility>
 #include <vector>
 
+#include "../../registration/src/grid_cell.hpp"
 #include "../../registration/src/point_grid.hpp"
 
 namespace nurbsreg::registration::detail {
@@ -143,6 +144,34 @@ TEST(PointGridOrder, NeighboursComeCellByCellInIndexOrder) {
       expected.insert(expected.end(), in_cell.begin(), in_cell.end());
     EXPECT_GT(expected.size(), 0u);
     ASSERT_EQ(got, expected) << probe;
+  }
+}
+
+// A cell coordinate beyond what a 64-bit integer holds (a tiny cell from a corrupt cache entry's
+// voxel, or a finite scan point far from the rest) is clamped, not converted (undefined: the
+// sanitizer build stops on it), and every neighbour within the radius is still found.
+TEST(PointGridOrder, FarPointsAndTinyCellsStillFindEveryNeighbour) {
+  EXPECT_EQ(cell_index(2.5), 2);
+  EXPECT_EQ(cell_index(-0.5), -1);
+  EXPECT_EQ(cell_index(1e30), std::int64_t{1} << 53);
+  EXPECT_EQ(cell_index(-1e300), -(std::int64_t{1} << 53));
+  EXPECT_EQ(cell_index(std::numeric_limits<double>::infinity()), std::int64_t{1} << 53);
+  EXPECT_EQ(cell_index(std::numeric_limits<double>::quiet_NaN()), -(std::int64_t{1} << 53));
+  std::vector<Vec3> points = cloud(200, Vec3(4.0, 3.0, 2.0), 7);
+  points.push_back(Vec3(1e30, -2e25, 5.0));
+  points.push_back(Vec3(1e30, -2e25, 5.5));
+  for (const double cell : {1.0, 1e-200}) {
+    const PointGrid grid(points, cell);
+    for (std::size_t q = 0; q < points.size(); ++q) {
+      std::vector<std::uint32_t> got, expected;
+      grid.for_each_within(points[q], cell, [&](std::uint32_t i, double) { got.push_back(i); });
+      for (std::uint32_t i = 0; i < points.size(); ++i) {
+        if ((points[i] - points[q]).squaredNorm() <= cell * cell) expected.push_back(i);
+      }
+      std::sort(got.begin(), got.end());
+      ASSERT_EQ(got, expected) << "cell " << cell << ", point " << q;
+    }
+    EXPECT_FALSE(voxelise(points, cell).counts.empty());
   }
 }
 
