@@ -319,45 +319,63 @@ PreparedModel::PreparedModel(Model model)
     }
   }
   patch_bvh_ = std::make_shared<const Bvh>(item_boxes_, 2);
-  // The seed grid: about 32 cells along the model's longest side; each cell's point is the
-  // sample nearest to its centre of the patch a greedy descent from the centre reaches
-  // (seed_from_grid). Outside the model's box the nearest cell is used.
+  // The seed grid: cells about as many as 32 a side of a cube, spread over the model's box by its
+  // shape (a long blade gets 13 x 13 x 218, not 2 x 2 x 32: a seed's distance, which bounds the
+  // walk's first steps, is then about the point's own, not the blade's width); each cell's point
+  // is the sample nearest to its centre of the patch a greedy descent from the centre reaches, on
+  // a trimmed face only a sample inside the face (seed_from_grid). Outside the model's box the
+  // nearest cell is used.
   if (!patch_bvh_->empty() && !item_patch_.empty() && !bounds_.empty()) {
-    constexpr int kCellsAlongLongest = 32;
+    constexpr double kSeedCells = 32.0 * 32.0 * 32.0;
+    constexpr int kMostCellsAlongAnAxis = 512;
     const Vec3 extent = bounds_.hi - bounds_.lo;
-    const double cell = std::max(extent.maxCoeff() / kCellsAlongLongest, 1e-300);
+    // A flat or thin model's box counts as at least 1/32 of its longest side in every direction.
+    const double least = std::max(extent.maxCoeff() / 32.0, 1e-300);
+    const double volume =
+        std::max(extent.x(), least) * std::max(extent.y(), least) * std::max(extent.z(), least);
+    const double cell =
+        std::max(std::cbrt(volume / kSeedCells), extent.maxCoeff() / kMostCellsAlongAnAxis);
     seed_lo_ = bounds_.lo;
     seed_inv_cell_ = 1.0 / cell;
     for (int a = 0; a < 3; ++a)
       seed_dims_[a] =
-          std::clamp(static_cast<int>(std::ceil(extent[a] / cell)), 1, kCellsAlongLongest);
+          std::clamp(static_cast<int>(std::ceil(extent[a] / cell)), 1, kMostCellsAlongAnAxis);
     seed_cells_.resize(static_cast<std::size_t>(seed_dims_[0]) * seed_dims_[1] * seed_dims_[2]);
-    for (int z = 0; z < seed_dims_[2]; ++z) {
-      for (int y = 0; y < seed_dims_[1]; ++y) {
-        for (int x = 0; x < seed_dims_[0]; ++x) {
-          const Vec3 centre = seed_lo_ + cell * Vec3(x + 0.5, y + 0.5, z + 0.5);
-          const std::int64_t item = patch_bvh_->greedy_primitive(centre);
-          if (item < 0 || static_cast<std::size_t>(item) >= item_patch_.size()) continue;
-          const std::uint32_t k = item_patch_[static_cast<std::size_t>(item)];
-          if (patch_class_[k] != RegionClass::inside) continue;
-          SeedCell& c =
-              seed_cells_[(static_cast<std::size_t>(z) * seed_dims_[1] + y) * seed_dims_[0] + x];
-          double nearest = std::numeric_limits<double>::infinity();
-          for (int a = 0; a < kSeedSamples; ++a) {
-            for (int b = 0; b < kSeedSamples; ++b) {
-              const double s_loc = double(a) / (kSeedSamples - 1);
-              const double t_loc = double(b) / (kSeedSamples - 1);
-              const Vec3 point = patches_[k].patch.evaluate(s_loc, t_loc);
-              const double d = (point - centre).squaredNorm();
-              if (d < nearest) {
-                nearest = d;
-                c = {static_cast<std::int64_t>(k), s_loc, t_loc, point};
-              }
-            }
+    // Cell (x, y, z): the sample nearest its centre.
+    const auto seed_cell = [&](int x, int y, int z) {
+      const Vec3 centre = seed_lo_ + cell * Vec3(x + 0.5, y + 0.5, z + 0.5);
+      const std::int64_t item = patch_bvh_->greedy_primitive(centre);
+      if (item < 0 || static_cast<std::size_t>(item) >= item_patch_.size()) return;
+      const std::uint32_t k = item_patch_[static_cast<std::size_t>(item)];
+      if (patch_class_[k] == RegionClass::outside) return;
+      // A patch the trim loops cross: only its samples inside the face.
+      const TrimRegion* region = patch_region(k);
+      const BezierPatch& bp = patches_[k].patch;
+      SeedCell& c =
+          seed_cells_[(static_cast<std::size_t>(z) * seed_dims_[1] + y) * seed_dims_[0] + x];
+      double nearest = std::numeric_limits<double>::infinity();
+      for (int a = 0; a < kSeedSamples; ++a) {
+        for (int b = 0; b < kSeedSamples; ++b) {
+          const double s = double(a) / (kSeedSamples - 1), t = double(b) / (kSeedSamples - 1);
+          if (region != nullptr &&
+              !region->contains(bp.param_u.to_parent(s), bp.param_v.to_parent(t)))
+            continue;
+          const Vec3 point = bp.evaluate(s, t);
+          const double d = (point - centre).squaredNorm();
+          if (d < nearest) {
+            nearest = d;
+            c = {static_cast<std::int64_t>(k), s, t, point};
           }
         }
       }
-    }
+    };
+    // Every cell on its own: the same grid for any number of threads.
+    tbb::parallel_for(0, seed_dims_[2], [&](int z) {
+      for (int y = 0; y < seed_dims_[1]; ++y) {
+        for (int x = 0; x < seed_dims_[0]; ++x)
+          seed_cell(x, y, z);
+      }
+    });
   }
   piece_bvh_ = std::make_shared<const Bvh>(piece_boxes_, 2);
 }

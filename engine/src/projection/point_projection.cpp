@@ -298,8 +298,10 @@ double seed_cold_start(const PreparedModel& model, const ProjectionOptions& opti
   const double seed_sq = best.distance_sq;
   const PreparedModel::ReachCell* cell =
       model.reach_cell(static_cast<std::size_t>(point.patch), best.s, best.t);
-  // Elsewhere (small bounds: fine patches, folds) the Newton would mostly be extra work.
+  // Elsewhere (small bounds: fine patches, folds) the Newton would mostly be extra work. Not on a
+  // patch the trim loops cross: a Newton over the whole patch may leave the face.
   if (!(options.reach_bounds && cell != nullptr &&
+        model.patch_region(static_cast<std::size_t>(point.patch)) == nullptr &&
         double(
             std::max({cell->plus, cell->minus,
                       *std::max_element(std::begin(cell->boundary), std::end(cell->boundary))})) >
@@ -434,7 +436,17 @@ void write_surface_answer(const PreparedModel& model, const ProjectionOptions& o
       // more than the clipping's accepted 1e-11 R). Polished on its patch as the clipping
       // polishes a corner value, by a descent-only Newton over the whole patch from it (at a
       // stationary point it stays put and only evaluates foot and normal there).
-      newton_over_patch(model_.patch(static_cast<std::size_t>(point.patch)), p, point.best);
+      // On a patch the trim loops cross (a seed inside the face), the polished point only where
+      // it is still inside: otherwise the seed itself, which the clipping found no face point
+      // closer than by more than its accepted 1e-11 R.
+      const std::size_t k = static_cast<std::size_t>(point.patch);
+      const TrimRegion* region = model_.patch_region(k);
+      SurfaceHit polished = point.best;
+      newton_over_patch(model_.patch(k), p, polished);
+      if (region == nullptr || (polished.distance_sq <= point.best.distance_sq &&
+                                region->contains(polished.u, polished.v))) {
+        point.best = polished;
+      }
     }
   }
   if (point.surface < 0) return ProjectionStatus::beyond_max_distance;

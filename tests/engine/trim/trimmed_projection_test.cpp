@@ -886,5 +886,43 @@ TEST(TrimmedProjection, DefaultCertificateRadiusFollowsTheTrimmedFaces) {
   EXPECT_GT(made, 0);
 }
 
+// A cold start's seed on a trimmed face is a sample inside the face. Where the seed is the
+// answer, its polish (a Newton over the whole patch) must not carry it out of the face. Here the
+// face is a pentagon whose edge u = 1.75 runs across patches, through seed samples (s = 0.75),
+// and contains() counts those samples in; for the points beyond that edge the closest face point is
+// on it (often a sample, which the edge pieces then only tie), while the plane's closest point
+// lies outside the face, nearer.
+TEST(TrimmedProjection, ASeedOnATrimmedFaceIsNotPolishedOutOfTheFace) {
+  NurbsSurface s;
+  s.name = "rectangle of a plane of 4 x 4 patches";
+  s.degree_u = s.degree_v = 1;
+  s.knots_u = s.knots_v = {0, 0, 1, 2, 3, 4, 4};
+  s.count_u = s.count_v = 5;
+  for (int i = 0; i < 5; ++i) {
+    for (int j = 0; j < 5; ++j)
+      s.control_points.emplace_back(i, j, 0);
+  }
+  // Not a rectangle (that would be projected as an untrimmed face on a smaller domain).
+  s.trim_loops.push_back(
+      polygon_loop({Vec2(0.5, 0.5), Vec2(1.75, 0.5), Vec2(1.75, 3), Vec2(0.5, 3), Vec2(0.25, 1.75)}));
+  const PreparedModel model(single(s));
+  ASSERT_NE(model.surface_region(0), nullptr);
+  ASSERT_TRUE(model.surface_region(0)->contains(1.75, 1.5));
+  std::vector<Vec3> pts;
+  for (double dx : {0.1, 0.3, 0.5, 1.0}) {
+    for (double y = 0.75; y < 2.9; y += 0.125) {
+      for (double z : {0.05, 0.3, -0.7})
+        pts.emplace_back(1.75 + dx, y, z);
+    }
+  }
+  Projector projector(model);
+  ProjectionResults out;
+  projector.project_serial(PointView::of(pts), ProjectionOptions{}, out);
+  for (std::size_t i = 0; i < pts.size(); ++i) {
+    ASSERT_EQ(out.status[i], ProjectionStatus::ok) << i;
+    EXPECT_NEAR(out.distance[i], std::hypot(pts[i].x() - 1.75, pts[i].z()), 1e-10) << i;
+  }
+}
+
 }  // namespace
 }  // namespace nurbsreg::engine
