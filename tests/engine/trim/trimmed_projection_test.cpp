@@ -903,8 +903,8 @@ TEST(TrimmedProjection, ASeedOnATrimmedFaceIsNotPolishedOutOfTheFace) {
       s.control_points.emplace_back(i, j, 0);
   }
   // Not a rectangle (that would be projected as an untrimmed face on a smaller domain).
-  s.trim_loops.push_back(
-      polygon_loop({Vec2(0.5, 0.5), Vec2(1.75, 0.5), Vec2(1.75, 3), Vec2(0.5, 3), Vec2(0.25, 1.75)}));
+  s.trim_loops.push_back(polygon_loop(
+      {Vec2(0.5, 0.5), Vec2(1.75, 0.5), Vec2(1.75, 3), Vec2(0.5, 3), Vec2(0.25, 1.75)}));
   const PreparedModel model(single(s));
   ASSERT_NE(model.surface_region(0), nullptr);
   ASSERT_TRUE(model.surface_region(0)->contains(1.75, 1.5));
