@@ -319,22 +319,24 @@ PreparedModel::PreparedModel(Model model)
     }
   }
   patch_bvh_ = std::make_shared<const Bvh>(item_boxes_, 2);
-  // The seed grid: cells about as many as 32 a side of a cube, spread over the model's box by its
-  // shape (a long blade gets 13 x 13 x 218, not 2 x 2 x 32: a seed's distance, which bounds the
-  // walk's first steps, is then about the point's own, not the blade's width); each cell's point
+  // The seed grid: cells of 1/32 of the model's longest side, or finer where that would make
+  // fewer than 8192 cells in all: a long blade gets 8 x 8 x 138, not 2 x 2 x 32, so that a seed's
+  // distance, which bounds the walk's first steps, is about the point's own, not the blade's
+  // width (a finer grid for every part cost more in cache misses than it saved). Each cell's point
   // is the sample nearest to its centre of the patch a greedy descent from the centre reaches, on
   // a trimmed face only a sample inside the face (seed_from_grid). Outside the model's box the
   // nearest cell is used.
   if (!patch_bvh_->empty() && !item_patch_.empty() && !bounds_.empty()) {
-    constexpr double kSeedCells = 32.0 * 32.0 * 32.0;
+    constexpr int kCellsAlongLongest = 32;
+    constexpr double kLeastCells = 8192.0;
     constexpr int kMostCellsAlongAnAxis = 512;
     const Vec3 extent = bounds_.hi - bounds_.lo;
+    const double longest = std::max(extent.maxCoeff(), 1e-300);
     // A flat or thin model's box counts as at least 1/32 of its longest side in every direction.
-    const double least = std::max(extent.maxCoeff() / 32.0, 1e-300);
+    const double least = longest / kCellsAlongLongest;
     const double volume =
         std::max(extent.x(), least) * std::max(extent.y(), least) * std::max(extent.z(), least);
-    const double cell =
-        std::max(std::cbrt(volume / kSeedCells), extent.maxCoeff() / kMostCellsAlongAnAxis);
+    const double cell = std::min(longest / kCellsAlongLongest, std::cbrt(volume / kLeastCells));
     seed_lo_ = bounds_.lo;
     seed_inv_cell_ = 1.0 / cell;
     for (int a = 0; a < 3; ++a)
