@@ -7,6 +7,7 @@
 
 #include "blocks.hpp"
 #include "nurbsreg/engine/large_buffer.hpp"
+#include "nurbsreg/engine/point_extent.hpp"
 
 #include <spdlog/spdlog.h>
 
@@ -662,6 +663,24 @@ double scan_length_scale(std::span<const Vec3> scan, bool parallel) {
   return std::sqrt(sum / static_cast<double>(n));
 }
 
+// RMS radius about their centroid of the scan's points inside `box` (serial: a rare case).
+double length_scale_within(std::span<const Vec3> scan, const engine::Aabb& box) {
+  Vec3 sum = Vec3::Zero();
+  std::size_t count = 0;
+  for (const Vec3& p : scan) {
+    if (box.squared_distance(p) > 0.0) continue;
+    sum += p;
+    ++count;
+  }
+  if (count == 0) return 0.0;
+  const Vec3 centroid = sum / static_cast<double>(count);
+  double squares = 0.0;
+  for (const Vec3& p : scan) {
+    if (box.squared_distance(p) == 0.0) squares += (p - centroid).squaredNorm();
+  }
+  return std::sqrt(squares / static_cast<double>(count));
+}
+
 // sigma^2 H_s^+ (sigma^2 from residual_variance) mapped to the unscaled twist about the model
 // origin: xi = D^-1 xi_s with D = diag(L I, I), then v_origin = v_c + c x omega (adjoint of Tr(c)).
 Mat6 pose_covariance(const LinearSystem& sys, double sigma2, double threshold) {
@@ -721,7 +740,15 @@ IcpResult IcpSolver::align(CorrespondenceFinder& finder, std::span<const Vec3> s
                       " points, fewer than min_correspondences (" +
                       std::to_string(o.min_correspondences) + ")");
   }
-  const double L = scan_length_scale(scan, o.parallel);
+  double L = scan_length_scale(scan, o.parallel);
+  // A few stray points far from the rest (a scanner's glitch at 1e14) would make L their
+  // distance, and with it the translation tolerance, the scaled step and the degeneracy test
+  // (the bearing with one point at 1e14: three iterations, "free" in every rotation, 0.018
+  // degrees off). An RMS radius beyond the diagonal of the box that holds all but the extreme
+  // 0.1% can only come from such points: L is then the radius of the points in that box. A scan
+  // without them keeps its L to the bit.
+  const engine::Aabb bulk = engine::trimmed_box(engine::PointView::of(scan));
+  if (L > bulk.diagonal()) L = length_scale_within(scan, bulk);
   if (!(L > 0.0)) return finish(IcpTermination::invalid_input, "scan: all points coincide");
   const double translation_tolerance =
       o.translation_tolerance > 0.0 ? o.translation_tolerance : 1e-10 * L;

@@ -78,7 +78,7 @@ FramePtr project(const ModelPtr& model, const py::handle& points_object, const s
   engine::ProjectionOptions options;
   options.target = frame->target;
   options.certify = certify;
-  engine::Aabb box;
+  double scan_diagonal = 0.0;
   run_released(thread_limit, points.size() >= kWatchedPoints, [&] {
     const engine::PointView view = points.view();
     const ModelHandle::Lease projector = model->lease_projector();
@@ -91,17 +91,14 @@ FramePtr project(const ModelPtr& model, const py::handle& points_object, const s
     }
     (*projector).project(view, options, frame->results, hint_view);
     for (std::size_t i = 0; i < frame->results.size(); ++i) {
-      if (frame->results.status[i] == engine::ProjectionStatus::skipped_nonfinite) {
-        ++frame->skipped;
-      } else {
-        box.extend(view[i]);
-      }
+      if (frame->results.status[i] == engine::ProjectionStatus::skipped_nonfinite) ++frame->skipped;
     }
+    scan_diagonal = registration::scan_diagonal(view);
   });
   // The CLI's warning for a scan far larger or smaller than the model (registration::scan_size
   // on the finite points, against the trimmed faces' box as there).
-  const registration::ScanSize sizes{frame->results.size() > frame->skipped ? box.diagonal() : 0.0,
-                                     registration::model_size(model->prepared()), m.units};
+  const registration::ScanSize sizes{scan_diagonal, registration::model_size(model->prepared()),
+                                     m.units};
   if (const auto note = sizes.warning()) frame->warnings.push_back("points: " + *note);
   return frame;
 }

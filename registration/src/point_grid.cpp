@@ -22,7 +22,31 @@ engine::Vec3 lower_corner(std::span<const engine::Vec3> points) {
   return points.empty() ? engine::Vec3::Zero() : lo;
 }
 
-// Integer cell coordinates of a point relative to the points' lower corner (so never negative):
+// Where cell coordinates are counted from: the points' lower corner, unless an axis spans 2^20
+// cells or more (a stray point far from the rest: a scanner's glitch at 1e14 among a part's
+// points). There (p - corner) / cell would round away the part's cells, or pass the clamp of
+// cell_index, and put all of its points in a few cells; the coordinate-wise median keeps them
+// exact (and only such clouds change: the radix sort's range ends at 2^20 too).
+engine::Vec3 grid_origin(std::span<const engine::Vec3> points, double cell) {
+  const engine::Vec3 lo = lower_corner(points);
+  engine::Vec3 hi = lo;
+  for (const engine::Vec3& p : points)
+    hi = hi.cwiseMax(p);
+  if (!(((hi - lo) / cell).maxCoeff() >= static_cast<double>(kBias))) return lo;
+  std::vector<double> axis(points.size());
+  const auto middle = axis.begin() + static_cast<std::ptrdiff_t>(points.size() / 2);
+  engine::Vec3 median;
+  for (int a = 0; a < 3; ++a) {
+    for (std::size_t i = 0; i < points.size(); ++i)
+      axis[i] = points[i][a];
+    std::nth_element(axis.begin(), middle, axis.end());
+    median[a] = *middle;
+  }
+  return median;
+}
+
+// Integer cell coordinates of a point relative to the grid's origin (grid_origin: the points'
+// lower corner, so never negative, unless a stray point makes the grid too large):
 // floor((p - origin) / cell) per axis, as both packings below compute them.
 std::array<std::int64_t, 3> cell_coordinates(const engine::Vec3& p, const engine::Vec3& origin,
                                              double cell) {
@@ -105,7 +129,7 @@ PointGrid::Key PointGrid::key_of(const engine::Vec3& p) const {
 }
 
 PointGrid::PointGrid(std::span<const engine::Vec3> points, double cell)
-    : points_(points), cell_(cell), origin_(lower_corner(points)) {
+    : points_(points), cell_(cell), origin_(grid_origin(points, cell)) {
   std::vector<std::array<std::int64_t, 3>> cells(points.size());
   std::vector<std::uint64_t> keys(points.size());
   for (std::size_t i = 0; i < points.size(); ++i) {
@@ -141,7 +165,7 @@ namespace {
 // Every point's voxel key with its index, sorted (by key, then index).
 std::vector<std::pair<std::uint64_t, std::uint32_t>> voxel_keys(
     std::span<const engine::Vec3> points, double voxel) {
-  const engine::Vec3 origin = lower_corner(points);
+  const engine::Vec3 origin = grid_origin(points, voxel);
   std::vector<std::array<std::int64_t, 3>> cells(points.size());
   std::vector<std::uint64_t> keys(points.size());
   for (std::size_t i = 0; i < points.size(); ++i) {

@@ -2,13 +2,16 @@
 
 #include <spdlog/fmt/fmt.h>
 
+#include "nurbsreg/engine/point_extent.hpp"
+
 namespace nurbsreg::registration {
 
+double scan_diagonal(engine::PointView scan) {
+  return engine::trimmed_box(scan).diagonal();
+}
+
 ScanSize scan_size(std::span<const engine::Vec3> scan, const engine::PreparedModel& model) {
-  engine::Aabb box;
-  for (const engine::Vec3& p : scan)
-    box.extend(p);
-  return {box.diagonal(), model_size(model), model.model().units};
+  return {scan_diagonal(engine::PointView::of(scan)), model_size(model), model.model().units};
 }
 
 double model_size(const engine::PreparedModel& model) {

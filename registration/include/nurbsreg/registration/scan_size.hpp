@@ -9,6 +9,7 @@
 #include <string>
 
 #include "nurbsreg/engine/prepared_model.hpp"
+#include "nurbsreg/engine/projection.hpp"
 #include "nurbsreg/engine/types.hpp"
 
 namespace nurbsreg::registration {
@@ -27,6 +28,11 @@ struct ScanSize {
   std::optional<std::string> failure_note() const { return note(0.1, 4.0); }
 };
 
+// The scan's size: the diagonal of its finite points' box less their extreme 0.1% on each side
+// of each axis (engine::trimmed_box). A few stray points far from the rest (a scanner's glitch at
+// 1e14) then neither set off the size warning nor loosen what is derived from the size (the fit
+// verdict's tolerance floor, 1e-5 of it).
+double scan_diagonal(engine::PointView scan);
 ScanSize scan_size(std::span<const engine::Vec3> scan, const engine::PreparedModel& model);
 // The model's size for these checks: the diagonal of its trimmed faces' box (a face cut from a
 // large surface is as large as the face), PreparedModel::geometry_bounds.
