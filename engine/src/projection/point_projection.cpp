@@ -436,17 +436,14 @@ void write_surface_answer(const PreparedModel& model, const ProjectionOptions& o
       // more than the clipping's accepted 1e-11 R). Polished on its patch as the clipping
       // polishes a corner value, by a descent-only Newton over the whole patch from it (at a
       // stationary point it stays put and only evaluates foot and normal there).
-      // On a patch the trim loops cross (a seed inside the face), the polished point only where
-      // it is still inside: otherwise the seed itself, which the clipping found no face point
-      // closer than by more than its accepted 1e-11 R.
+      // On a patch the trim loops cross (a seed inside the face), the polished point (never
+      // farther: the Newton only descends) only where it is still inside: otherwise the seed
+      // itself, which the clipping found no face point closer than by more than 1e-11 R.
       const std::size_t k = static_cast<std::size_t>(point.patch);
       const TrimRegion* region = model_.patch_region(k);
       SurfaceHit polished = point.best;
       newton_over_patch(model_.patch(k), p, polished);
-      if (region == nullptr || (polished.distance_sq <= point.best.distance_sq &&
-                                region->contains(polished.u, polished.v))) {
-        point.best = polished;
-      }
+      if (region == nullptr || region->contains(polished.u, polished.v)) point.best = polished;
     }
   }
   if (point.surface < 0) return ProjectionStatus::beyond_max_distance;
