@@ -146,8 +146,8 @@ TEST(FitVerdict, HeavyNoiseIsReadAndTheRightPoseIsGood) {
     one.max_iterations = 1;
     Aligner aligner(*p.model, one, {}, p.features);
     const AlignmentResult r = aligner.align(scan.points, Isometry3d::Identity());
-    SCOPED_TRACE(::testing::Message() << path << " noise " << o.noise_sigma << ": estimate "
-                                      << r.fit.scan_noise);
+    SCOPED_TRACE(::testing::Message()
+                 << path << " noise " << o.noise_sigma << ": estimate " << r.fit.scan_noise);
     EXPECT_GT(r.fit.scan_noise, o.noise_sigma / 1.5);
     EXPECT_LT(r.fit.scan_noise, o.noise_sigma * 1.5);
     EXPECT_TRUE(r.fit.good) << r.fit.reason;
