@@ -13,6 +13,7 @@
 // mixed runs alternating (the machine may be shared: the counts per point are exact, the times
 // are not). Exit status 1 when 1 and 2 threads disagree on a point (bit for bit), 2 on usage.
 
+#include <spdlog/spdlog.h>
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
@@ -343,8 +344,11 @@ int main(int argc, char** argv) {
   app.add_option("--threads", opt.threads);
   app.add_option("--repeat", opt.repeat, "runs per projection measurement (the fastest kept)");
   app.add_flag("--skip-align", opt.skip_align);
+  bool verbose = false;
+  app.add_flag("-v,--verbose", verbose, "the alignment's passes (their certificates and searches)");
   app.add_option("--data", opt.data, "shared/data/real");
   CLI11_PARSE(app, argc, argv);
+  if (verbose) spdlog::set_level(spdlog::level::debug);
 
   const std::string cache_dir = (std::filesystem::temp_directory_path() /
                                  ("nurbsreg_bench_cache_" + std::to_string(::getpid())))

@@ -312,7 +312,19 @@ void ModelCorrespondenceFinder::answer(const CorrespondenceQuery& query,
   // its first pass). Making one costs about two cold projections, so at full resolution, where
   // ICP usually ends after one more pass, they are used but not made.
   const bool subsample = !query.scan_indices.empty() && query.scan_indices.size() < scan_size_;
-  const bool certify = subsample && query.expected_motion < 0.5 * certificate_radius_;
+  const bool certify_for_atlas = subsample && query.expected_motion < 0.5 * certificate_radius_;
+  // At full resolution, the points no certificate proved (a borrowed one's clearance too short
+  // for them, none near) are searched again by every later pass: when several passes are still
+  // to come, each gets one of its own, of a radius for the next pass's motion only, kept as its
+  // own hint (not lent: the atlas is for the points of new queries). Not on models whose patches
+  // are narrow against the atlas's share of the diagonal (the cap came from their widths, the
+  // IEA blade's 5 cm strips): there a point's proof needs a box over many patches, and making
+  // one cost about eight of the cold searches it saves (bench/README.md).
+  const double own_radius = kOwnCertificateMotions * query.expected_motion;
+  const bool certify_own = !subsample && !certify_for_atlas && width_cap_ >= share_cap_ &&
+                           query.later_queries >= kOwnCertificateLaterQueries && own_radius > 0.0 &&
+                           own_radius < certificate_radius_;
+  const bool certify = certify_for_atlas || certify_own;
   const bool repeats = repeats_previous_query(query);
   query_order_current_ = false;
   const HintSource source = prepare_hints(query, repeats);
@@ -322,7 +334,7 @@ void ModelCorrespondenceFinder::answer(const CorrespondenceQuery& query,
   engine::ProjectionOptions options;
   options.max_distance = query.max_distance;
   options.certify = certify;
-  options.certificate_radius = certificate_radius_;
+  options.certificate_radius = certify_own ? own_radius : certificate_radius_;
   options.certificate_span = certificate_span_for(scan_size_);
   // Feet and normals straight into the answers (no copy, 48 bytes a point less in results_); in
   // spatial order into answers in that order first, so that each answer goes to its place in
@@ -355,7 +367,7 @@ void ModelCorrespondenceFinder::answer(const CorrespondenceQuery& query,
       if (ordered_) out[order_[k]] = c;
     }
   });
-  if (certify) insert_made_certificates(points);
+  if (certify_for_atlas) insert_made_certificates(points);
   // Where a pass's time goes (`-v`): the hints (atlas lookups), the projection and its proofs.
   const auto ms = [](auto a, auto b) {
     return std::chrono::duration<double, std::milli>(b - a).count();

@@ -17,8 +17,9 @@ namespace nurbsreg::icp {
 inline engine::ProjectionCounters find_checked(
     ModelCorrespondenceFinder& finder, engine::Projector& reference, double distance_tolerance,
     const std::vector<std::size_t>& ids, const std::vector<engine::Vec3>& points,
-    double expected_motion, double foot_tolerance = 0.0) {
+    double expected_motion, double foot_tolerance = 0.0, int later_queries = 0) {
   CorrespondenceQuery query;
+  query.later_queries = later_queries;
   query.points = points;
   query.scan_indices = ids;
   query.expected_motion = expected_motion;

@@ -690,6 +690,64 @@ TEST(IcpFinderContract, TheFirstQueryExpectsTheInitialMotion) {
   EXPECT_TRUE(a.T_model_scan.matrix() == b.T_model_scan.matrix());
 }
 
+// CorrespondenceQuery::later_queries forecasts how many passes on all points follow a query,
+// from the last stage's own contraction: 0 on the subsample stages and on the last stage's first
+// two passes (no rate of its own yet); without a statistical tolerance (the absolute ones decide:
+// many passes) what max_iterations leaves, at most 8; a forecast within the passes that followed
+// give or take one. The answers, and with them the pose, do not
+// depend on it.
+class LaterRecordingFinder : public CorrespondenceFinder {
+ public:
+  explicit LaterRecordingFinder(CorrespondenceFinder& inner) : inner_(inner) {}
+  void reset(std::size_t scan_size) override { inner_.reset(scan_size); }
+  void find(const CorrespondenceQuery& query, std::span<Correspondence> out) override {
+    sizes.push_back(query.points.size());
+    later.push_back(query.later_queries);
+    inner_.find(query, out);
+  }
+  std::vector<std::size_t> sizes;
+  std::vector<int> later;
+
+ private:
+  CorrespondenceFinder& inner_;
+};
+
+TEST(IcpFinderContract, LaterQueriesForecastThePassesOnAllPoints) {
+  UnionFinder inner(scene());
+  std::vector<Vec3> scan = to_scan(sample_uniform(scene(), 20000, 31), true_pose());
+  add_noise(scan, 1e-3 * kSize, 32);
+  IcpOptions o = exact_options();
+  o.coarse_sizes = {2000};
+  o.statistical_tolerance = 0.0;
+  o.rotation_tolerance = 0.0;
+  o.relative_rms_tolerance = 0.0;
+  o.max_iterations = 6;
+  LaterRecordingFinder recording(inner);
+  const IcpResult r = IcpSolver(o).align(recording, scan, Isometry3d::Identity());
+  std::vector<int> full;  // the forecasts on all points, in order
+  for (std::size_t k = 0; k < recording.sizes.size(); ++k) {
+    if (recording.sizes[k] < scan.size()) {
+      EXPECT_EQ(recording.later[k], 0) << k;
+    } else {
+      full.push_back(recording.later[k]);
+    }
+  }
+  // No tolerance to meet: six passes on all points.
+  ASSERT_EQ(full.size(), 6u) << r.brief_report();
+  EXPECT_EQ(full, (std::vector<int>{0, 0, 3, 2, 1, 0}));
+
+  // With the statistical tolerance the forecast stays within the passes that followed, give or
+  // take one (a prediction), and the pose is the one without any forecast.
+  IcpOptions statistical = exact_options();
+  statistical.coarse_sizes = {2000};
+  LaterRecordingFinder forecast(inner);
+  const IcpResult a = IcpSolver(statistical).align(forecast, scan, Isometry3d::Identity());
+  const IcpResult b = IcpSolver(statistical).align(inner, scan, Isometry3d::Identity());
+  EXPECT_TRUE(a.T_model_scan.matrix() == b.T_model_scan.matrix());
+  for (std::size_t k = 0; k < forecast.later.size(); ++k)
+    EXPECT_LE(forecast.later[k], static_cast<int>(forecast.later.size() - k - 1) + 1) << k;
+}
+
 // The automatic levels are n/100 and n/10, each only with >= kAutoCoarseMinPoints points;
 // explicit coarse_sizes win (those not below the scan size dropped); auto_coarse = false: none.
 TEST(IcpCoarseToFine, ScheduleLevels) {

@@ -76,9 +76,10 @@ class ModelFinderBorrow : public ::testing::Test {
 
   engine::ProjectionCounters find(ModelCorrespondenceFinder& finder,
                                   const std::vector<std::size_t>& ids,
-                                  const std::vector<Vec3>& points, double expected_motion) {
+                                  const std::vector<Vec3>& points, double expected_motion,
+                                  int later_queries = 0) {
     return find_checked(finder, reference_, 1e-10 * prepared_.bounds().diagonal(), ids, points,
-                        expected_motion);
+                        expected_motion, 0.0, later_queries);
   }
 
   engine::PreparedModel prepared_;
@@ -222,6 +223,61 @@ TEST_F(ModelFinderBorrow, FailedBorrowersKeepTheirOwnHintsOthersStillLookUp) {
   EXPECT_GT(looked_up_again, n / 50);
   EXPECT_GT(subsample_borrows, n / 100);
   EXPECT_GT(failed_while_certifying, 0u);
+}
+
+// At full resolution, with several passes still to come (the solver's later_queries), a point
+// that no borrowed certificate proved gets one of its own, anchored at it, of a radius for the
+// expected motion (kOwnCertificateMotions of it): the next pass, moved by less, proves it with
+// one Newton. Not with fewer later passes (making costs more than the one search it saves), not
+// when the motion is unknown; never lent to other points (the atlas is unchanged). Every answer
+// is checked against a cold projection.
+TEST_F(ModelFinderBorrow, FullResolutionPassesMakeOwnCertificatesWhenSeveralPassesFollow) {
+  tbb::global_control limit(tbb::global_control::max_allowed_parallelism, 2);
+  const std::size_t n = scan_.size();
+  std::vector<std::size_t> coarse;
+  for (std::size_t i = 3; i < n; i += 10)
+    coarse.push_back(i);
+  const double motion = 1e-5 * prepared_.bounds().diagonal();
+  const auto coarse_stage = [&](ModelCorrespondenceFinder& finder) {
+    finder.reset(n);
+    find(finder, coarse, moved(coarse, Vec3::Zero()), kUnknown);
+    find(finder, coarse, moved(coarse, Vec3(1e-4, -0.5e-4, 1e-4)), motion);
+  };
+  const Vec3 first(2e-4, -1e-4, 2e-4);
+  const Vec3 second = first + Vec3(motion, motion, 0.0);  // moved by sqrt(2) motion
+
+  ModelCorrespondenceFinder quick(prepared_);
+  coarse_stage(quick);
+  const std::size_t atlas = quick.atlas_size();
+  const engine::ProjectionCounters made = find(quick, {}, moved({}, first), motion, 2);
+  ASSERT_GT(made.certificates_made, n / 50) << "the thin wall should leave unproven points";
+  // Nearly every point is proven or gets its own (the rest: where none could be made).
+  EXPECT_GE(made.certificates_made + made.certified, n * 99 / 100);
+  const engine::ProjectionResults& r = quick.last_results();
+  const std::vector<Vec3> at_first = moved({}, first);
+  std::size_t own = 0;
+  for (std::size_t k = 0; k < n; ++k) {
+    const engine::WarmCertificate& c = r.certificate[k];
+    if (c.radius > 0.0f && c.anchor == at_first[k].cast<float>()) {
+      ++own;
+      // At most the radius asked for (less where convexity holds on a smaller ball only).
+      EXPECT_LE(c.radius, kOwnCertificateMotions * motion) << k;
+    }
+  }
+  EXPECT_EQ(own, made.certificates_made);
+  EXPECT_EQ(quick.atlas_size(), atlas);
+  const engine::ProjectionCounters next = find(quick, {}, moved({}, second), motion, 1);
+  EXPECT_EQ(next.certificates_made, 0u);
+
+  // The same passes with one later query expected: nothing made, and the next pass proves only
+  // what the borrowed certificates proved.
+  ModelCorrespondenceFinder plain(prepared_);
+  coarse_stage(plain);
+  const engine::ProjectionCounters none = find(plain, {}, moved({}, first), motion, 1);
+  EXPECT_EQ(none.certificates_made, 0u);
+  EXPECT_EQ(find(plain, {}, moved({}, first), kUnknown, 5).certificates_made, 0u);
+  const engine::ProjectionCounters after = find(plain, {}, moved({}, second), motion, 1);
+  EXPECT_GE(next.certified, after.certified + made.certificates_made * 9 / 10);
 }
 
 }  // namespace

@@ -48,6 +48,10 @@ struct CorrespondenceQuery {
   // that pays off only for nearby later queries (ModelCorrespondenceFinder's certificates) is
   // worth doing; answers never depend on it.
   double expected_motion = std::numeric_limits<double>::infinity();
+  // How many more queries of the same points the solver expects after this one (its steps'
+  // contraction towards its tolerance; 0 when unknown or when this one is likely the last). A
+  // finder may do per-point work now that pays off only over several later queries.
+  int later_queries = 0;
 };
 
 // Contract for implementations:

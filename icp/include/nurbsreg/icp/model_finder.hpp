@@ -49,6 +49,14 @@ namespace nurbsreg::icp {
 // full-resolution passes save).
 inline constexpr double kCertificateWidths = 4.0;
 inline constexpr std::size_t kWidthCapPoints = 500000;
+// A full-resolution pass's own certificates (ModelCorrespondenceFinder::answer): their radius in
+// multiples of the motion the solver expects before the next pass (its last step's): the step
+// from the last subsample's pose to all points' can be about twice the subsample's last one.
+inline constexpr double kOwnCertificateMotions = 4.0;
+// ... made only when the solver expects at least this many passes after the one that makes
+// them: making one costs about one to two cold searches beyond the answer's own (NIST CTC-02
+// about one, the IEA blade two), and each later pass it proves saves one.
+inline constexpr int kOwnCertificateLaterQueries = 2;
 double certificate_radius_for(const engine::PreparedModel& model, std::size_t scan_size);
 // The rule itself, given the two caps (1% of the diagonal; patch_width_cap).
 inline double certificate_radius_for(std::size_t scan_size, double share_cap, double width_cap) {
@@ -102,6 +110,8 @@ class ModelCorrespondenceFinder final : public CorrespondenceFinder {
   // Radius cap of the certificates (engine::ProjectionOptions::certificate_radius):
   // certificate_radius_for(model, the scan size of the last reset(); before any, 0).
   double certificate_radius() const { return certificate_radius_; }
+  // Certificates the atlas holds (lent to the points of later queries).
+  std::size_t atlas_size() const { return atlas_.size(); }
   // Certificates the atlas keeps per cell (CertificateAtlas::reset): where convexity limits
   // certificates to a fraction of the cap (small bores and tori, rational), one anchor a cell
   // covers only the points within that fraction of it (the cells hold one to three anchors of a
