@@ -82,6 +82,14 @@ class ModelFinderBorrow : public ::testing::Test {
                         expected_motion, 0.0, later_queries);
   }
 
+  // The coarse stage's subsample: every tenth scan point.
+  std::vector<std::size_t> coarse_tenth() const {
+    std::vector<std::size_t> ids;
+    for (std::size_t i = 3; i < scan_.size(); i += 10)
+      ids.push_back(i);
+    return ids;
+  }
+
   engine::PreparedModel prepared_;
   engine::Projector reference_;
   std::vector<Vec3> scan_;
@@ -90,9 +98,7 @@ class ModelFinderBorrow : public ::testing::Test {
 TEST_F(ModelFinderBorrow, FailedBorrowersKeepTheirOwnHintsOthersStillLookUp) {
   tbb::global_control limit(tbb::global_control::max_allowed_parallelism, 2);
   const std::size_t n = scan_.size();
-  std::vector<std::size_t> coarse;
-  for (std::size_t i = 3; i < n; i += 10)
-    coarse.push_back(i);
+  const std::vector<std::size_t> coarse = coarse_tenth();
   ModelCorrespondenceFinder finder(prepared_);
   finder.reset(n);
   // The coarse stage: a first query, then one that certifies (small expected motion).
@@ -234,9 +240,7 @@ TEST_F(ModelFinderBorrow, FailedBorrowersKeepTheirOwnHintsOthersStillLookUp) {
 TEST_F(ModelFinderBorrow, FullResolutionPassesMakeOwnCertificatesWhenSeveralPassesFollow) {
   tbb::global_control limit(tbb::global_control::max_allowed_parallelism, 2);
   const std::size_t n = scan_.size();
-  std::vector<std::size_t> coarse;
-  for (std::size_t i = 3; i < n; i += 10)
-    coarse.push_back(i);
+  const std::vector<std::size_t> coarse = coarse_tenth();
   const double motion = 1e-5 * prepared_.bounds().diagonal();
   const auto coarse_stage = [&](ModelCorrespondenceFinder& finder) {
     finder.reset(n);
