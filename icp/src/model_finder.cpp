@@ -310,7 +310,7 @@ void ModelCorrespondenceFinder::answer(const CorrespondenceQuery& query,
   // Certificates are made on the coarse stages' subsamples once the solver expects small moves:
   // the full-resolution stage then borrows them for the points between (they prove about 95% of
   // its first pass). Making one costs about two cold projections, so at full resolution, where
-  // ICP usually ends after one more pass, they are used but not made.
+  // ICP usually ends after one more pass, they are used, and made only as below.
   const bool subsample = !query.scan_indices.empty() && query.scan_indices.size() < scan_size_;
   const bool certify_for_atlas = subsample && query.expected_motion < 0.5 * certificate_radius_;
   // At full resolution, the points no certificate proved (a borrowed one's clearance too short

@@ -1,8 +1,7 @@
 #include "features.hpp"
-
-#include <spdlog/spdlog.h>
 #include "nurbsreg/engine/cancellation.hpp"
 
+#include <spdlog/spdlog.h>
 #include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
 

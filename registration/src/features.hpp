@@ -66,8 +66,10 @@ DescriptorMatrix describe(std::span<const engine::Vec3> points,
 // The scan's noise level sigma (model units) along the surface normal, independent of any
 // model: sqrt of the median smallest PCA eigenvalue of small neighbourhoods of a seeded subset
 // of the scan, corrected for the degrees of freedom the plane fit takes. `voxel` (the model's
-// sample spacing) caps the neighbourhood radius (curvature inflates the estimate beyond it).
-// 0 when no neighbourhood has enough points (a very sparse scan).
+// sample spacing) caps the first neighbourhood radius (curvature inflates the estimate beyond
+// it); the radius grows while the estimate exceeds a sixth of it (heavy noise: a ball no wider
+// than the noise reads about a quarter of its radius). 0 when no neighbourhood has enough
+// points (a very sparse scan).
 double estimate_noise(std::span<const engine::Vec3> scan, double voxel, std::uint64_t seed);
 
 }  // namespace nurbsreg::registration::detail

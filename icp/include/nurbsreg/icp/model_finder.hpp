@@ -55,7 +55,7 @@ inline constexpr std::size_t kWidthCapPoints = 500000;
 inline constexpr double kOwnCertificateMotions = 4.0;
 // ... made only when the solver expects at least this many passes after the one that makes
 // them: making one costs about one to two cold searches beyond the answer's own (NIST CTC-02
-// about one, the IEA blade two), and each later pass it proves saves one.
+// about one, linkrods two), and each later pass it proves saves about one.
 inline constexpr int kOwnCertificateLaterQueries = 2;
 double certificate_radius_for(const engine::PreparedModel& model, std::size_t scan_size);
 // The rule itself, given the two caps (1% of the diagonal; patch_width_cap).
