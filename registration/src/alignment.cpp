@@ -45,8 +45,7 @@ std::optional<std::string> failure_of(const icp::IcpResult& result, const icp::I
     reason += "; is the scan near the model? Give a starting pose (--init)";
     if (std::isfinite(options.max_correspondence_distance)) reason += " or a larger --max-distance";
   }
-  if (const auto note = sizes.failure_note()) reason += "; " + *note;
-  return reason;
+  return sizes.with_failure_note(std::move(reason));
 }
 
 }  // namespace
@@ -222,7 +221,7 @@ AlignmentResult Aligner::align_global(std::span<const engine::Vec3> scan, bool a
     if (coarse.found_nothing()) {
       if (const auto flat = detail::flat_scan_note(scan, noise)) *frame.failure += "; " + *flat;
     }
-    if (const auto note = frame.sizes.failure_note()) *frame.failure += "; " + *note;
+    frame.failure = frame.sizes.with_failure_note(std::move(*frame.failure));
     return frame;
   }
   // The fine stage from the winner: the user's options, made robust where the user left them
@@ -414,7 +413,7 @@ AlignmentResult Aligner::finish(std::span<const engine::Vec3> scan, AlignmentRes
           "; the ICP from the given pose used no robust kernel: if the scan has clutter, the "
           "tukey kernel may fit it; if not, the starting pose may be too far off";
     }
-    if (const auto note = frame.sizes.failure_note()) *frame.failure += "; " + *note;
+    frame.failure = frame.sizes.with_failure_note(std::move(*frame.failure));
   }
   return frame;
 }

@@ -36,4 +36,17 @@ std::optional<std::string> ScanSize::note(double smaller, double larger) const {
       factor(1.0 / ratio), diagonals);
 }
 
+std::string ScanSize::with_failure_note(std::string failure) const {
+  const std::optional<std::string> size_note = failure_note();
+  if (!size_note) return failure;
+  constexpr double kUnitsApart = 20.0;
+  const double ratio = scan / model;
+  const std::size_t lead = failure.find(": ");
+  if ((ratio >= kUnitsApart || ratio <= 1.0 / kUnitsApart) && lead != std::string::npos) {
+    failure.insert(lead + 2, *size_note + "; ");
+    return failure;
+  }
+  return failure + "; " + *size_note;
+}
+
 }  // namespace nurbsreg::registration

@@ -476,6 +476,9 @@ TEST(Cli, AlignOfAScanInOtherUnitsWarns) {
   EXPECT_NE(align.err.find("the scan is 1/"), std::string::npos) << align.err;
   EXPECT_NE(align.err.find("of the size of the model"), std::string::npos) << align.err;
   EXPECT_NE(align.err.find("are both in the same units"), std::string::npos) << align.err;
+  // Sizes 1000 apart: the units lead the reasons, before the verdict's numbers.
+  EXPECT_LT(align.err.find("the scan is 1/"), align.err.find("of the points lie within"))
+      << align.err;
   // project warns the same way; a scan of the panel's own size does not.
   const CommandResult project = run_nurbsreg(
       "project --model " + kPanel + " --points " + scan + " --out " + (dir / "r.csv"), dir.path());

@@ -52,10 +52,10 @@ TEST(CliConvert, SecondLoadComesFromTheCache) {
   const CommandResult first = sh(env, "info --json --model " + kScrew);
   ASSERT_EQ(first.status, 0) << first.err;
   EXPECT_NE(first.err.find("stored in the cache"), std::string::npos) << first.err;
-  // The conversion is said when done (and while it runs, past a second: not this small part's),
-  // and only when it runs.
+  // The conversion is said when done, and only when it runs. (While it runs it is also said
+  // past a second, which this small part's stays below on an idle machine only: under load,
+  // e.g. beside a sanitizer build, it took longer and the line came; not checked here.)
   EXPECT_NE(first.err.find(": converted in "), std::string::npos) << first.err;
-  EXPECT_EQ(first.err.find("converting"), std::string::npos) << first.err;
   const CommandResult second = sh(env, "info --json --model " + kScrew);
   ASSERT_EQ(second.status, 0) << second.err;
   EXPECT_NE(second.err.find("read from the model cache"), std::string::npos) << second.err;

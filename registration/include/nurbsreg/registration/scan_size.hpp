@@ -26,6 +26,10 @@ struct ScanSize {
   std::optional<std::string> warning() const { return note(1.0 / 200.0, 8.0); }
   // Added to a failed alignment's message, where a mismatch is the likelier cause: 1/10 and 4.
   std::optional<std::string> failure_note() const { return note(0.1, 4.0); }
+  // `failure` with failure_note() added: after it, or, when the sizes differ as units do (20
+  // times or more: m and mm, mm and in), first after its lead ("alignment failed: ", "poor fit:
+  // "), since nothing else said there matters until the units do.
+  std::string with_failure_note(std::string failure) const;
 };
 
 // The scan's size: the diagonal of its finite points' box less their extreme 0.1% on each side
