@@ -99,6 +99,26 @@ TEST(FitVerdict, TheCoverageOfALargeScanSeesItsInliersWhereverTheOutliersAre) {
   EXPECT_GT(r.fit.coverage, 0.9);
 }
 
+// One iteration from the true pose of a synthetic scan (noise `relative` x the part's size): the
+// estimate is the scan's own, independent of ICP.
+struct NoiseCase {
+  double sigma = 0.0;
+  AlignmentResult result;
+};
+NoiseCase align_once(const testing::Part& p, std::size_t points, double relative, double outliers,
+                     std::uint64_t seed) {
+  engine::SyntheticScanOptions o;
+  o.points = points;
+  o.noise_sigma = relative * p.size;
+  o.outlier_fraction = outliers;
+  o.seed = seed;
+  const engine::SyntheticScan scan = engine::make_synthetic_scan(p.model->model(), o);
+  icp::IcpOptions one;
+  one.max_iterations = 1;
+  Aligner aligner(*p.model, one, {}, p.features);
+  return {o.noise_sigma, aligner.align(scan.points, Isometry3d::Identity())};
+}
+
 // The estimate once read 1.6-2.7 times the noise on machined parts (a plane fit per
 // neighbourhood took the fillets' and holes' curvature for noise): within 1.5 both ways, with
 // and without outliers, at two noise levels.
@@ -108,21 +128,11 @@ TEST(FitVerdict, TheNoiseEstimateReadsTheScansNoise) {
     const testing::Part& p = part(path);
     // (relative noise, outlier fraction)
     for (const auto& [relative, outliers] : {std::pair{1e-4, 0.0}, std::pair{4e-4, 0.2}}) {
-      engine::SyntheticScanOptions o;
-      o.points = 10000;
-      o.noise_sigma = relative * p.size;
-      o.outlier_fraction = outliers;
-      o.seed = 3;
-      const engine::SyntheticScan scan = engine::make_synthetic_scan(p.model->model(), o);
-      // From the true pose, one iteration: the estimate is the scan's own, independent of ICP.
-      icp::IcpOptions one;
-      one.max_iterations = 1;
-      Aligner aligner(*p.model, one, {}, p.features);
-      const AlignmentResult r = aligner.align(scan.points, Isometry3d::Identity());
-      SCOPED_TRACE(::testing::Message() << path << " noise " << o.noise_sigma << " outliers "
-                                        << outliers << ": estimate " << r.fit.scan_noise);
-      EXPECT_GT(r.fit.scan_noise, o.noise_sigma / 1.5);
-      EXPECT_LT(r.fit.scan_noise, o.noise_sigma * 1.5);
+      const NoiseCase c = align_once(p, 10000, relative, outliers, 3);
+      SCOPED_TRACE(::testing::Message() << path << " noise " << c.sigma << " outliers " << outliers
+                                        << ": estimate " << c.result.fit.scan_noise);
+      EXPECT_GT(c.result.fit.scan_noise, c.sigma / 1.5);
+      EXPECT_LT(c.result.fit.scan_noise, c.sigma * 1.5);
     }
   }
 }
@@ -136,20 +146,12 @@ TEST(FitVerdict, HeavyNoiseIsReadAndTheRightPoseIsGood) {
   for (const std::string& path :
        {testing::kReal + "occt/bearing.iges", testing::kReal + "occt/linkrods.step",
         testing::kReal + "iea-15mw/IEA_15MW_CFD.stp"}) {
-    const testing::Part& p = part(path);
-    engine::SyntheticScanOptions o;
-    o.points = 20000;
-    o.noise_sigma = 5e-3 * p.size;
-    o.seed = 5;
-    const engine::SyntheticScan scan = engine::make_synthetic_scan(p.model->model(), o);
-    icp::IcpOptions one;
-    one.max_iterations = 1;
-    Aligner aligner(*p.model, one, {}, p.features);
-    const AlignmentResult r = aligner.align(scan.points, Isometry3d::Identity());
+    const NoiseCase c = align_once(part(path), 20000, 5e-3, 0.0, 5);
+    const AlignmentResult& r = c.result;
     SCOPED_TRACE(::testing::Message()
-                 << path << " noise " << o.noise_sigma << ": estimate " << r.fit.scan_noise);
-    EXPECT_GT(r.fit.scan_noise, o.noise_sigma / 1.5);
-    EXPECT_LT(r.fit.scan_noise, o.noise_sigma * 1.5);
+                 << path << " noise " << c.sigma << ": estimate " << r.fit.scan_noise);
+    EXPECT_GT(r.fit.scan_noise, c.sigma / 1.5);
+    EXPECT_LT(r.fit.scan_noise, c.sigma * 1.5);
     EXPECT_TRUE(r.fit.good) << r.fit.reason;
   }
 }
