@@ -325,6 +325,17 @@ void ModelCorrespondenceFinder::answer(const CorrespondenceQuery& query,
                            query.later_queries >= kOwnCertificateLaterQueries && own_radius > 0.0 &&
                            own_radius < certificate_radius_;
   const bool certify = certify_for_atlas || certify_own;
+  // Otherwise, at full resolution, the points no certificate proved get clearance certificates
+  // (engine::WarmCertificate::clearance_only) for the next pass's motion: the search that
+  // answers them also bounds the rest of the model beyond their foot's patch, at about its own
+  // cost, and the next pass clips that one patch instead of searching again. Made on every such
+  // pass: the first on all points and the last (then unused) cannot tell whether one follows.
+  // Not on models whose patches are narrow against the share cap (the IEA blade's strips): a
+  // neighbouring strip lies within the margin of most of its points, and the walks cost more
+  // than the few certificates made save (bench/README.md).
+  const double clearance_radius = kClearanceMotions * query.expected_motion;
+  const bool certify_clearance = !subsample && !certify && width_cap_ >= share_cap_ &&
+                                 clearance_radius > 0.0 && clearance_radius < certificate_radius_;
   const bool repeats = repeats_previous_query(query);
   query_order_current_ = false;
   const HintSource source = prepare_hints(query, repeats);
@@ -334,7 +345,10 @@ void ModelCorrespondenceFinder::answer(const CorrespondenceQuery& query,
   engine::ProjectionOptions options;
   options.max_distance = query.max_distance;
   options.certify = certify;
-  options.certificate_radius = certify_own ? own_radius : certificate_radius_;
+  options.certify_clearance = certify_clearance;
+  options.certificate_radius = certify_own         ? own_radius
+                               : certify_clearance ? clearance_radius
+                                                   : certificate_radius_;
   options.certificate_span = certificate_span_for(scan_size_);
   // Feet and normals straight into the answers (no copy, 48 bytes a point less in results_); in
   // spatial order into answers in that order first, so that each answer goes to its place in

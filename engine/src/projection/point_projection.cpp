@@ -285,6 +285,33 @@ void warm_start(const PreparedModel& model, const ProjectionOptions& options,
   }
 }
 
+// The hint's clearance certificate (WarmCertificate::clearance_only), when warm_start's best is
+// a point of its patch P: P's own minimum (the Newton's point where F is convex over P, else
+// P's clipping from it; on a trimmed face its part of the face, whose trim edges are among the
+// items the clearance bounds), then the clearance test. Either way P's minimum is then `best`,
+// and the search (if any) skips P.
+void prove_by_clearance(const PreparedModel& model, const WarmCertificate& c, const Vec3& p,
+                        double limit_sq, SurfacePoint& point, SurfaceScratch& scratch,
+                        SurfaceProjectionStats* stats) {
+  if (point.proven || !c.clearance_only() || c.model != model.serial() || point.surface < 0 ||
+      point.edge >= 0 || point.patch != c.patch ||
+      static_cast<std::size_t>(c.patch) >= model.patch_count()) {
+    return;
+  }
+  const std::size_t k = static_cast<std::size_t>(c.patch);
+  if (!point.hint_certified) {
+    SurfaceHit& best = point.best;
+    if (project_onto_patch(model.patch(k), p, best, scratch, stats, point.hint_s, point.hint_t,
+                           model.patch_region(k))) {
+      point.hint_s = best.s;
+      point.hint_t = best.t;
+    }
+    point.hint_certified = true;
+  }
+  point.proven = point.best.distance_sq < limit_sq &&
+                 std::sqrt(point.best.distance_sq) + c.distance_to_anchor(p) <= c.clearance;
+}
+
 // Cold start: seed alpha with a surface point near p (PreparedModel::seed_from_grid), so the walk
 // prunes from its first step. Only an upper bound: the answer stays exact. Where the seed's patch
 // has reach bounds that could prove a foot about as far as the seed, a Newton from it over the
@@ -396,6 +423,8 @@ void write_surface_answer(const PreparedModel& model, const ProjectionOptions& o
   SurfacePoint point;
   if (valid_hint(hint, entities)) {
     warm_start(model_, options, *hint, p, limit_sq, point, state.surface_scratch);
+    prove_by_clearance(model_, hint->certificate, p, limit_sq, point, state.surface_scratch,
+                       &state.surface_stats);
   }
   if (point.best.distance_sq >= limit_sq) {
     point.forget(limit_sq);
@@ -419,9 +448,16 @@ void write_surface_answer(const PreparedModel& model, const ProjectionOptions& o
   // making (OtherItems::gives_up).
   constexpr double kGiveUpShare = 1.0 / 32.0;
   others.give_up_margin = 2.0 * kGiveUpShare * certificate_cap;
-  const bool certifying = options.certify && !point.proven && !tried_here &&
-                          model_.any_certifiable() &&
-                          (!valid_hint(hint, entities) || model_.surface_certifiable(hint->entity));
+  // A clearance certificate: its box is the foot's patch alone (every other item caps it), and
+  // one that serves moves below a quarter of the radius is not made.
+  const bool clearing = options.certify_clearance && !options.certify && !point.proven;
+  if (clearing) {
+    others.span = 0;
+    others.give_up_margin = 0.25 * others.margin;
+  }
+  const bool certifying =
+      clearing || (options.certify && !point.proven && !tried_here && model_.any_certifiable() &&
+                   (!valid_hint(hint, entities) || model_.surface_certifiable(hint->entity)));
   if (!point.proven) {
     const double seed_sq =
         point.surface < 0 ? seed_cold_start(model_, options, p, limit_sq, point) : -1.0;
@@ -459,6 +495,11 @@ void write_surface_answer(const PreparedModel& model, const ProjectionOptions& o
   } else if (point.proven) {
     ++state.counters.certified;
     out.certificate[i] = hint->certificate;
+  } else if (clearing) {
+    out.certificate[i] =
+        others.gives_up(point.best.distance_sq)
+            ? WarmCertificate{}
+            : make_clearance_certificate(p, point.best, point.patch, point.edge, others, state);
   } else if (options.certify) {
     // make_certificate needs what the certifying search learnt (`others`).
     out.certificate[i] =

@@ -117,7 +117,8 @@ void prepare_results(PointView points, const ProjectionOptions& options, HintVie
     throw std::invalid_argument("Projector: " + std::to_string(hints.size()) + " hints for " +
                                 std::to_string(points.size()) + " points");
   }
-  out.resize(points.size(), !options.foot_sink, options.certify || !hints.empty());
+  out.resize(points.size(), !options.foot_sink,
+             options.certify || options.certify_clearance || !hints.empty());
 }
 }  // namespace
 

@@ -261,4 +261,29 @@ WarmCertificate Projector::make_certificate(const Vec3& p, const SurfaceHit& bes
   return c;
 }
 
+WarmCertificate Projector::make_clearance_certificate(const Vec3& p, const SurfaceHit& best,
+                                                      std::int64_t patch, std::int64_t edge,
+                                                      const OtherItems& others,
+                                                      ThreadState& state) const {
+  if (patch < 0 || edge >= 0) return {};
+  const double d = std::sqrt(best.distance_sq);
+  // Everything but the foot's patch: the nearest other item the walk met, or what it pruned
+  // (beyond d + margin, or the cut it pruned at), whichever is least.
+  const double reach = (d + others.margin) * (d + others.margin);
+  const double clearance = std::sqrt(std::min({reach, others.excluding(patch), others.cut_sq}));
+  // Single precision, as make_certificate stores it: the rounded anchor is e away from p.
+  WarmCertificate c;
+  c.anchor = p.cast<float>();
+  const double e = c.distance_to_anchor(p);
+  float rounded = static_cast<float>(clearance - e);
+  if (static_cast<double>(rounded) > clearance - e) rounded = std::nextafter(rounded, 0.0f);
+  if (!(static_cast<double>(rounded) > d)) return {};
+  c.radius = 0.0f;
+  c.clearance = rounded;
+  c.patch = static_cast<std::int32_t>(patch);
+  c.model = model_.serial();
+  ++state.counters.certificates_made;
+  return c;
+}
+
 }  // namespace nurbsreg::engine

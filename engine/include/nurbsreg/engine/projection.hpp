@@ -60,7 +60,12 @@ enum class ProjectionStatus : std::uint8_t {
 // interior feet) convexity is proven for G = N_q - m D, the numerator less the query's value
 // times the denominator, for every m a proof can meet (proofs/warm_certificate.cpp).
 // radius == 0: none (patch == kTried: a certificate was sought at
-// `anchor` and could not be made; the projector does not retry within the radius cap of it).
+// `anchor` and could not be made; the projector does not retry within the radius cap of it),
+// or, with patch >= 0 and clearance > 0, a clearance certificate (clearance_only(),
+// ProjectionOptions::certify_clearance): no box and no convexity claim, only "everything of the
+// model other than patch P is at least `clearance` away from a". A query q whose hint is on P
+// gets P's own exact minimum d (its Newton, then P's clipping, face part only on a trimmed face:
+// its trim edges are other items), and d + |q - a| <= clearance proves it the model's.
 inline constexpr int kMaxCertificateSpan = 3;  // ProjectionOptions::certificate_span
 
 struct WarmCertificate {
@@ -80,6 +85,8 @@ struct WarmCertificate {
   double distance_to_anchor(const Vec3& p) const { return (p - anchor.cast<double>()).norm(); }
   // p lies in the ball the certificate speaks for.
   bool covers(const Vec3& p) const { return radius > 0.0f && distance_to_anchor(p) <= radius; }
+  // A clearance certificate (above): the rest of the model beyond patch P only.
+  bool clearance_only() const { return radius == 0.0f && patch >= 0 && clearance > 0.0f; }
 };
 
 // Where a point's closest point was last time (e.g. the previous ICP iteration): entity index
@@ -170,6 +177,13 @@ struct ProjectionOptions {
   // patch. Making one costs a second, wider search (about a cold projection), so it pays when
   // points come back near where they were (ICP iterations, tracking frames).
   bool certify = false;
+  // Without certify: give every point whose answer no hint proved a clearance certificate
+  // (WarmCertificate::clearance_only) for moves up to `certificate_radius`: its search also
+  // bounds everything but the foot's patch up to twice that beyond its distance. About the
+  // cost of the search itself (no convexity proof, no bounds beside a box); a later query near
+  // it then clips that one patch instead of searching the model. For the passes that a solver
+  // expects to repeat once more on the same points with small moves (ICP's last stage).
+  bool certify_clearance = false;
   // Largest anchor radius sought (the certificate's radius is also limited by convexity); <= 0:
   // 0.1% of the diagonal of the model's trimmed faces' box (PreparedModel::geometry_bounds).
   double certificate_radius = 0.0;
@@ -298,6 +312,11 @@ class Projector {
   WarmCertificate make_certificate(const Vec3& p, const SurfaceHit& best, std::int64_t patch,
                                    std::int64_t edge, const OtherItems& others,
                                    ThreadState& state) const;
+  // The clearance certificate (ProjectionOptions::certify_clearance) the same search allows: the
+  // rest of the model beyond `patch`; none for a foot on a trim edge.
+  WarmCertificate make_clearance_certificate(const Vec3& p, const SurfaceHit& best,
+                                             std::int64_t patch, std::int64_t edge,
+                                             const OtherItems& others, ThreadState& state) const;
   // Projects points order[begin, end) (or begin .. end - 1 when order is empty): per point the
   // input checks, then project_surface_point or project_curve_point (point_projection.cpp).
   void project_range(PointView points, const ProjectionOptions& options, ProjectionResults& out,

@@ -53,6 +53,9 @@ inline constexpr std::size_t kWidthCapPoints = 500000;
 // multiples of the motion the solver expects before the next pass (its last step's): the step
 // from the last subsample's pose to all points' can be about twice the subsample's last one.
 inline constexpr double kOwnCertificateMotions = 4.0;
+// A clearance certificate's radius, in the same multiples: its search's margin is twice it, and
+// the margin is what the search pays for.
+inline constexpr double kClearanceMotions = 2.0;
 // ... made only when the solver expects at least this many passes after the one that makes
 // them: making one costs about one to two cold searches beyond the answer's own (NIST CTC-02
 // about one, linkrods two), and each later pass it proves saves about one.
