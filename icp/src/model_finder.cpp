@@ -334,8 +334,9 @@ void ModelCorrespondenceFinder::answer(const CorrespondenceQuery& query,
   // neighbouring strip lies within the margin of most of its points, and the walks cost more
   // than the few certificates made save (bench/README.md).
   const double clearance_radius = kClearanceMotions * query.expected_motion;
-  const bool certify_clearance = !subsample && !certify && width_cap_ >= share_cap_ &&
-                                 clearance_radius > 0.0 && clearance_radius < certificate_radius_;
+  const bool certify_clearance = !subsample && !certify && n >= kClearanceMinPoints &&
+                                 width_cap_ >= share_cap_ && clearance_radius > 0.0 &&
+                                 clearance_radius < certificate_radius_;
   const bool repeats = repeats_previous_query(query);
   query_order_current_ = false;
   const HintSource source = prepare_hints(query, repeats);

@@ -56,6 +56,9 @@ inline constexpr double kOwnCertificateMotions = 4.0;
 // A clearance certificate's radius, in the same multiples: its search's margin is twice it, and
 // the margin is what the search pays for.
 inline constexpr double kClearanceMotions = 2.0;
+// ... and only on queries of at least this many points: not on the global stage's short ICPs
+// (300 and 1,500 points a hypothesis), whose hypotheses move on or are dropped.
+inline constexpr std::size_t kClearanceMinPoints = 4096;
 // ... made only when the solver expects at least this many passes after the one that makes
 // them: making one costs about one to two cold searches beyond the answer's own (NIST CTC-02
 // about one, linkrods two), and each later pass it proves saves about one.
