@@ -423,8 +423,13 @@ void write_surface_answer(const PreparedModel& model, const ProjectionOptions& o
   SurfacePoint point;
   if (valid_hint(hint, entities)) {
     warm_start(model_, options, *hint, p, limit_sq, point, state.surface_scratch);
-    prove_by_clearance(model_, hint->certificate, p, limit_sq, point, state.surface_scratch,
-                       &state.surface_stats);
+    // Not in a certifying frame: a point its clearance certificate proves would keep it, and
+    // each later frame would clip its patch again where a certificate with a box costs one
+    // Newton; searched, the point gets one.
+    if (!options.certify) {
+      prove_by_clearance(model_, hint->certificate, p, limit_sq, point, state.surface_scratch,
+                         &state.surface_stats);
+    }
   }
   if (point.best.distance_sq >= limit_sq) {
     point.forget(limit_sq);

@@ -54,8 +54,9 @@ inline constexpr std::size_t kWidthCapPoints = 500000;
 // from the last subsample's pose to all points' can be about twice the subsample's last one.
 inline constexpr double kOwnCertificateMotions = 4.0;
 // A clearance certificate's radius, in the same multiples: its search's margin is twice it, and
-// the margin is what the search pays for.
-inline constexpr double kClearanceMotions = 2.0;
+// the margin is what the search pays for (the proof needs d + 2 m within the clearance for a
+// move m, the margin covers a move as large as the last step).
+inline constexpr double kClearanceMotions = 1.0;
 // ... and only on queries of at least this many points: not on the global stage's short ICPs
 // (300 and 1,500 points a hypothesis), whose hypotheses move on or are dropped.
 inline constexpr std::size_t kClearanceMinPoints = 4096;
