@@ -1,7 +1,8 @@
 #pragma once
 // Surfaces that make projection hard, shared by the warm-certificate and reach-bound tests: a
 // hairpin (two layers close together), the same fold inside one patch, wavy sheets whose
-// patches are C2 or C1 across their edges, and a long rational cylinder strip.
+// patches are C2 or C1 across their edges, a trough with two local minima in one patch, and a
+// long rational cylinder strip.
 
 #include <cmath>
 #include <vector>
@@ -89,17 +90,36 @@ inline NurbsSurface wavy_sheet(int n, int multiplicity) {
   return s;
 }
 
-// A quarter of a cylinder about the z axis, `length` long: one rational (2, 1) patch, like the
-// bores of NIST CTC-02 and linkrods (a few mm of radius, hundreds long).
-inline NurbsSurface cylinder_strip(double radius, double length) {
+// One Bézier patch of degree (2, 1), its 3 x 2 control points still to be added (u outer).
+inline NurbsSurface quadratic_by_linear(const char* name) {
   NurbsSurface s;
-  s.name = "cylinder strip";
+  s.name = name;
   s.degree_u = 2;
   s.degree_v = 1;
   s.count_u = 3;
   s.count_v = 2;
   s.knots_u = {0, 0, 0, 1, 1, 1};
   s.knots_v = {0, 0, 1, 1};
+  return s;
+}
+
+// A shallow parabolic trough, z = 0.04 (x - 5)^2 - 0.5 over x and y in [0, 10]: one polynomial
+// (2, 1) patch, flat enough to be searched as itself. Above its centre of curvature (z = 12)
+// the distance has two local minima, one on each slope.
+inline NurbsSurface trough() {
+  NurbsSurface s = quadratic_by_linear("trough");
+  const double zs[] = {0.5, -1.5, 0.5};
+  for (int i = 0; i < 3; ++i) {
+    for (int j = 0; j < 2; ++j)
+      s.control_points.emplace_back(5.0 * i, 10.0 * j, zs[i]);
+  }
+  return s;
+}
+
+// A quarter of a cylinder about the z axis, `length` long: one rational (2, 1) patch, like the
+// bores of NIST CTC-02 and linkrods (a few mm of radius, hundreds long).
+inline NurbsSurface cylinder_strip(double radius, double length) {
+  NurbsSurface s = quadratic_by_linear("cylinder strip");
   const Vec3 arc[3] = {{radius, 0, 0}, {radius, radius, 0}, {0, radius, 0}};
   const double w[3] = {1.0, std::sqrt(0.5), 1.0};
   for (int i = 0; i < 3; ++i) {

@@ -97,30 +97,10 @@ TEST(ClearanceCertificate, MovedPointsAreProvenOnlyWhereNothingElseCameNearer) {
       clearance, anchors.size(), static_cast<unsigned long long>(warm_counters.certified), traps);
 }
 
-// A shallow parabolic trough, z = 0.04 (x - 5)^2 - 0.5 over x and y in [0, 10]: one
-// quadratic-by-linear patch, flat enough to be searched as itself. Above its centre of
-// curvature (z = 12) the distance has two local minima, one on each slope.
-NurbsSurface trough() {
-  NurbsSurface s;
-  s.name = "trough";
-  s.degree_u = 2;
-  s.degree_v = 1;
-  s.count_u = 3;
-  s.count_v = 2;
-  s.knots_u = {0, 0, 0, 1, 1, 1};
-  s.knots_v = {0, 0, 1, 1};
-  const double zs[] = {0.5, -1.5, 0.5};
-  for (int i = 0; i < 3; ++i) {
-    for (int j = 0; j < 2; ++j)
-      s.control_points.emplace_back(5.0 * i, 10.0 * j, zs[i]);
-  }
-  return s;
-}
-
 TEST(ClearanceCertificate, HintsOnTheWrongSlopeOfTheirOwnPatchStillGiveItsMinimum) {
   // One patch and nothing else: any clearance is a true statement ("nothing else within it"),
   // and every proof rests on P's own minimum.
-  const PreparedModel model(test::model_of({trough()}));
+  const PreparedModel model(test::model_of({test::trough()}));
   ASSERT_EQ(model.patch_count(), 1u);
   const double diagonal = model.bounds().diagonal();
   std::mt19937_64 points_rng(9);
