@@ -179,10 +179,10 @@ struct ProjectionOptions {
   bool certify = false;
   // Without certify: give every point whose answer no hint proved a clearance certificate
   // (WarmCertificate::clearance_only) for moves up to `certificate_radius`: its search also
-  // bounds everything but the foot's patch up to twice that beyond its distance. About the
-  // cost of the search itself (no convexity proof, no bounds beside a box); a later query near
-  // it then clips that one patch instead of searching the model. For the passes that a solver
-  // expects to repeat once more on the same points with small moves (ICP's last stage).
+  // bounds everything but the foot's patch up to twice that beyond its distance: a wider walk,
+  // but no convexity proof and no bounds beside a box; a later query near it then clips that
+  // one patch instead of searching the model. For the passes that a solver expects to repeat
+  // once more on the same points with small moves (ICP's last stage).
   bool certify_clearance = false;
   // Largest anchor radius sought (the certificate's radius is also limited by convexity); <= 0:
   // 0.1% of the diagonal of the model's trimmed faces' box (PreparedModel::geometry_bounds).
