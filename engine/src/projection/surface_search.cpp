@@ -15,6 +15,14 @@ namespace {
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
+// x in single precision, rounded towards zero (a certificate's radius and clearance: stored
+// smaller, their claims still hold).
+float down_to_float(double x) {
+  float f = static_cast<float>(x);
+  if (static_cast<double>(f) > x) f = std::nextafter(f, 0.0f);
+  return f;
+}
+
 }  // namespace
 
 NURBSREG_HOT_CLONES
@@ -243,13 +251,8 @@ WarmCertificate Projector::make_certificate(const Vec3& p, const SurfaceHit& bes
   WarmCertificate c;
   c.anchor = p.cast<float>();
   const double e = c.distance_to_anchor(p);
-  const auto down = [](double x) {
-    float f = static_cast<float>(x);
-    if (static_cast<double>(f) > x) f = std::nextafter(f, 0.0f);
-    return f;
-  };
-  c.radius = down(radius - e);
-  c.clearance = down(clearance - e);
+  c.radius = down_to_float(radius - e);
+  c.clearance = down_to_float(clearance - e);
   if (!(c.radius > 0.0f) || !(static_cast<double>(c.clearance) > d)) return tried;
   ++state.counters.certificates_made;
   c.patch = static_cast<std::int32_t>(patch);
@@ -275,11 +278,9 @@ WarmCertificate Projector::make_clearance_certificate(const Vec3& p, const Surfa
   WarmCertificate c;
   c.anchor = p.cast<float>();
   const double e = c.distance_to_anchor(p);
-  float rounded = static_cast<float>(clearance - e);
-  if (static_cast<double>(rounded) > clearance - e) rounded = std::nextafter(rounded, 0.0f);
-  if (!(static_cast<double>(rounded) > d)) return {};
+  c.clearance = down_to_float(clearance - e);
+  if (!(static_cast<double>(c.clearance) > d)) return {};
   c.radius = 0.0f;
-  c.clearance = rounded;
   c.patch = static_cast<std::int32_t>(patch);
   c.model = model_.serial();
   ++state.counters.certificates_made;
