@@ -78,10 +78,11 @@ void print_counters(const char* what, const engine::ProjectionCounters& c) {
   const double n = std::max<double>(1.0, static_cast<double>(c.points - c.skipped));
   std::printf(
       "%s: items %.2f edges %.2f trimmed %.2f rational %.2f splits %.2f newton %.2f drops %.2f "
-      "rejections %.2f certified %.3f\n",
+      "rejections %.2f certified %.3f listed %.3f lists %.3f\n",
       what, c.patches_visited / n, c.edge_pieces_visited / n, c.trimmed_patches_visited / n,
       c.rational_patches_visited / n, c.subdivisions / n, c.newton_iterations / n,
-      c.region_drops / n, c.region_rejections / n, (c.certified + c.reach_proven) / n);
+      c.region_drops / n, c.region_rejections / n, (c.certified + c.reach_proven) / n, c.listed / n,
+      c.lists_made / n);
 }
 
 // Where the certifying frame's answers lie and which of them got a certificate: a foot on a

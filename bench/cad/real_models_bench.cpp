@@ -4,6 +4,8 @@
 // the diagonal) and of 1 M mixed points (half of those, half anywhere in the box enlarged by 10%
 // of its diagonal); a 1 M-point alignment (the scan 3 degrees and 2% of the diagonal off); and
 // OpenCASCADE's BRepExtrema_DistShapeShape on a subset of the mixed points, in the same run.
+// The projections run as a user's `project` does (chained cold frames, ProjectionOptions::
+// chain_cold), alternating with the same points searched separately (chain_cold off).
 // Then the profile: where a point's time goes (engine::ProjectionCounters per point).
 //
 //   build/bench/cad/real_models_bench [--models bearing,linkrods,...] [--points 1000000]
@@ -127,6 +129,10 @@ struct Row {
   std::string bounds_kind;
   double near_rate = NAN, mixed_rate = NAN, align_s = NAN, occt_rate = NAN;
   double near_cpu_rate = NAN, mixed_cpu_rate = NAN, align_cpu_s = NAN;
+  // The same points with a separate search per point (ProjectionOptions::chain_cold off), in the
+  // same runs, and the share of answers the chained runs proved by near lists.
+  double near_separate_rate = NAN, mixed_separate_rate = NAN;
+  double near_listed = NAN, mixed_listed = NAN;
   int align_iterations = 0;
   bool align_converged = false;
   double align_rms = NAN;
@@ -147,13 +153,15 @@ struct Options {
 };
 
 void project_timed(tbb::task_arena& arena, const engine::PreparedModel& prepared,
-                   const std::vector<Vec3>& points, engine::ProjectionResults& out,
+                   const std::vector<Vec3>& points, bool chained, engine::ProjectionResults& out,
                    engine::ProjectionCounters& counters, double& best, double& best_cpu) {
   const double c = process_cpu_seconds();
   const double t = now();
+  engine::ProjectionOptions options;
+  options.chain_cold = chained;
   arena.execute([&] {
     engine::Projector projector(prepared);  // cold: empty scratch, no hints
-    projector.project(engine::PointView::of(points), {}, out, {}, &counters);
+    projector.project(engine::PointView::of(points), options, out, {}, &counters);
   });
   best = std::min(best, now() - t);
   best_cpu = std::min(best_cpu, process_cpu_seconds() - c);
@@ -231,17 +239,28 @@ Row run_model(const ModelFile& file, const Options& opt, const std::string& cach
   engine::ProjectionResults out;
   engine::ProjectionCounters near_counters, mixed_counters;
   double near_s = INFINITY, mixed_s = INFINITY, near_cpu = INFINITY, mixed_cpu = INFINITY;
+  double near_separate_s = INFINITY, mixed_separate_s = INFINITY, unused_cpu = INFINITY;
+  engine::ProjectionCounters separate_counters;
   for (int r = 0; r < std::max(1, opt.repeat); ++r) {  // alternating
-    project_timed(arena, prepared, near, out, near_counters, near_s, near_cpu);
-    project_timed(arena, prepared, mixed, out, mixed_counters, mixed_s, mixed_cpu);
+    project_timed(arena, prepared, near, true, out, near_counters, near_s, near_cpu);
+    project_timed(arena, prepared, near, false, out, separate_counters, near_separate_s,
+                  unused_cpu);
+    project_timed(arena, prepared, mixed, false, out, separate_counters, mixed_separate_s,
+                  unused_cpu);
+    project_timed(arena, prepared, mixed, true, out, mixed_counters, mixed_s, mixed_cpu);
   }
+  row.near_separate_rate = near.size() / near_separate_s;
+  row.mixed_separate_rate = mixed.size() / mixed_separate_s;
+  row.near_listed = static_cast<double>(near_counters.listed) / near.size();
+  row.mixed_listed = static_cast<double>(mixed_counters.listed) / mixed.size();
   row.near_rate = near.size() / near_s;
   row.mixed_rate = mixed.size() / mixed_s;
   row.near_cpu_rate = near.size() / near_cpu;
   row.mixed_cpu_rate = mixed.size() / mixed_cpu;
   row.near = per_point(near_counters);
   row.mixed = per_point(mixed_counters);
-  // 1 thread against the run above (mixed points), bit for bit, on a prefix.
+  // 1 thread against `threads`, bit for bit, on a prefix of the mixed points (a chained frame's
+  // answers depend on the frame's other points, so both project the same prefix).
   {
     const std::size_t n = std::min<std::size_t>(mixed.size(), 20000);
     const std::vector<Vec3> prefix(mixed.begin(), mixed.begin() + static_cast<std::ptrdiff_t>(n));
@@ -250,6 +269,10 @@ Row run_model(const ModelFile& file, const Options& opt, const std::string& cach
     single.execute([&] {
       engine::Projector projector(prepared);
       projector.project(engine::PointView::of(prefix), {}, one);
+    });
+    arena.execute([&] {
+      engine::Projector projector(prepared);
+      projector.project(engine::PointView::of(prefix), {}, out);
     });
     for (std::size_t i = 0; i < n; ++i) {
       const bool same = one.status[i] == out.status[i] &&
@@ -370,8 +393,11 @@ int main(int argc, char** argv) {
       "\n%zu points per run, %d threads, fastest of %d alternating runs.\n\n| model | faces | "
       "patches (trim-straddling, rational, max deg) | edge pieces | diagonal (control pts) | "
       "convert s | from cache s | prepare s | bounds s | peak MB | near pts/s (per CPU-s) | "
-      "mixed pts/s (per CPU-s) | align wall s, CPU s (iters, rms) | OCCT DSS pts/s |\n| --- | "
-      "---: | --- | ---: | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | --- | ---: |\n",
+      "mixed pts/s (per CPU-s) | align wall s, CPU s (iters, rms) | OCCT DSS pts/s | near, "
+      "mixed pts/s with a search per point (chain_cold off) | near, mixed proven by near lists "
+      "|\n| --- | "
+      "---: | --- | ---: | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | --- | ---: | "
+      "---: | ---: |\n",
       opt.points, opt.threads, opt.repeat);
   for (const Row& r : rows) {
     if (!r.error.empty()) {
@@ -386,13 +412,14 @@ int main(int argc, char** argv) {
     std::printf(
         "| %s | %zu | %zu (%zu, %zu, %d) | %zu | %.4g %s (%.4g) | %s | %s | %s | %s | %.0f | %s "
         "(%s) | "
-        "%s (%s) | %s | %s |\n",
+        "%s (%s) | %s | %s | %s, %s | %.1f%%, %.1f%% |\n",
         r.file.name.c_str(), r.faces, r.patches, r.boundary_patches, r.rational_patches,
         r.max_degree, r.edge_pieces, r.diagonal, r.bounds_kind.c_str(), r.control_diagonal,
         secs(r.convert_s).c_str(), secs(r.cache_s).c_str(), secs(r.prepare_s).c_str(),
         secs(r.bounds_s).c_str(), r.memory_mb, rate(r.near_rate).c_str(),
         rate(r.near_cpu_rate).c_str(), rate(r.mixed_rate).c_str(), rate(r.mixed_cpu_rate).c_str(),
-        align, rate(r.occt_rate).c_str());
+        align, rate(r.occt_rate).c_str(), rate(r.near_separate_rate).c_str(),
+        rate(r.mixed_separate_rate).c_str(), 100.0 * r.near_listed, 100.0 * r.mixed_listed);
   }
   std::printf(
       "\nPer point (near | mixed | last ICP pass): hierarchy items clipped (patches + trim-edge "

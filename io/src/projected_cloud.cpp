@@ -14,11 +14,22 @@ namespace nurbsreg::io {
 ProjectedCloud project_cloud(engine::Projector& projector, const PointCloud& cloud,
                              engine::ProjectionTarget target, const ProjectProgress& progress,
                              std::size_t block_size) {
-  block_size = std::max<std::size_t>(1, block_size);
   ProjectedCloud out;
   out.target = target;
   engine::ProjectionOptions options;
   options.target = target;
+  // A large cloud of surface queries is one chained cold frame (engine::ProjectionOptions::
+  // chain_cold) in the fine spatial order of the whole cloud, its margin from that order, cut
+  // into blocks of whole chains: the rows do not depend on the block size.
+  constexpr std::size_t kChainedCloudMin = 8192;
+  const bool chained = target == engine::ProjectionTarget::surfaces &&
+                       cloud.size() >= kChainedCloudMin &&
+                       cloud.size() <= std::numeric_limits<std::uint32_t>::max();
+  block_size = std::max<std::size_t>(1, block_size);
+  if (chained) {
+    block_size =
+        (block_size + engine::kChainLength - 1) / engine::kChainLength * engine::kChainLength;
+  }
   // No certificates: the blocks are projected without hints and without certifying.
   out.results.resize(cloud.size(), /*feet=*/true, /*certificates=*/false);
   engine::ProjectionResults block;
@@ -32,9 +43,15 @@ ProjectedCloud project_cloud(engine::Projector& projector, const PointCloud& clo
   const std::span<const engine::Vec3> all(cloud.points);
   engine::FrameVector<std::uint32_t> order;
   engine::SpatialOrderScratch order_scratch;
-  const bool ordered =
-      cloud.size() > block_size && cloud.size() <= std::numeric_limits<std::uint32_t>::max();
-  if (ordered) engine::spatial_order(engine::PointView::of(all), order, order_scratch);
+  const bool ordered = chained || (cloud.size() > block_size &&
+                                   cloud.size() <= std::numeric_limits<std::uint32_t>::max());
+  if (chained) {
+    engine::spatial_order(engine::PointView::of(all), order, order_scratch, engine::kMaxOrderBits);
+    options.chain_margin = engine::chain_margin_for(engine::PointView::of(all), order);
+    options.chain_in_index_order = true;
+  } else if (ordered) {
+    engine::spatial_order(engine::PointView::of(all), order, order_scratch);
+  }
   std::vector<engine::Vec3> block_points;
   for (std::size_t begin = 0; begin < cloud.size(); begin += block_size) {
     const std::size_t end = std::min(cloud.size(), begin + block_size);

@@ -1,6 +1,6 @@
-// io::project_cloud: the rows of a cloud do not depend on its block size, in particular not on
-// whether the blocks follow the cloud's spatial order (clouds larger than one block) or its
-// index order; every point's row is the one Projector::project gives it on its own.
+// io::project_cloud: the rows of a cloud do not depend on its block size (a chained cold frame in
+// the whole cloud's fine spatial order, cut into blocks of whole chains), and every row is the
+// exact closest point a separate search finds for its point alone.
 #include <gtest/gtest.h>
 
 #include <random>
@@ -49,12 +49,22 @@ TEST(ProjectedCloud, RowsDoNotDependOnTheBlocks) {
   const PointCloud cloud = random_cloud(prepared.bounds(), 20000, 3);
   tbb::global_control limit(tbb::global_control::max_allowed_parallelism, 2);
   engine::Projector projector(prepared);
-  engine::ProjectionResults reference;
+  // A separate search per point, in index order: the same closest points.
+  engine::ProjectionResults separate;
   engine::ProjectionOptions plain;
   plain.locality_order = false;
-  projector.project(engine::PointView::of(cloud.points), plain, reference);
-  // One block (index order), and blocks of the spatial order that do not divide the cloud.
-  for (const std::size_t block : {cloud.size(), std::size_t{1777}}) {
+  plain.chain_cold = false;
+  projector.project(engine::PointView::of(cloud.points), plain, separate);
+  const ProjectedCloud whole =
+      project_cloud(projector, cloud, engine::ProjectionTarget::surfaces, {}, cloud.size());
+  const double tolerance = 1e-10 * prepared.bounds().diagonal();
+  for (std::size_t i = 0; i < cloud.size(); ++i) {
+    ASSERT_EQ(whole.results.status[i], separate.status[i]) << i;
+    ASSERT_NEAR(whole.results.distance[i], separate.distance[i], tolerance) << i;
+  }
+  const engine::ProjectionResults& reference = whole.results;
+  // Blocks of whole chains (1777 is rounded up to 1792), one of them of the chain length itself.
+  for (const std::size_t block : {std::size_t{1777}, engine::kChainLength}) {
     std::vector<std::size_t> done;
     const ProjectedCloud projected = project_cloud(
         projector, cloud, engine::ProjectionTarget::surfaces,
@@ -78,9 +88,11 @@ TEST(ProjectedCloud, RowsDoNotDependOnTheBlocks) {
       ASSERT_EQ(projected.normal_x[i], reference.normal[i].x()) << i;
     }
     // Progress after every block, up to the whole cloud.
-    const std::size_t blocks = (cloud.size() + block - 1) / block;
+    const std::size_t rounded =
+        (block + engine::kChainLength - 1) / engine::kChainLength * engine::kChainLength;
+    const std::size_t blocks = (cloud.size() + rounded - 1) / rounded;
     ASSERT_EQ(done.size(), blocks);
-    EXPECT_EQ(done.front(), std::min(block, cloud.size()));
+    EXPECT_EQ(done.front(), std::min(rounded, cloud.size()));
     EXPECT_EQ(done.back(), cloud.size());
   }
 }

@@ -15,6 +15,7 @@
 #include <algorithm>
 #include <cstdint>
 #include <span>
+#include <type_traits>
 #include <vector>
 
 #include "nurbsreg/engine/bounds.hpp"
@@ -65,9 +66,10 @@ class Bvh {
 
   // Best-first search. `lower_bound(primitive, p)` returns a squared-distance lower bound for a
   // primitive (the larger of it and the primitive's box distance is used); `visit(primitive,
-  // alpha_sq)` may lower alpha_sq. Primitives are visited in order of increasing bound, and one
-  // whose bound is >= alpha_sq at that moment is never visited. Always inlined: the walk then
-  // runs in its caller's code, which may be an AVX2 clone (engine/src/platform/cpu_dispatch.hpp).
+  // alpha_sq)` (or `visit(primitive, alpha_sq, bound)`, told that bound) may lower alpha_sq.
+  // Primitives are visited in order of increasing bound, and one whose bound is >= alpha_sq at that
+  // moment is never visited. Always inlined: the walk then runs in its caller's code, which may be
+  // an AVX2 clone (engine/src/platform/cpu_dispatch.hpp).
   template <typename LowerBound, typename Visit>
   void nearest(const Vec3& p, double& alpha_sq, Scratch& scratch, LowerBound&& lower_bound,
                Visit&& visit) const;
@@ -159,7 +161,13 @@ template <typename LowerBound, typename Visit>
     const Scratch::Entry entry = frontier[--size];
     if (entry.bound >= alpha_sq) break;  // everything left is at least as far
     if (entry.ref < 0) {
-      visit(static_cast<std::uint32_t>(~entry.ref), alpha_sq);
+      // A visitor may also take the primitive's bound (a listing walk records the primitives
+      // between the best and its threshold without clipping them).
+      if constexpr (std::is_invocable_v<Visit&, std::uint32_t, double&, double>) {
+        visit(static_cast<std::uint32_t>(~entry.ref), alpha_sq, entry.bound);
+      } else {
+        visit(static_cast<std::uint32_t>(~entry.ref), alpha_sq);
+      }
       continue;
     }
     const WideNode& node = wide_[static_cast<std::size_t>(entry.ref)];

@@ -43,4 +43,8 @@ inline double PreparedModel::item_lower_bound(std::uint32_t k, const Vec3& p) co
   return oriented;
 }
 
+inline double PreparedModel::item_bound(std::uint32_t k, const Vec3& p) const {
+  return std::max(item_boxes_[k].squared_distance(p), item_lower_bound(k, p));
+}
+
 }  // namespace nurbsreg::engine

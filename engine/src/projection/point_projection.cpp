@@ -463,15 +463,50 @@ void write_surface_answer(const PreparedModel& model, const ProjectionOptions& o
   const bool certifying =
       clearing || (options.certify && !point.proven && !tried_here && model_.any_certifiable() &&
                    (!valid_hint(hint, entities) || model_.surface_certifiable(hint->entity)));
+  // A chained cold frame: the near list of the points before proves this one's answer, or its
+  // search makes a new list (ProjectionOptions::chain_cold).
+  NearList* listing = nullptr;
+  if (state.chain_margin > 0.0 && hint == nullptr && !certifying) {
+    NearList& list = state.near_list;
+    if (list.count > 0) {
+      SurfaceSearch search{point.best, point.surface, point.patch, point.edge, point.edge_t};
+      search_list(p, search, list, state.chain_patch, state.chain_s, state.chain_t, state);
+      point.proven = point.surface >= 0 && list.proves(p, point.best.distance_sq);
+      if (point.proven) {
+        ++list.hits;
+        ++state.counters.listed;
+      } else {
+        state.list_failed();
+      }
+    }
+    if (!point.proven) {
+      if (state.chain_skip > 0) {
+        --state.chain_skip;
+      } else {
+        list.start(p, state.chain_margin);
+        listing = &list;
+      }
+      // The list's nearest point (a point of the model) stays the walk's first threshold.
+      point.hint_patch = state.chain_patch;
+      point.hint_s = state.chain_s;
+      point.hint_t = state.chain_t;
+    }
+  }
   if (!point.proven) {
     const double seed_sq =
         point.surface < 0 ? seed_cold_start(model_, options, p, limit_sq, point) : -1.0;
     SurfaceSearch search{point.best, point.surface, point.patch,
-                         point.edge, point.edge_t,  certifying ? &others : nullptr};
+                         point.edge, point.edge_t,  certifying ? &others : nullptr,
+                         listing};
     if (!point.reach_proven) {
       search_surfaces(p, search, point.hint_certified ? point.hint_patch : -1, point.hint_patch,
                       point.hint_s, point.hint_t, state);
+    } else if (listing != nullptr) {
+      listing->count = 0;  // proven without a walk: nothing listed
     }
+    // Too many items within the margin (a point far from the model, a crowded corner): the
+    // listing walk was wasted, as a list that fails at once.
+    if (listing != nullptr && listing->count == 0) state.list_failed();
     if (point.edge < 0 && point.best.distance_sq == seed_sq) {
       // The seed point is the answer (every improvement is strict: nothing was found closer by
       // more than the clipping's accepted 1e-11 R). Polished on its patch as the clipping
@@ -487,6 +522,11 @@ void write_surface_answer(const PreparedModel& model, const ProjectionOptions& o
       if (region == nullptr || region->contains(polished.u, polished.v)) point.best = polished;
     }
   }
+  if (state.chain_margin > 0.0) {
+    state.chain_patch = point.edge < 0 ? point.patch : -1;
+    state.chain_s = point.best.s;
+    state.chain_t = point.best.t;
+  }
   if (point.surface < 0) return ProjectionStatus::beyond_max_distance;
   // The certificate that proves the answer, for the next frame's hint.
   if (point.reach_proven) {
@@ -497,6 +537,8 @@ void write_surface_answer(const PreparedModel& model, const ProjectionOptions& o
     } else {
       clear_certificate(out, i);
     }
+  } else if (point.proven && hint == nullptr) {
+    clear_certificate(out, i);  // proven by a near list (chained cold frame)
   } else if (point.proven) {
     ++state.counters.certified;
     out.certificate[i] = hint->certificate;
@@ -575,6 +617,7 @@ void Projector::project_range(PointView points, const ProjectionOptions& options
     const std::size_t i = order.empty() ? j : order[j];
     const Vec3 p = points[i];
     ++state.counters.points;
+    if (j % kChainLength == 0) state.reset_chain();
     ProjectionStatus status;
     if (!p.allFinite()) {
       ++state.counters.skipped;

@@ -120,7 +120,24 @@ void prepare_results(PointView points, const ProjectionOptions& options, HintVie
   out.resize(points.size(), !options.foot_sink,
              options.certify || options.certify_clearance || !hints.empty());
 }
+
 }  // namespace
+
+double chain_margin_for(PointView points, std::span<const std::uint32_t> order) {
+  // The median of a sample of the steps.
+  constexpr std::size_t kEvery = 61;
+  std::vector<double> steps;
+  steps.reserve(order.size() / kEvery + 1);
+  for (std::size_t j = 0; j + 1 < order.size(); j += kEvery) {
+    const double step = (points[order[j + 1]] - points[order[j]]).norm();
+    if (std::isfinite(step)) steps.push_back(step);
+  }
+  if (steps.empty()) return 0.0;
+  auto middle = steps.begin() + static_cast<std::ptrdiff_t>(steps.size() / 2);
+  std::nth_element(steps.begin(), middle, steps.end());
+  constexpr double kChainSteps = 4.0;
+  return kChainSteps * *middle;
+}
 
 void Projector::project(PointView points, const ProjectionOptions& options, ProjectionResults& out,
                         HintView hints, ProjectionCounters* counters) {
@@ -134,25 +151,60 @@ void Projector::project(PointView points, const ProjectionOptions& options, Proj
   // stays in cache anyway).
   constexpr std::size_t kLocalityOrderMin = 8192;
   std::span<const std::uint32_t> order;
-  if (options.locality_order && hints.empty() && points.size() >= kLocalityOrderMin &&
-      points.size() <= std::numeric_limits<std::uint32_t>::max()) {
-    spatial_order(points, impl_->order, impl_->order_scratch);
+  const bool ordered = options.locality_order && hints.empty() &&
+                       points.size() >= kLocalityOrderMin &&
+                       points.size() <= std::numeric_limits<std::uint32_t>::max();
+  const bool may_chain = options.chain_cold && hints.empty() &&
+                         options.target == ProjectionTarget::surfaces && !options.certify &&
+                         !options.certify_clearance;
+  // In the caller's order (already a fine spatial one), or in the frame's own fine order.
+  const bool chained_as_given =
+      may_chain && options.chain_in_index_order && options.chain_margin > 0.0;
+  const bool chained = may_chain && (chained_as_given || ordered);
+  if (ordered && !chained_as_given) {
+    spatial_order(points, impl_->order, impl_->order_scratch, chained ? kMaxOrderBits : 0);
     order = impl_->order;
+  }
+  double chain_margin = 0.0;
+  if (chained) {
+    chain_margin =
+        options.chain_margin > 0.0 ? options.chain_margin : chain_margin_for(points, order);
   }
   // The default certificate cap is a share of the model's trimmed size: computed once per model
   // (single-threaded, milliseconds), here rather than by the first task of the loop while the
   // others wait for it.
   if (!(options.certificate_radius > 0.0)) (void)model_.geometry_bounds();
-  tbb::parallel_for(
-      tbb::blocked_range<std::size_t>(0, points.size(), std::max<std::size_t>(1, options.grain)),
-      [&](const tbb::blocked_range<std::size_t>& range) {
-        ThreadState& state = impl_->states.local();
-        if (order.empty()) {
-          project_range(points, options, out, hints, {}, range.begin(), range.end(), state);
-        } else {
-          project_block(points, options, order.subspan(range.begin(), range.size()), out, state);
-        }
-      });
+  if (chained) {
+    // Whole chains per task: each starts afresh at a multiple of kChainLength of the order, so
+    // the answers do not depend on how the frame was cut into tasks.
+    const std::size_t chains = (points.size() + kChainLength - 1) / kChainLength;
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(
+                          0, chains, std::max<std::size_t>(1, options.grain / kChainLength)),
+                      [&](const tbb::blocked_range<std::size_t>& range) {
+                        ThreadState& state = impl_->states.local();
+                        const std::size_t begin = range.begin() * kChainLength;
+                        const std::size_t end = std::min(points.size(), range.end() * kChainLength);
+                        state.chain_margin = chain_margin;
+                        if (order.empty()) {
+                          project_range(points, options, out, hints, {}, begin, end, state);
+                        } else {
+                          project_block(points, options, order.subspan(begin, end - begin), out,
+                                        state);
+                        }
+                        state.chain_margin = 0.0;
+                      });
+  } else {
+    tbb::parallel_for(
+        tbb::blocked_range<std::size_t>(0, points.size(), std::max<std::size_t>(1, options.grain)),
+        [&](const tbb::blocked_range<std::size_t>& range) {
+          ThreadState& state = impl_->states.local();
+          if (order.empty()) {
+            project_range(points, options, out, hints, {}, range.begin(), range.end(), state);
+          } else {
+            project_block(points, options, order.subspan(range.begin(), range.size()), out, state);
+          }
+        });
+  }
   nurbsreg::engine::stop_if_cancelled();
   if (counters) {
     *counters = {};
@@ -167,6 +219,8 @@ void Projector::project(PointView points, const ProjectionOptions& options, Proj
       counters->certified += s.counters.certified;
       counters->reach_proven += s.counters.reach_proven;
       counters->certificates_made += s.counters.certificates_made;
+      counters->listed += s.counters.listed;
+      counters->lists_made += s.counters.lists_made;
       counters->edge_pieces_visited += s.counters.edge_pieces_visited;
       counters->trimmed_patches_visited += s.counters.trimmed_patches_visited;
       counters->rational_patches_visited += s.counters.rational_patches_visited;

@@ -17,6 +17,63 @@
 
 namespace nurbsreg::engine {
 
+// What a listing search (ProjectionOptions::chain_cold) learns at its point `anchor`: every
+// hierarchy item that could lie within `clearance` of it is one of `item` (the walk pruned
+// everything else at its final threshold (d + margin)^2, d its answer's distance, or above it).
+// A later query q whose closest point among the listed items is at distance d_q with
+// d_q + |q - anchor| <= clearance has the model's closest point there: every other item is at
+// least clearance - |q - anchor| >= d_q from q. Listing stops (count = 0: no list) when more
+// items than kMax lie within the threshold, where a list would cost about as much as the walk.
+struct Projector::NearList {
+  static constexpr int kMax = 16;
+  Vec3 anchor = Vec3::Zero();
+  double margin = 0.0;
+  double clearance = 0.0;
+  int count = 0;
+  int hits = 0;  // answers it proved
+  bool overflowed = false;
+  std::uint32_t item[kMax];
+
+  // The walk's threshold for the best squared distance so far.
+  double threshold(double best_sq) const {
+    if (overflowed) return best_sq;
+    const double d = std::sqrt(best_sq) + margin;
+    return d * d;
+  }
+  // Records item k (visited in order of its bound); false once the list is full.
+  bool add(std::uint32_t k) {
+    if (overflowed) return false;
+    if (count == kMax) {
+      overflowed = true;
+      return false;
+    }
+    item[count++] = k;
+    return true;
+  }
+  void start(const Vec3& p, double list_margin) {
+    anchor = p;
+    margin = list_margin;
+    clearance = 0.0;
+    count = 0;
+    hits = 0;
+    overflowed = false;
+  }
+  // After the walk: the list stands when it holds everything within (d + margin)^2. The
+  // clearance is shrunk by a few units in the last place for the rounding of the bounds and of
+  // the square root.
+  void finish(double best_sq) {
+    if (overflowed || !(best_sq < std::numeric_limits<double>::infinity())) {
+      count = 0;
+      return;
+    }
+    clearance = (std::sqrt(best_sq) + margin) * (1.0 - 1e-12);
+  }
+  // Does the list prove an answer at distance sqrt(best_sq) for query q?
+  bool proves(const Vec3& q, double best_sq) const {
+    return count > 0 && std::sqrt(best_sq) + (q - anchor).norm() <= clearance;
+  }
+};
+
 struct Projector::ThreadState {
   SurfaceScratch surface_scratch;
   SurfaceProjectionStats surface_stats;
@@ -27,6 +84,30 @@ struct Projector::ThreadState {
   // (Projector::project).
   std::vector<Vec3> staged_points;
   ProjectionResults staged;
+  // A chained cold frame (ProjectionOptions::chain_cold): the near list of the chain so far and
+  // the previous point's answer (where the next clipping of its patch starts Newton);
+  // `chain_margin` > 0 while the frame chains.
+  NearList near_list;
+  double chain_margin = 0.0;
+  std::int64_t chain_patch = -1;
+  double chain_s = 0.0, chain_t = 0.0;
+  // Where lists do not pay (sparse points, noise beyond the margin: a list fails at the next
+  // point), the next `chain_skip` points walk without making one; each list that proved nothing
+  // doubles that pause (chain_pause), one that did ends it.
+  int chain_skip = 0, chain_pause = 0;
+  void reset_chain() {
+    near_list.count = 0;
+    chain_patch = -1;
+    chain_skip = 0;
+    chain_pause = 0;
+  }
+  // The chain's list failed at a point: pause listing if it proved nothing.
+  void list_failed() {
+    constexpr int kLongestPause = 64;
+    chain_pause = near_list.hits == 0 ? std::clamp(2 * chain_pause, 1, kLongestPause) : 0;
+    chain_skip = chain_pause;
+    near_list.count = 0;
+  }
 };
 
 struct Projector::Impl {

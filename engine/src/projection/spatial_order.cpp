@@ -14,18 +14,18 @@
 namespace nurbsreg::engine {
 namespace {
 
-// Spreads the low 7 bits of x to every third bit (bit k goes to bit 3k).
+// Spreads the low 10 bits of x to every third bit (bit k goes to bit 3k).
 constexpr std::uint32_t spread_bits(std::uint32_t x) {
   std::uint32_t out = 0;
-  for (int k = 0; k < 7; ++k)
+  for (int k = 0; k < kMaxOrderBits; ++k)
     out |= ((x >> k) & 1u) << (3 * k);
   return out;
 }
 
 struct SpreadTable {
-  std::uint32_t value[128];
+  std::uint32_t value[1u << kMaxOrderBits];
   constexpr SpreadTable() : value() {
-    for (std::uint32_t x = 0; x < 128; ++x)
+    for (std::uint32_t x = 0; x < (1u << kMaxOrderBits); ++x)
       value[x] = spread_bits(x);
   }
 };
@@ -37,10 +37,41 @@ int bits_per_axis(std::size_t points) {
   return std::clamp(static_cast<int>(per_axis), 2, 7);
 }
 
+// Fills `order` with 0 .. n - 1 sorted by scratch.key (key_bits wide): a least-significant-digit
+// radix sort, two stable counting passes over half the bits each, so points of one cell keep
+// their input order as the single counting sort does.
+void radix_sort(SpatialOrderScratch& scratch, FrameVector<std::uint32_t>& order, int key_bits) {
+  const std::size_t n = scratch.key.size();
+  const int low_bits = (key_bits + 1) / 2;
+  scratch.start.assign(std::size_t{1} << low_bits, 0);
+  scratch.pass.resize(n);
+  // Pass 1 by the low bits into `pass`, pass 2 by the high bits into `order`.
+  const std::uint32_t low_mask = (1u << low_bits) - 1u;
+  const auto counting_pass = [&](auto digit, auto source, FrameVector<std::uint32_t>& into) {
+    std::fill(scratch.start.begin(), scratch.start.end(), 0u);
+    for (std::size_t k = 0; k < n; ++k)
+      ++scratch.start[digit(scratch.key[source(k)])];
+    std::uint32_t sum = 0;
+    for (std::uint32_t& c : scratch.start) {
+      const std::uint32_t count = c;
+      c = sum;
+      sum += count;
+    }
+    for (std::size_t k = 0; k < n; ++k) {
+      const std::uint32_t i = source(k);
+      into[scratch.start[digit(scratch.key[i])]++] = i;
+    }
+  };
+  counting_pass([low_mask](std::uint32_t key) { return key & low_mask; },
+                [](std::size_t k) { return static_cast<std::uint32_t>(k); }, scratch.pass);
+  counting_pass([low_bits](std::uint32_t key) { return key >> low_bits; },
+                [&scratch](std::size_t k) { return scratch.pass[k]; }, order);
+}
+
 }  // namespace
 
 void spatial_order(PointView points, FrameVector<std::uint32_t>& order,
-                   SpatialOrderScratch& scratch) {
+                   SpatialOrderScratch& scratch, int fine_bits) {
   const std::size_t n = points.size();
   order.resize(n);
   scratch.key.resize(n);
@@ -67,7 +98,7 @@ void spatial_order(PointView points, FrameVector<std::uint32_t>& order,
   nurbsreg::engine::stop_if_cancelled();
   const Vec3& lo = box.first;
   const Vec3& hi = box.second;
-  const int bits = bits_per_axis(n);
+  const int bits = fine_bits > 0 ? std::min(fine_bits, kMaxOrderBits) : bits_per_axis(n);
   const std::uint32_t cells_per_axis = 1u << bits;
   // Cell size: the box's largest extent over the cells along an axis (cubic cells, so a flat
   // scan is not cut into slivers); a box of zero size puts every point in cell 0.
@@ -89,6 +120,10 @@ void spatial_order(PointView points, FrameVector<std::uint32_t>& order,
         }
       });
   nurbsreg::engine::stop_if_cancelled();
+  if (bits > kCountingSortBits) {
+    radix_sort(scratch, order, 3 * bits);
+    return;
+  }
   // Stable counting sort by key.
   const std::size_t cells = std::size_t{1} << (3 * bits);
   scratch.start.assign(cells + 1, 0);

@@ -33,15 +33,21 @@ void Projector::search_surfaces(const Vec3& p, SurfaceSearch& search, std::int64
   const std::uint32_t patch_items = static_cast<std::uint32_t>(model_.hierarchy_patch_items());
   SurfaceHit& best = search.best;
   OtherItems* others = search.others;
-  // One walk, compiled twice: the plain search keeps its small visitor, which the compiler
-  // inlines into the walk (in this function's possibly AVX2 code); a visitor with the certifying
-  // branches too was left out of line, in default code: 1.4% more instructions, ~6% more time.
-  const auto walk = [&](auto certifying) __attribute__((always_inline)) {
-    constexpr bool kCertifying = decltype(certifying)::value;
+  NearList* list = search.list;
+  // One walk, compiled once per kind: the plain search keeps its small visitor, which the
+  // compiler inlines into the walk (in this function's possibly AVX2 code); a visitor with the
+  // certifying branches too was left out of line, in default code: 1.4% more instructions, ~6%
+  // more time.
+  enum Kind { kPlain, kCertifyingWalk, kListing };
+  const auto walk = [&](auto kind) __attribute__((always_inline)) {
+    constexpr bool kCertifying = decltype(kind)::value == kCertifyingWalk;
+    constexpr bool kLists = decltype(kind)::value == kListing;
     // The walk's pruning threshold for the best squared distance so far.
-    const auto threshold = [others](double best_sq) {
+    const auto threshold = [others, list](double best_sq) {
       if constexpr (kCertifying) {
         return others->threshold(best_sq);
+      } else if constexpr (kLists) {
+        return list->threshold(best_sq);
       } else {
         return best_sq;
       }
@@ -84,7 +90,12 @@ void Projector::search_surfaces(const Vec3& p, SurfaceSearch& search, std::int64
     model_.patch_hierarchy().nearest(
         p, alpha, state.bvh_scratch,
         [this](std::uint32_t k, const Vec3& x) { return model_.item_lower_bound(k, x); },
-        [&](std::uint32_t k, double& a) {
+        [&](std::uint32_t k, double& a, double bound) {
+          if constexpr (kLists) {
+            // Listed, and clipped only when it may hold a point nearer than the best.
+            if (!list->add(k)) a = threshold(best.distance_sq);
+            if (!(bound < best.distance_sq)) return;
+          }
           ++state.counters.patches_visited;
           if (k < patch_items) {
             const std::uint32_t patch = model_.item_patch(k);
@@ -157,10 +168,71 @@ void Projector::search_surfaces(const Vec3& p, SurfaceSearch& search, std::int64
           }
         });
   };
-  if (others == nullptr) {
-    walk(std::false_type{});
+  if (others != nullptr) {
+    walk(std::integral_constant<int, kCertifyingWalk>{});
+  } else if (list != nullptr) {
+    walk(std::integral_constant<int, kListing>{});
+    list->finish(best.distance_sq);
+    state.counters.lists_made += list->count > 0;
   } else {
-    walk(std::true_type{});
+    walk(std::integral_constant<int, kPlain>{});
+  }
+}
+
+NURBSREG_HOT_CLONES
+void Projector::search_list(const Vec3& p, SurfaceSearch& search, const NearList& list,
+                            std::int64_t guess_patch, double guess_s, double guess_t,
+                            ThreadState& state) const {
+  const std::uint32_t patch_items = static_cast<std::uint32_t>(model_.hierarchy_patch_items());
+  SurfaceHit& best = search.best;
+  // The listed items by increasing lower bound (insertion sort: a handful of them); the guessed
+  // patch (the previous answer's) first: its clipping starts Newton where that answer was, and
+  // the distance it finds prunes most of the others.
+  double bound[NearList::kMax];
+  std::uint32_t item[NearList::kMax];
+  for (int j = 0; j < list.count; ++j) {
+    const std::uint32_t listed = list.item[j];
+    const double b =
+        listed < patch_items && static_cast<std::int64_t>(model_.item_patch(listed)) == guess_patch
+            ? -1.0
+            : model_.item_bound(listed, p);
+    int k = j;
+    for (; k > 0 && bound[k - 1] > b; --k) {
+      bound[k] = bound[k - 1];
+      item[k] = item[k - 1];
+    }
+    bound[k] = b;
+    item[k] = listed;
+  }
+  for (int j = 0; j < list.count && bound[j] < best.distance_sq; ++j) {
+    const std::uint32_t k = item[j];
+    ++state.counters.patches_visited;
+    if (k < patch_items) {
+      const std::uint32_t patch = model_.item_patch(k);
+      state.counters.trimmed_patches_visited += model_.patch_region(patch) != nullptr;
+      state.counters.rational_patches_visited += model_.patch(patch).rational;
+      const bool guessed = static_cast<std::int64_t>(patch) == guess_patch;
+      if (project_onto_patch(model_.patch(patch), p, best, state.surface_scratch,
+                             &state.surface_stats, guessed ? guess_s : kNaN,
+                             guessed ? guess_t : kNaN, model_.patch_region(patch))) {
+        search.surface = model_.patch_surface(patch);
+        search.patch = patch;
+        search.edge = -1;
+      }
+      continue;
+    }
+    const std::size_t e = k - patch_items;
+    ++state.counters.edge_pieces_visited;
+    CurveHit hit;
+    hit.distance_sq = best.distance_sq;
+    if (project_onto_piece(model_.edge_piece(e), p, hit, &state.curve_stats)) {
+      best.distance_sq = hit.distance_sq;
+      best.foot = hit.foot;
+      search.surface = model_.edge_piece_info(e).surface;
+      search.patch = -1;
+      search.edge = static_cast<std::int64_t>(e);
+      search.edge_t = hit.u;
+    }
   }
 }
 

@@ -161,6 +161,8 @@ class PreparedModel {
   // piece's bounding sphere. Inline (src/model/prepared_model_internals.hpp): the walk calls it
   // for every leaf it reaches, and inlined it runs in the walk's own (possibly AVX2) code.
   double item_lower_bound(std::uint32_t k, const Vec3& p) const;
+  // The same combined with the item's own axis-aligned box: the bound the walk orders item k by.
+  double item_bound(std::uint32_t k, const Vec3& p) const;
 
   // Trim-edge pieces: Bézier pieces of the faces' 3-D boundary edges (trim_edges).
   struct EdgePiece {

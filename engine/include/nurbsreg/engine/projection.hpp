@@ -198,9 +198,28 @@ struct ProjectionOptions {
   // (PreparedModel::prepare_reach_bounds). false: only certificates and the search (to measure
   // or test those alone).
   bool reach_bounds = true;
+  // A large cold frame (no hints, neither certify nor certify_clearance, locality_order): each
+  // point's search also lists every item of the model within `chain_margin` beyond its answer
+  // (a near list, Projector::NearList), and the next points of the locality order, taken on a
+  // grid fine enough that they lie close together, clip only the listed items while the list
+  // still proves their answers (distance + distance to the list's point <= its clearance):
+  // most points then skip the hierarchy walk. The answers are the same exact closest points;
+  // false walks the hierarchy for every point.
+  bool chain_cold = true;
+  // The near lists' margin; <= 0: chain_margin_for the frame's own order.
+  double chain_margin = 0.0;
+  // With chain_cold and chain_margin > 0: the frame's points already come in a fine spatial
+  // order (a block of one whole cloud's order, io::project_cloud), and are chained as they come,
+  // a chain starting at every multiple of kChainLength of the frame. A cloud cut into blocks of
+  // multiples of kChainLength then gets the same answers whatever the block size.
+  bool chain_in_index_order = false;
   // Empty: feet and normals go to ProjectionResults. Set: to the sink only (see FootSink).
   FootSink foot_sink;
 };
+
+// Points per chain of a chained cold frame (ProjectionOptions::chain_cold): a chain starts
+// afresh at every multiple of it, whatever the tasks the frame was cut into.
+inline constexpr std::size_t kChainLength = 256;
 
 // Work counters summed over a frame (for benchmarks and progress logs).
 struct ProjectionCounters {
@@ -214,6 +233,10 @@ struct ProjectionCounters {
   // the hint or the cold seed: no search.
   std::uint64_t reach_proven = 0;
   std::uint64_t certificates_made = 0;  // new WarmCertificates (ProjectionOptions::certify)
+  // Chained cold frames (ProjectionOptions::chain_cold): answers proven by the previous points'
+  // near list (no hierarchy walk), and near lists made.
+  std::uint64_t listed = 0;
+  std::uint64_t lists_made = 0;
   // Where patches_visited went (surfaces; the profile of bench/cad/real_models_bench): trim-edge
   // pieces, patches clipped against their face's region, rational patches; and the trimmed
   // clipping's sub-patches dropped as outside and candidates rejected as outside the region.
@@ -238,6 +261,12 @@ struct PointView {
             [](const void* d, std::size_t i) { return static_cast<const Vec3*>(d)[i]; }};
   }
 };
+
+// The near lists' margin for points taken in `order` (ProjectionOptions::chain_margin): a few
+// times the median distance between consecutive points, so that a list stays valid for the next
+// few points while it stays short (the items within the margin of a point's answer). 0 when
+// there is no step to measure.
+double chain_margin_for(PointView points, std::span<const std::uint32_t> order);
 
 // The hints of a frame without a per-point array: any source that can hand out point i's hint
 // (empty: no hints). The projector calls at(data, i) at most once per point (not for skipped
@@ -292,6 +321,7 @@ class Projector {
   struct ThreadState;
   struct Impl;
   struct OtherItems;
+  struct NearList;
   // The state of one best-first search over the surfaces' hierarchy (the caller's variables).
   struct SurfaceSearch {
     SurfaceHit& best;
@@ -301,6 +331,9 @@ class Projector {
     double& edge_t;
     // A certifying search: also bounds every item but its answer (projection.cpp, OtherItems).
     OtherItems* others = nullptr;
+    // A listing search (ProjectionOptions::chain_cold): also lists every item within the list's
+    // margin beyond the answer.
+    NearList* list = nullptr;
   };
   // Exact best-first search over patches and trim edges, improving search.best; skip_patch is
   // not visited (its minimum is already known), guess_patch's clipping starts Newton at
@@ -308,6 +341,11 @@ class Projector {
   void search_surfaces(const Vec3& p, SurfaceSearch& search, std::int64_t skip_patch,
                        std::int64_t guess_patch, double guess_s, double guess_t,
                        ThreadState& state) const;
+  // The closest point among the items of `list` only (the walk's visits, in order of their
+  // lower bounds), improving search.best.
+  void search_list(const Vec3& p, SurfaceSearch& search, const NearList& list,
+                   std::int64_t guess_patch, double guess_s, double guess_t,
+                   ThreadState& state) const;
   // `others`: what the certifying search that found `best` learnt of the rest of the model.
   WarmCertificate make_certificate(const Vec3& p, const SurfaceHit& best, std::int64_t patch,
                                    std::int64_t edge, const OtherItems& others,

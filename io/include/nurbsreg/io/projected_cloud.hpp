@@ -5,8 +5,13 @@
 //
 // project_cloud projects in blocks of kProjectBlock points (progress between blocks) without
 // hints or certificates, so the rows depend on neither the block size nor the thread count. A
-// cloud of more than one block is taken in its spatial order (engine::spatial_order), each block
-// a compact part of it, and every row is put back at its point's index.
+// cloud of 8,192 surface queries or more is one chained cold frame (engine::ProjectionOptions::
+// chain_cold) in the fine spatial order of the whole cloud (engine::spatial_order), cut into
+// blocks of whole chains (the block size is rounded up to a multiple of engine::kChainLength);
+// a smaller cloud of more than one block is taken in its spatial order too. Each block is a
+// compact part of the cloud, and every row is put back at its point's index. The rows are exact
+// closest points; in a chained cloud their last bits may depend on the cloud's other points (a
+// near list's clipping starts where its previous point's answer was), never on the blocks.
 // Surfaces add the columns signed_distance, normal_x, normal_y, normal_z. Thread safety: one
 // call at a time per Projector; allocates the results (not per point).
 
@@ -41,8 +46,8 @@ struct ProjectedCloud {
 // stop the work (a service's time limit): the exception propagates, nothing is returned.
 using ProjectProgress = std::function<void(std::size_t done, std::size_t total, double seconds)>;
 
-// `block`: points per block (> 0; the rows do not depend on it), i.e. how often `progress` is
-// called.
+// `block`: points per block (> 0; the rows do not depend on it; rounded up to a multiple of
+// engine::kChainLength for a chained cloud), i.e. how often `progress` is called.
 ProjectedCloud project_cloud(engine::Projector& projector, const PointCloud& cloud,
                              engine::ProjectionTarget target, const ProjectProgress& progress = {},
                              std::size_t block = kProjectBlock);
