@@ -23,6 +23,17 @@ float down_to_float(double x) {
   return f;
 }
 
+// The best so far becomes trim-edge piece e's point `hit` (a Projector::SurfaceSearch).
+template <class Search>
+void take_edge_hit(const PreparedModel& model, Search& search, std::size_t e, const CurveHit& hit) {
+  search.best.distance_sq = hit.distance_sq;
+  search.best.foot = hit.foot;
+  search.surface = model.edge_piece_info(e).surface;
+  search.patch = -1;
+  search.edge = static_cast<std::int64_t>(e);
+  search.edge_t = hit.u;
+}
+
 }  // namespace
 
 NURBSREG_HOT_CLONES
@@ -157,12 +168,7 @@ void Projector::search_surfaces(const Vec3& p, SurfaceSearch& search, std::int64
               previous = best_item();
               previous_sq = best.distance_sq;
             }
-            best.distance_sq = hit.distance_sq;
-            best.foot = hit.foot;
-            search.surface = model_.edge_piece_info(e).surface;
-            search.patch = -1;
-            search.edge = static_cast<std::int64_t>(e);
-            search.edge_t = hit.u;
+            take_edge_hit(model_, search, e, hit);
             a = threshold(best.distance_sq);
             note(previous, previous_sq, a);
           }
@@ -226,12 +232,7 @@ void Projector::search_list(const Vec3& p, SurfaceSearch& search, const NearList
     CurveHit hit;
     hit.distance_sq = best.distance_sq;
     if (project_onto_piece(model_.edge_piece(e), p, hit, &state.curve_stats)) {
-      best.distance_sq = hit.distance_sq;
-      best.foot = hit.foot;
-      search.surface = model_.edge_piece_info(e).surface;
-      search.patch = -1;
-      search.edge = static_cast<std::int64_t>(e);
-      search.edge_t = hit.u;
+      take_edge_hit(model_, search, e, hit);
     }
   }
 }
