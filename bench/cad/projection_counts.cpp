@@ -231,6 +231,9 @@ int main(int argc, char** argv) {
   bool verbose = false;
   app.add_flag("-v,--verbose", verbose, "log every ICP pass (the finder's debug lines)");
   double noise = 0.005;
+  bool no_chain = false;
+  app.add_flag("--no-chain", no_chain,
+               "near and mixed: a separate search per point (ProjectionOptions::chain_cold off)");
   app.add_option("--noise", noise, "the near points' noise, a fraction of the trimmed diagonal")
       ->check(CLI::NonNegativeNumber);
   engine::ProjectionOptions certify;
@@ -293,7 +296,9 @@ int main(int argc, char** argv) {
     c = cpu_seconds();
     arena.execute([&] {
       engine::Projector projector(prepared);
-      projector.project(engine::PointView::of(*pts), {}, out, {}, &counters);
+      engine::ProjectionOptions cold;
+      cold.chain_cold = !no_chain;
+      projector.project(engine::PointView::of(*pts), cold, out, {}, &counters);
     });
     const double s = cpu_seconds() - c;
     std::printf("%s: %zu points, %.0f pts per CPU-s, checksum %016llx\n", name, pts->size(),
