@@ -10,7 +10,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <numeric>
 #include <random>
 
 #include "nurbsreg/engine/projection.hpp"
@@ -157,15 +156,14 @@ TEST(SpatialOrder, FineGridIsTheStableMortonOrderOfTheCells) {
     hi = hi.cwiseMax(p);
   }
   const double cells_per_unit = (1 << kMaxOrderBits) / (hi - lo).maxCoeff();
-  std::vector<std::uint32_t> expected(points.size());
-  std::iota(expected.begin(), expected.end(), 0u);
-  std::stable_sort(expected.begin(), expected.end(), [&](std::uint32_t a, std::uint32_t b) {
-    return morton_key(points[a], lo, cells_per_unit, kMaxOrderBits) <
-           morton_key(points[b], lo, cells_per_unit, kMaxOrderBits);
-  });
+  // Stable: by key, then by index.
+  std::vector<std::pair<std::uint64_t, std::uint32_t>> expected(points.size());
+  for (std::uint32_t i = 0; i < points.size(); ++i)
+    expected[i] = {morton_key(points[i], lo, cells_per_unit, kMaxOrderBits), i};
+  std::sort(expected.begin(), expected.end());
   ASSERT_EQ(order.size(), expected.size());
   for (std::size_t k = 0; k < expected.size(); ++k)
-    ASSERT_EQ(order[k], expected[k]) << "position " << k;
+    ASSERT_EQ(order[k], expected[k].second) << "position " << k;
 }
 
 }  // namespace
