@@ -555,6 +555,7 @@ void run_batch(const BatchArgs& args) {
               const ProjectFrameResult r =
                   project_frame(*worker->projector, token->cloud, target, frame.projection, false);
               token->row.rms = fmt::format("{}", r.rms_distance);
+              if (r.far_note) spdlog::warn("{}: {}", token->row.file, *r.far_note);
             }
             if (const auto note = sizes.warning()) spdlog::warn("{}: {}", token->row.file, *note);
           });

@@ -53,6 +53,9 @@ ProjectFrameResult project_frame(engine::Projector& projector, const io::PointCl
   summary.max_distance = projected.max_distance;
   summary.mean_distance = projected.mean_distance;
   summary.rms_distance = projected.rms_distance;
+  const engine::PreparedModel& model = projector.model();
+  summary.far_note = registration::far_from_model_note(
+      projected.results.distance, registration::model_size(model), model.model().units);
   return summary;
 }
 

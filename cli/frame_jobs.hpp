@@ -40,6 +40,8 @@ struct ProjectFrameResult {
   double rms_distance = 0.0;
   double max_distance = 0.0;
   double compute_seconds = 0.0;  // projection only (no I/O)
+  // registration::far_from_model_note: most points far from the model (not in its frame).
+  std::optional<std::string> far_note;
 };
 
 // Parses --target; UsageError for anything but surfaces/curves.

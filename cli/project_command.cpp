@@ -50,6 +50,8 @@ void run_project(const ProjectArgs& args) {
       r.points, r.skipped, r.min_distance, r.mean_distance, r.max_distance,
       r.compute_seconds > 0 ? static_cast<double>(r.points) / r.compute_seconds : 0.0, args.out,
       total.seconds());
+  // After the summary, so that it is the last line a user reads.
+  if (r.far_note) spdlog::warn("{}: {}", args.points, *r.far_note);
 }
 
 }  // namespace

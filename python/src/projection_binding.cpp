@@ -97,9 +97,14 @@ FramePtr project(const ModelPtr& model, const py::handle& points_object, const s
   });
   // The CLI's warning for a scan far larger or smaller than the model (registration::scan_size
   // on the finite points, against the trimmed faces' box as there).
-  const registration::ScanSize sizes{scan_diagonal, registration::model_size(model->prepared()),
-                                     m.units};
+  const double model_size = registration::model_size(model->prepared());
+  const registration::ScanSize sizes{scan_diagonal, model_size, m.units};
   if (const auto note = sizes.warning()) frame->warnings.push_back("points: " + *note);
+  // And the CLI's warning for points that mostly lie far from the model (not in its frame).
+  if (const auto note =
+          registration::far_from_model_note(frame->results.distance, model_size, m.units)) {
+    frame->warnings.push_back("points: " + *note);
+  }
   return frame;
 }
 

@@ -30,6 +30,7 @@
 #include "nurbsreg/io/model_json.hpp"
 #include "nurbsreg/io/point_cloud_memory.hpp"
 #include "nurbsreg/io/projected_cloud.hpp"
+#include "nurbsreg/registration/scan_size.hpp"
 #include "nurbsreg/service/request_options.hpp"
 #include "sessions.hpp"
 
@@ -616,6 +617,18 @@ void Service::Impl::project(const httplib::Request& req, httplib::Response& res,
   res.body = std::move(csv).str();
   res.set_header("Content-Type", "text/csv");
   res.set_header("X-Skipped-Points", std::to_string(cloud.skipped_nonfinite));
+  // `project`'s warnings, one header each (HTTP has no stderr): the scan's size against the
+  // model's, and points that mostly lie far from the model.
+  const engine::PreparedModel& prepared = pooled.projector->model();
+  const double model_size = registration::model_size(prepared);
+  const registration::ScanSize sizes{
+      registration::scan_diagonal(engine::PointView::of(cloud.points)), model_size,
+      prepared.model().units};
+  if (const auto note = sizes.warning()) res.set_header("X-Warning", "points: " + *note);
+  if (const auto note = registration::far_from_model_note(projected.results.distance, model_size,
+                                                          prepared.model().units)) {
+    res.set_header("X-Warning", "points: " + *note);
+  }
   points = cloud.size();
 }
 

@@ -491,6 +491,44 @@ TEST(Cli, AlignOfAScanInOtherUnitsWarns) {
   EXPECT_EQ(same.err.find("same units"), std::string::npos) << same.err;
 }
 
+// A scan still in the scanner's frame (moved by 1000 mm, seven times the panel's size) is
+// projected as asked, but its distances say nothing about the part: project warns, last, and
+// names the likely cause. The same scan in the model's frame, with 30% outliers, stays quiet.
+TEST(Cli, ProjectOfAScanOutsideTheModelsFrameWarns) {
+  ScratchDir dir("project_far");
+  const std::string moved =
+      synth_panel_scan(dir, "moved.pcd", "--points 3000 --seed 3 --pose \"10 0 0 1000 0 0\"");
+  const CommandResult far = run_nurbsreg(
+      "project --model " + kPanel + " --points " + moved + " --out " + (dir / "far.csv"),
+      dir.path());
+  EXPECT_EQ(far.status, 0) << far.err;
+  EXPECT_TRUE(std::filesystem::exists(dir / "far.csv"));
+  const std::size_t note = far.err.find(moved + ": half of the points lie ");
+  ASSERT_NE(note, std::string::npos) << far.err;
+  EXPECT_NE(far.err.find("is the scan in the model's frame?", note), std::string::npos) << far.err;
+  EXPECT_EQ(far.err.find('\n', note), far.err.size() - 1) << far.err;   // the last line
+  EXPECT_EQ(far.err.find("same units"), std::string::npos) << far.err;  // the sizes agree
+
+  const std::string near =
+      synth_panel_scan(dir, "near.pcd", "--points 3000 --seed 3 --outliers 0.3");
+  const CommandResult quiet = run_nurbsreg(
+      "project --model " + kPanel + " --points " + near + " --out " + (dir / "near.csv"),
+      dir.path());
+  EXPECT_EQ(quiet.status, 0) << quiet.err;
+  EXPECT_EQ(quiet.err.find("half of the points"), std::string::npos) << quiet.err;
+
+  // batch --mode project warns per frame the same way.
+  std::filesystem::create_directories(dir / "frames");
+  std::filesystem::copy_file(moved, (dir / "frames") + "/a.pcd");
+  std::filesystem::copy_file(near, (dir / "frames") + "/b.pcd");
+  const CommandResult batch = run_nurbsreg("batch --mode project --model " + kPanel + " --scans " +
+                                               (dir / "frames") + " --out " + (dir / "out"),
+                                           dir.path());
+  EXPECT_EQ(batch.status, 0) << batch.err;
+  EXPECT_NE(batch.err.find("a.pcd: half of the points lie "), std::string::npos) << batch.err;
+  EXPECT_EQ(batch.err.find("b.pcd: half of the points"), std::string::npos) << batch.err;
+}
+
 // A scan in inches (1/25.4 of the panel) loses its correspondences: the failure line names the
 // sizes as the likely cause.
 TEST(Cli, AlignFailureNamesTheSizeMismatch) {

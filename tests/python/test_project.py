@@ -158,6 +158,25 @@ def test_scan_far_larger_than_the_model_warns_as_the_cli(panel):
         nurbsreg.project(panel, np.array([[0.0, 0, 0], [5000, 5000, 5000]]))
 
 
+def test_points_far_from_the_model_warn_as_the_cli(panel, panel_scan, tmp_path):
+    """A scan still in the scanner's frame: the CLI's line, word for word; in its frame: quiet."""
+    scan, _ = panel_scan
+    points = nurbsreg.read_point_cloud(scan).points + np.array([1000.0, 0.0, 0.0])
+    moved = tmp_path / "moved.xyz"
+    nurbsreg.write_point_cloud(moved, points, double_precision=True)
+    cli = run_cli("project", "--model", PANEL, "--points", str(moved),
+                  "--out", str(tmp_path / "r.csv"))
+    cli_lines = [line for line in cli.stderr.splitlines() if "half of the points lie" in line]
+    assert len(cli_lines) == 1, cli.stderr
+    with pytest.warns(nurbsreg.NurbsregWarning, match="is the scan in the model's frame") as caught:
+        nurbsreg.project(panel, points)
+    notes = [str(w.message) for w in caught if "half of the points lie" in str(w.message)]
+    assert len(notes) == 1
+    assert notes[0].split("points: ", 1)[1] in cli_lines[0]
+    assert not any("half of the points" in w for w in nurbsreg.project(panel, points - np.array(
+        [1000.0, 0.0, 0.0])).warnings)
+
+
 def test_model_size_is_its_trimmed_faces_as_in_the_cli(tmp_path):
     """A face cut from a large surface is as large as the face: Model.bounds is info's
     bounding_box (not the control points' box), and project's scan-size warning measures the

@@ -138,6 +138,25 @@ TEST_F(Serve, AlignAndProjectAnswerAsTheCli) {
     ASSERT_EQ(r.status, 0) << r.err;
     EXPECT_EQ(projected->body, read_text(path("cli.csv"))) << scan;
     EXPECT_EQ(projected->get_header_value("Content-Type"), "text/csv");
+    EXPECT_FALSE(projected->has_header("X-Warning")) << projected->get_header_value("X-Warning");
+  }
+  // Points of the panel's size 5 m above it (not in the model's frame): `project`'s warning as
+  // a header, the rows as asked.
+  {
+    std::string far;
+    for (int i = 0; i < 20; ++i) {
+      for (int j = 0; j < 20; ++j) {
+        const float xyz[3] = {5.0f * i, 5.0f * j, 5000.0f};
+        far.append(reinterpret_cast<const char*>(xyz), sizeof xyz);
+      }
+    }
+    const auto moved =
+        c->Post("/v1/project?model=panel", far, "application/x-nurbsreg-xyz-float32");
+    ASSERT_TRUE(moved);
+    ASSERT_EQ(moved->status, 200) << moved->body;
+    EXPECT_NE(moved->get_header_value("X-Warning").find("points: half of the points lie"),
+              std::string::npos)
+        << moved->get_header_value("X-Warning");
   }
 
   const auto metrics = c->Get("/metrics");
@@ -145,7 +164,7 @@ TEST_F(Serve, AlignAndProjectAnswerAsTheCli) {
   EXPECT_NE(metrics->body.find("nurbsreg_requests_total{endpoint=\"align\",status=\"200\"} 2"),
             std::string::npos)
       << metrics->body;
-  EXPECT_NE(metrics->body.find("nurbsreg_points_total{endpoint=\"project\"} 7000"),
+  EXPECT_NE(metrics->body.find("nurbsreg_points_total{endpoint=\"project\"} 7400"),
             std::string::npos);
   EXPECT_EQ(server.terminate(30), 0);
 }

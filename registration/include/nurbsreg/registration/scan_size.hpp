@@ -42,4 +42,15 @@ ScanSize scan_size(std::span<const engine::Vec3> scan, const engine::PreparedMod
 // large surface is as large as the face), PreparedModel::geometry_bounds.
 double model_size(const engine::PreparedModel& model);
 
+// A projection whose points mostly lie far from the model: the median distance over the finite
+// `distances` is larger than the model itself (`model_size`, its diagonal). The points are then
+// not a scan of the part in the model's frame (a scan still in the scanner's frame: `align`
+// first; or another part), and their "deviations" say nothing about the part. One line then,
+// nothing otherwise (or when no distance is finite). Clutter and outliers do not set it off while
+// at least half of the points are near. The median is taken over at most 65,536 evenly spaced
+// points (kFarSample): a warning's threshold, not a statistic that is reported.
+inline constexpr std::size_t kFarSample = 65536;
+std::optional<std::string> far_from_model_note(std::span<const double> distances, double model_size,
+                                               const std::string& units);
+
 }  // namespace nurbsreg::registration
