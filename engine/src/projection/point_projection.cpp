@@ -466,30 +466,30 @@ void write_surface_answer(const PreparedModel& model, const ProjectionOptions& o
   // A chained cold frame: the near list of the points before proves this one's answer, or its
   // search makes a new list (ProjectionOptions::chain_cold).
   NearList* listing = nullptr;
-  if (state.chain_margin > 0.0 && hint == nullptr && !certifying) {
-    NearList& list = state.near_list;
+  if (state.chain.active() && hint == nullptr && !certifying) {
+    NearList& list = state.chain.list;
     if (list.count > 0) {
       SurfaceSearch search{point.best, point.surface, point.patch, point.edge, point.edge_t};
-      search_list(p, search, list, state.chain_patch, state.chain_s, state.chain_t, state);
+      search_list(p, search, list, state.chain.patch, state.chain.s, state.chain.t, state);
       point.proven = point.surface >= 0 && list.proves(p, point.best.distance_sq);
       if (point.proven) {
         ++list.hits;
         ++state.counters.listed;
       } else {
-        state.list_failed();
+        state.chain.list_failed();
       }
     }
     if (!point.proven) {
-      if (state.chain_skip > 0) {
-        --state.chain_skip;
+      if (state.chain.skip > 0) {
+        --state.chain.skip;
       } else {
-        list.start(p, state.chain_margin);
+        list.start(p, state.chain.margin);
         listing = &list;
       }
       // The list's nearest point (a point of the model) stays the walk's first threshold.
-      point.hint_patch = state.chain_patch;
-      point.hint_s = state.chain_s;
-      point.hint_t = state.chain_t;
+      point.hint_patch = state.chain.patch;
+      point.hint_s = state.chain.s;
+      point.hint_t = state.chain.t;
     }
   }
   if (!point.proven) {
@@ -506,7 +506,7 @@ void write_surface_answer(const PreparedModel& model, const ProjectionOptions& o
     }
     // Too many items within the margin (a point far from the model, a crowded corner): the
     // listing walk was wasted, as a list that fails at once.
-    if (listing != nullptr && listing->count == 0) state.list_failed();
+    if (listing != nullptr && listing->count == 0) state.chain.list_failed();
     if (point.edge < 0 && point.best.distance_sq == seed_sq) {
       // The seed point is the answer (every improvement is strict: nothing was found closer by
       // more than the clipping's accepted 1e-11 R). Polished on its patch as the clipping
@@ -522,10 +522,10 @@ void write_surface_answer(const PreparedModel& model, const ProjectionOptions& o
       if (region == nullptr || region->contains(polished.u, polished.v)) point.best = polished;
     }
   }
-  if (state.chain_margin > 0.0) {
-    state.chain_patch = point.edge < 0 ? point.patch : -1;
-    state.chain_s = point.best.s;
-    state.chain_t = point.best.t;
+  if (state.chain.active()) {
+    state.chain.patch = point.edge < 0 ? point.patch : -1;
+    state.chain.s = point.best.s;
+    state.chain.t = point.best.t;
   }
   if (point.surface < 0) return ProjectionStatus::beyond_max_distance;
   // The certificate that proves the answer, for the next frame's hint.
@@ -617,7 +617,7 @@ void Projector::project_range(PointView points, const ProjectionOptions& options
     const std::size_t i = order.empty() ? j : order[j];
     const Vec3 p = points[i];
     ++state.counters.points;
-    if (j % kChainLength == 0) state.reset_chain();
+    if (state.chain.active() && j % kChainLength == 0) state.chain.reset();
     ProjectionStatus status;
     if (!p.allFinite()) {
       ++state.counters.skipped;

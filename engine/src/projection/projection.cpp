@@ -184,14 +184,14 @@ void Projector::project(PointView points, const ProjectionOptions& options, Proj
                         ThreadState& state = impl_->states.local();
                         const std::size_t begin = range.begin() * kChainLength;
                         const std::size_t end = std::min(points.size(), range.end() * kChainLength);
-                        state.chain_margin = chain_margin;
+                        state.chain.margin = chain_margin;
                         if (order.empty()) {
                           project_range(points, options, out, hints, {}, begin, end, state);
                         } else {
                           project_block(points, options, order.subspan(begin, end - begin), out,
                                         state);
                         }
-                        state.chain_margin = 0.0;
+                        state.chain.margin = 0.0;
                       });
   } else {
     tbb::parallel_for(

@@ -84,30 +84,35 @@ struct Projector::ThreadState {
   // (Projector::project).
   std::vector<Vec3> staged_points;
   ProjectionResults staged;
-  // A chained cold frame (ProjectionOptions::chain_cold): the near list of the chain so far and
-  // the previous point's answer (where the next clipping of its patch starts Newton);
-  // `chain_margin` > 0 while the frame chains.
-  NearList near_list;
-  double chain_margin = 0.0;
-  std::int64_t chain_patch = -1;
-  double chain_s = 0.0, chain_t = 0.0;
-  // Where lists do not pay (sparse points, noise beyond the margin: a list fails at the next
-  // point), the next `chain_skip` points walk without making one; each list that proved nothing
-  // doubles that pause (chain_pause), one that did ends it.
-  int chain_skip = 0, chain_pause = 0;
-  void reset_chain() {
-    near_list.count = 0;
-    chain_patch = -1;
-    chain_skip = 0;
-    chain_pause = 0;
-  }
-  // The chain's list failed at a point: pause listing if it proved nothing.
-  void list_failed() {
-    constexpr int kLongestPause = 64;
-    chain_pause = near_list.hits == 0 ? std::clamp(2 * chain_pause, 1, kLongestPause) : 0;
-    chain_skip = chain_pause;
-    near_list.count = 0;
-  }
+  // A chained cold frame (ProjectionOptions::chain_cold) as this thread walks it: the near list
+  // of the chain so far and the previous point's answer (where the next clipping of its patch
+  // starts Newton).
+  struct Chain {
+    NearList list;
+    double margin = 0.0;  // > 0 while the frame chains
+    std::int64_t patch = -1;
+    double s = 0.0, t = 0.0;
+    // Where lists do not pay (sparse points, noise beyond the margin: a list fails at the next
+    // point), the next `skip` points walk without making one; each list that proved nothing
+    // doubles that pause, one that did ends it.
+    int skip = 0, pause = 0;
+
+    bool active() const { return margin > 0.0; }
+    void reset() {
+      list.count = 0;
+      patch = -1;
+      skip = 0;
+      pause = 0;
+    }
+    // The list failed at a point: pause listing if it proved nothing.
+    void list_failed() {
+      constexpr int kLongestPause = 64;
+      pause = list.hits == 0 ? std::clamp(2 * pause, 1, kLongestPause) : 0;
+      skip = pause;
+      list.count = 0;
+    }
+  };
+  Chain chain;
 };
 
 struct Projector::Impl {
