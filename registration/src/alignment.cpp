@@ -104,7 +104,7 @@ AlignmentResult Aligner::align(std::span<const engine::Vec3> scan, const AlignRe
   } progress_scope{*this};
   progress_ = request.progress;
   if (progress_) solver_.set_on_iteration(icp_progress("ICP"));
-  completed_ = false;
+  reset_projections();
   if (!global) {
     return align_from(scan, request.init.value_or(Eigen::Isometry3d::Identity()),
                       request.all_projections);
@@ -130,13 +130,32 @@ std::function<void(const icp::IcpIteration&)> Aligner::icp_progress(std::string 
 }
 
 AlignmentResult Aligner::align(std::span<const engine::Vec3> scan, const Eigen::Isometry3d& init) {
-  completed_ = false;
+  reset_projections();
   return align_from(scan, init, true);
 }
 
 AlignmentResult Aligner::align(std::span<const engine::Vec3> scan) {
-  completed_ = false;
+  reset_projections();
   return align_global(scan, true);
+}
+
+void Aligner::reset_projections() {
+  completed_ = false;
+  scan_order_pending_ = false;
+  scan_order_ready_ = false;
+}
+
+const engine::ProjectionResults& Aligner::last_projections() const {
+  if (scan_order_pending_) {
+    // Answer k of the ordered scan is scan point order_[k]'s. What last_projections() promises
+    // (entity, u, v, distance, signed distance, status, trim edge), without feet and
+    // certificates.
+    scan_order_projections_.resize(order_.size(), /*feet=*/false, /*certificates=*/false);
+    scan_order_projections_.scatter_from(ordered_projections(), order_);
+    scan_order_pending_ = false;
+    scan_order_ready_ = true;
+  }
+  return scan_order_ready_ ? scan_order_projections_ : ordered_projections();
 }
 
 AlignmentResult Aligner::align_from(std::span<const engine::Vec3> scan,
@@ -277,8 +296,10 @@ AlignmentResult Aligner::align_global(std::span<const engine::Vec3> scan, bool a
   for (std::size_t k = 0; k < scan.size(); ++k)
     ordered_scan_[k] = scan[order_[k]];
   const std::span<const engine::Vec3> ordered = ordered_scan_;
-  icp::IcpSolver fine_solver(fine);
-  frame.icp = fine_solver.align(finder_, ordered, frame.coarse->winner.T_model_scan);
+  // A solver of its own, gone with its per-point buffers (about 120 bytes a point) before the
+  // verdict allocates the deviations' arrays: those then reuse memory the process has touched,
+  // which on a VM whose host backs guest memory lazily costs a fraction of fresh memory.
+  frame.icp = icp::IcpSolver(fine).align(finder_, ordered, frame.coarse->winner.T_model_scan);
   lap("fine ICP");
   // A continuous symmetry (a surface of revolution, a plane patch) leaves the pose free along
   // it: the pose is one of infinitely many that fit, and the report says so.
@@ -309,12 +330,7 @@ void Aligner::restore_scan_order(std::span<const engine::Vec3> scan, AlignmentRe
                         frame.aligned[i] = T * scan[i];
                     });
   engine::stop_if_cancelled();  // never half the points moved
-  // Answer k of the ordered scan is scan point order_[k]'s. What last_projections() promises
-  // (entity, u, v, distance, signed distance, status, trim edge), without feet and certificates.
-  scan_order_projections_.resize(scan.size(), /*feet=*/false, /*certificates=*/false);
-  scan_order_projections_.scatter_from(last_projections(), order_);
-  std::swap(completed_projections_, scan_order_projections_);
-  completed_ = true;
+  scan_order_pending_ = true;   // the projections: on the first last_projections()
 }
 
 AlignmentResult Aligner::finish(std::span<const engine::Vec3> scan, AlignmentResult frame,
@@ -333,8 +349,11 @@ AlignmentResult Aligner::finish(std::span<const engine::Vec3> scan, AlignmentRes
   // projections are these (the same points, T * p in scan order), so no second pass.
   std::vector<engine::Vec3>& aligned = frame.aligned;
   aligned.resize(scan.size());
-  for (std::size_t i = 0; i < scan.size(); ++i)
-    aligned[i] = result.T_model_scan * scan[i];
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, scan.size(), 16384),
+                    [&](const tbb::blocked_range<std::size_t>& r) {
+                      for (std::size_t i = r.begin(); i < r.end(); ++i)
+                        aligned[i] = result.T_model_scan * scan[i];
+                    });
   // Only the deviation summary (within max_distance) and the verdict (within its tolerance)
   // read the distances unless every point's projection is asked for.
   const double mcd = used.max_correspondence_distance;

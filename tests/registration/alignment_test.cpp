@@ -279,6 +279,39 @@ TEST(Aligner, FromAnyPoseThePointsComeBackInScanOrder) {
   }
 }
 
+// From any pose the projections go back to scan order when first asked for: an aligner reused
+// for a frame from a pose then serves that frame's, whether the earlier ones were asked for or
+// not, and a later frame from any pose its own.
+TEST(Aligner, ReusedAcrossModesServesTheLastFramesProjections) {
+  const engine::PreparedModel& model = panel();
+  const engine::SyntheticScan cluttered = cluttered_panel_scan();
+  const double noise = 1e-4 * model.bounds().diagonal();
+  const engine::SyntheticScan posed = scan_of(model, 3000, noise, 21);
+  AlignRequest global;
+  global.global = GlobalMode::on;
+  const auto same = [](const engine::ProjectionResults& a, const engine::ProjectionResults& b) {
+    ASSERT_EQ(a.size(), b.size());
+    for (std::size_t i = 0; i < a.size(); ++i) {
+      ASSERT_EQ(a.distance[i], b.distance[i]) << i;
+      ASSERT_EQ(a.entity[i], b.entity[i]) << i;
+    }
+  };
+  Aligner fresh_global(model, icp::IcpOptions{});
+  ASSERT_TRUE(fresh_global.align(cluttered.points, global).ok());
+  Aligner fresh_posed(model, icp::IcpOptions{});
+  ASSERT_TRUE(fresh_posed.align(posed.points, Isometry3d::Identity()).ok());
+
+  for (const bool read_first : {false, true}) {
+    Aligner reused(model, icp::IcpOptions{});
+    ASSERT_TRUE(reused.align(cluttered.points, global).ok());
+    if (read_first) same(reused.last_projections(), fresh_global.last_projections());
+    ASSERT_TRUE(reused.align(posed.points, Isometry3d::Identity()).ok());
+    same(reused.last_projections(), fresh_posed.last_projections());
+    ASSERT_TRUE(reused.align(cluttered.points, global).ok());
+    same(reused.last_projections(), fresh_global.last_projections());
+  }
+}
+
 // AlignRequest::progress: from any pose it gets the coarse stage's outcome when that stage ends
 // (then the fine ICP's lines, at most about one a second: none for this short alignment); the
 // answer is the same with and without it; from a pose there is no coarse line.

@@ -118,10 +118,9 @@ class Aligner {
 
   // The exact projections of the last align()'s aligned points (entity, u, v, distance, signed
   // distance; no feet or normals), in scan order; with AlignRequest::all_projections false only
-  // those of the points near the model.
-  const engine::ProjectionResults& last_projections() const {
-    return completed_ ? completed_projections_ : finder_.last_results();
-  }
+  // those of the points near the model. From any pose they are put back in scan order on the
+  // first call (a pass over every point that a caller who writes no per-point output skips).
+  const engine::ProjectionResults& last_projections() const;
   // Frames of one stream (a service session): the finder keeps its certificates from frame to
   // frame (icp::ModelCorrespondenceFinder::keep_certificates) for the frames from a pose. The
   // answers stay exact, but not bit-identical to a fresh aligner's. A frame from any pose (the
@@ -139,6 +138,8 @@ class Aligner {
   AlignmentResult align_from(std::span<const engine::Vec3> scan, const Eigen::Isometry3d& init,
                              bool all_projections);
   AlignmentResult align_global(std::span<const engine::Vec3> scan, bool all_projections);
+  // Before an alignment: no projections of a previous one are served.
+  void reset_projections();
   // An icp::IcpOptions::on_iteration that passes progress_ a line about once a second.
   std::function<void(const icp::IcpIteration&)> icp_progress(std::string what) const;
   AlignmentResult finish(std::span<const engine::Vec3> scan, AlignmentResult frame,
@@ -168,7 +169,14 @@ class Aligner {
   engine::FrameVector<std::uint32_t> order_;
   engine::SpatialOrderScratch order_scratch_;
   std::vector<engine::Vec3> ordered_scan_;
-  engine::ProjectionResults scan_order_projections_;
+  // The answers in the spatial order above, to be put in scan order by last_projections()
+  // (scan_order_pending_), and once done there (scan_order_ready_).
+  const engine::ProjectionResults& ordered_projections() const {
+    return completed_ ? completed_projections_ : finder_.last_results();
+  }
+  mutable engine::ProjectionResults scan_order_projections_;
+  mutable bool scan_order_pending_ = false;
+  mutable bool scan_order_ready_ = false;
 };
 
 }  // namespace nurbsreg::registration
