@@ -620,13 +620,10 @@ void Service::Impl::project(const httplib::Request& req, httplib::Response& res,
   // `project`'s warnings, one header each (HTTP has no stderr): the scan's size against the
   // model's, and points that mostly lie far from the model.
   const engine::PreparedModel& prepared = pooled.projector->model();
-  const double model_size = registration::model_size(prepared);
-  const registration::ScanSize sizes{
-      registration::scan_diagonal(engine::PointView::of(cloud.points)), model_size,
-      prepared.model().units};
+  const registration::ScanSize sizes = registration::scan_size(cloud.points, prepared);
   if (const auto note = sizes.warning()) res.set_header("X-Warning", "points: " + *note);
-  if (const auto note = registration::far_from_model_note(projected.results.distance, model_size,
-                                                          prepared.model().units)) {
+  if (const auto note =
+          registration::far_from_model_note(projected.results.distance, sizes.model, sizes.units)) {
     res.set_header("X-Warning", "points: " + *note);
   }
   points = cloud.size();

@@ -119,7 +119,9 @@ class Aligner {
   // The exact projections of the last align()'s aligned points (entity, u, v, distance, signed
   // distance; no feet or normals), in scan order; with AlignRequest::all_projections false only
   // those of the points near the model. From any pose they are put back in scan order on the
-  // first call (a pass over every point that a caller who writes no per-point output skips).
+  // first call (a pass over every point that a caller who writes no per-point output skips), so
+  // the first call after an alignment must not race with another: one thread at a time, as
+  // align() itself.
   const engine::ProjectionResults& last_projections() const;
   // Frames of one stream (a service session): the finder keeps its certificates from frame to
   // frame (icp::ModelCorrespondenceFinder::keep_certificates) for the frames from a pose. The
