@@ -12,33 +12,29 @@ NURBSREG_HOT_CLONES
 CoefficientRange coefficient_range(const double* n, const double* d, int count, bool rational) {
   CoefficientRange r{std::numeric_limits<double>::infinity(),
                      -std::numeric_limits<double>::infinity(), 0};
+  // The minimum and maximum only, in vector lanes (order-independent; a NaN is ignored, as
+  // std::min and std::max ignore it). A rational patch's ratios N_k / D_k are divided in the lanes
+  // too: IEEE division is correctly rounded, so each lane's quotient is the scalar one. The index
+  // of the minimum is wanted only where a box ends in Newton: arg = -1, and first_index_of (or
+  // first_ratio_index_of) finds it then, the first index holding the minimum.
+  SlotRange<kLanes> lanes;
+  int k = 0;
   if (!rational) {
-    // The minimum and maximum only, in vector lanes (order-independent; a NaN is ignored as
-    // below). The index of the minimum is wanted only where a box ends in Newton: arg = -1, and
-    // first_index_of finds it then (the first index holding the minimum, as the strict test
-    // below keeps).
-    SlotRange<kLanes> lanes;
-    int k = 0;
     for (; k + kLanes <= count; k += kLanes)
       lanes.add(0, load_lanes(n + k));
-    Iv range = lanes.reduce();
-    for (; k < count; ++k) {
-      range.lo = std::min(range.lo, n[k]);
-      range.hi = std::max(range.hi, n[k]);
-    }
-    r.lo = range.lo;
-    r.hi = range.hi;
-    r.arg = -1;
-    return r;
+  } else {
+    for (; k + kLanes <= count; k += kLanes)
+      lanes.add(0, load_lanes(n + k) / load_lanes(d + k));
   }
-  for (int k = 0; k < count; ++k) {
+  Iv range = lanes.reduce();
+  for (; k < count; ++k) {
     const double f = rational ? n[k] / d[k] : n[k];
-    if (f < r.lo) {
-      r.lo = f;
-      r.arg = k;
-    }
-    r.hi = std::max(r.hi, f);
+    range.lo = std::min(range.lo, f);
+    range.hi = std::max(range.hi, f);
   }
+  r.lo = range.lo;
+  r.hi = range.hi;
+  r.arg = -1;
   return r;
 }
 

@@ -11,13 +11,21 @@ struct CoefficientRange {
   int arg;
 };
 
-// rational == false: N's own range, arg -1 (first_index_of finds it when it is wanted).
+// arg is -1: first_index_of (rational: first_ratio_index_of) finds it when it is wanted.
 CoefficientRange coefficient_range(const double* n, const double* d, int count, bool rational);
 
 // The first index k with a[k] == value (0 if none): the arg of coefficient_range's minimum.
 inline int first_index_of(const double* a, int count, double value) {
   for (int k = 0; k < count; ++k) {
     if (a[k] == value) return k;
+  }
+  return 0;
+}
+
+// The first index k with n[k] / d[k] == value (0 if none): a rational coefficient_range's arg.
+inline int first_ratio_index_of(const double* n, const double* d, int count, double value) {
+  for (int k = 0; k < count; ++k) {
+    if (n[k] / d[k] == value) return k;
   }
   return 0;
 }

@@ -163,38 +163,72 @@ template <int R, int C>
   if (rows == 5 && cols == 5) return second_derivative_ranges_fixed<5, 5>(a, f);
   if (rows == 5 && cols == 7) return second_derivative_ranges_fixed<5, 7>(a, f);
   if (rows == 7 && cols == 5) return second_derivative_ranges_fixed<7, 5>(a, f);
-  double ss_lo = std::numeric_limits<double>::infinity(), ss_hi = -ss_lo;
-  for (int i = 0; i + 2 < rows; ++i) {
-    const double* r0 = a + i * cols;
-    const double* r1 = r0 + cols;
-    const double* r2 = r1 + cols;
-    for (int j = 0; j < cols; ++j) {
-      const double x = r2[j] - 2.0 * r1[j] + r0[j];
-      ss_lo = std::min(ss_lo, x);
-      ss_hi = std::max(ss_hi, x);
+  // Any other grid (the IEA blade's degree-(3, 8) strips: 7 x 17) in vector lanes, two vectors
+  // at a time into two slots: four independent chains of minima and maxima where one value at a
+  // time made two, each waiting on the one before (min and max are exact: the same ranges).
+  using Pair = SlotRange<2 * kLanes>;
+  constexpr int kStep = 2 * kLanes;
+  // F_ss: one flat pass, the rows being contiguous.
+  Pair ss;
+  const int ss_count = (rows - 2) * cols;
+  int k = 0;
+  for (; k + kStep <= ss_count; k += kStep) {
+    for (int v = 0; v < 2; ++v) {
+      const double* x = a + k + v * kLanes;
+      ss.add(v, load_lanes(x + 2 * cols) - 2.0 * load_lanes(x + cols) + load_lanes(x));
     }
-    if (!(ss_lo > 0.0)) return false;
   }
-  double tt_lo = std::numeric_limits<double>::infinity(), tt_hi = -tt_lo;
+  Iv ss_range = ss.reduce();
+  for (; k < ss_count; ++k) {
+    const double x = a[k + 2 * cols] - 2.0 * a[k + cols] + a[k];
+    ss_range.lo = std::min(ss_range.lo, x);
+    ss_range.hi = std::max(ss_range.hi, x);
+  }
+  if (!(ss_range.lo > 0.0)) return false;
+  // F_tt: along each row, cols - 2 differences.
+  Pair tt;
+  Iv tt_rest{std::numeric_limits<double>::infinity(), -std::numeric_limits<double>::infinity()};
   for (int i = 0; i < rows; ++i) {
     const double* r = a + i * cols;
-    for (int j = 0; j + 2 < cols; ++j) {
-      const double x = r[j + 2] - 2.0 * r[j + 1] + r[j];
-      tt_lo = std::min(tt_lo, x);
-      tt_hi = std::max(tt_hi, x);
+    int j = 0;
+    for (; j + kStep + 2 <= cols; j += kStep) {
+      for (int v = 0; v < 2; ++v) {
+        const double* x = r + j + v * kLanes;
+        tt.add(v, load_lanes(x + 2) - 2.0 * load_lanes(x + 1) + load_lanes(x));
+      }
     }
-    if (!(tt_lo > 0.0)) return false;
+    for (; j + 2 < cols; ++j) {
+      const double x = r[j + 2] - 2.0 * r[j + 1] + r[j];
+      tt_rest.lo = std::min(tt_rest.lo, x);
+      tt_rest.hi = std::max(tt_rest.hi, x);
+    }
   }
-  double st_lo = std::numeric_limits<double>::infinity(), st_hi = -st_lo;
+  const Iv tt_lanes = tt.reduce();
+  const Iv tt_range{std::min(tt_lanes.lo, tt_rest.lo), std::max(tt_lanes.hi, tt_rest.hi)};
+  if (!(tt_range.lo > 0.0)) return false;
+  // F_st: mixed differences, (rows - 1) x (cols - 1).
+  Pair st;
+  Iv st_rest{std::numeric_limits<double>::infinity(), -std::numeric_limits<double>::infinity()};
   for (int i = 0; i + 1 < rows; ++i) {
     const double* r0 = a + i * cols;
     const double* r1 = r0 + cols;
-    for (int j = 0; j + 1 < cols; ++j) {
+    int j = 0;
+    for (; j + kStep + 1 <= cols; j += kStep) {
+      for (int v = 0; v < 2; ++v) {
+        const int c = j + v * kLanes;
+        st.add(v, load_lanes(r1 + c + 1) - load_lanes(r1 + c) - load_lanes(r0 + c + 1) +
+                      load_lanes(r0 + c));
+      }
+    }
+    for (; j + 1 < cols; ++j) {
       const double x = r1[j + 1] - r1[j] - r0[j + 1] + r0[j];
-      st_lo = std::min(st_lo, x);
-      st_hi = std::max(st_hi, x);
+      st_rest.lo = std::min(st_rest.lo, x);
+      st_rest.hi = std::max(st_rest.hi, x);
     }
   }
+  const Iv st_lanes = st.reduce();
+  const double ss_lo = ss_range.lo, ss_hi = ss_range.hi, tt_lo = tt_range.lo, tt_hi = tt_range.hi;
+  const double st_lo = std::min(st_lanes.lo, st_rest.lo), st_hi = std::max(st_lanes.hi, st_rest.hi);
   // The same scaling as derivative_ranges.
   const int m = rows - 1, n = cols - 1;
   const double ks = double(m) * (m - 1), kt = double(n) * (n - 1), kst = double(m) * n;

@@ -320,7 +320,9 @@ template <bool kTrim>
     // Newton on this box, started at the Greville abscissa (i / (rows - 1), j / (cols - 1)) of
     // F's smallest coefficient: near the minimiser when the box is nearly convex.
     auto newton_box = [&](bool convex = false) {
-      const int arg = b.arg >= 0 ? b.arg : first_index_of(n, count, b.lower);
+      const int arg = b.arg >= 0    ? b.arg
+                      : pp.rational ? first_ratio_index_of(n, d, count, b.lower)
+                                    : first_index_of(n, count, b.lower);
       const int i = arg / cols, j = arg % cols;
       double s = rows > 1 ? b.s0 + (b.s1 - b.s0) * i / (rows - 1) : 0.5 * (b.s0 + b.s1);
       double t = cols > 1 ? b.t0 + (b.t1 - b.t0) * j / (cols - 1) : 0.5 * (b.t0 + b.t1);
