@@ -84,8 +84,7 @@ void run_align(const AlignArgs& args) {
   if (const auto& failure = frame.failure) {
     // No pose and no aligned scan: they would align nothing. The report says what happened
     // (converged: false, the termination and every iteration).
-    write_align_outputs(frame, aligner.last_projections(), cloud, args.icp,
-                        AlignOutputs{"", "", args.report}, total);
+    write_align_outputs(frame, aligner, cloud, args.icp, AlignOutputs{"", "", args.report}, total);
     throw std::runtime_error(args.scan + ": " + *failure);
   }
   // After the failure check: a failed alignment's one line is its error (the brief report would
@@ -137,7 +136,7 @@ void run_align(const AlignArgs& args) {
   std::cout << fmt::format(
       "fit {}: {:.1f}% of the points within {:.3g} ({}), rms {:.3g}, model coverage {:.1f}%\n",
       fit.word(), 100.0 * fit.inlier_fraction, fit.tolerance, basis, fit.rms, 100.0 * fit.coverage);
-  write_align_outputs(frame, aligner.last_projections(), cloud, args.icp,
+  write_align_outputs(frame, aligner, cloud, args.icp,
                       AlignOutputs{args.out_pose, args.aligned, args.report}, total);
   spdlog::info("aligned {} points in {:.2f} s", cloud.size(), total.seconds());
 }

@@ -546,8 +546,8 @@ void run_batch(const BatchArgs& args) {
               if (r.failure) throw std::runtime_error(*r.failure);
               warn_if_unconverged(token->row.file, r.icp, args.icp);
               warn_about_fit(token->row.file, r);
-              write_align_outputs(r, worker->aligner->last_projections(), token->cloud, args.icp,
-                                  frame.align, token->clock);
+              write_align_outputs(r, *worker->aligner, token->cloud, args.icp, frame.align,
+                                  token->clock);
               token->row.rms = fmt::format("{}", r.icp.rms);
               token->row.iterations = std::to_string(r.icp.iterations);
               token->row.pose = pose_field(r.icp.T_model_scan.matrix());

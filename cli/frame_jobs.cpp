@@ -184,13 +184,14 @@ io::AlignmentReport alignment_report(const registration::AlignmentResult& frame,
 }
 
 void write_align_outputs(const registration::AlignmentResult& frame,
-                         const engine::ProjectionResults& proj, const io::PointCloud& cloud,
+                         const registration::Aligner& aligner, const io::PointCloud& cloud,
                          const IcpArgs& args, const AlignOutputs& outputs, const Stopwatch& clock) {
   const icp::IcpResult& result = frame.icp;
   const std::vector<engine::Vec3>& aligned = frame.aligned;
 
   if (!outputs.pose.empty()) io::write_pose(outputs.pose, result.T_model_scan.matrix());
   if (!outputs.aligned.empty()) {
+    const engine::ProjectionResults& proj = aligner.last_projections();
     io::PointTable table;
     auto& x = table.add_column<float>("x");
     auto& y = table.add_column<float>("y");

@@ -130,11 +130,13 @@ io::AlignmentReport alignment_report(const registration::AlignmentResult& frame,
                                      const io::PointCloud& cloud, const IcpArgs& args,
                                      const Stopwatch& clock);
 
-// Writes the requested outputs of an aligned frame; `projections` are the final ones
-// (finder.last_results() right after align_frame). The report's "seconds" is read from `clock`
-// (the single command: started with the command; batch: with the frame).
+// Writes the requested outputs of an aligned frame, which `aligner` has just made: its
+// last_projections() are read only for an aligned scan (from any pose they are put back in scan
+// order on that first read: a run that writes only a pose and a report skips it). The report's
+// "seconds" is read from `clock` (the single command: started with the command; batch: with the
+// frame).
 void write_align_outputs(const registration::AlignmentResult& frame,
-                         const engine::ProjectionResults& projections, const io::PointCloud& cloud,
+                         const registration::Aligner& aligner, const io::PointCloud& cloud,
                          const IcpArgs& args, const AlignOutputs& outputs, const Stopwatch& clock);
 
 }  // namespace nurbsreg::cli

@@ -105,7 +105,7 @@ double residual_variance(const LinearSystem& sys, double ssr) {
 
 namespace detail {
 struct IcpBuffers {
-  // Per-point arrays: huge pages for large scans (engine/large_buffer.hpp).
+  // Per-point arrays: faulted in on all threads for large scans (engine/large_buffer.hpp).
   engine::FrameVector<std::size_t> ids;  // active scan indices, ascending
   engine::FrameVector<Vec3> moved;       // q_i
   engine::FrameVector<Correspondence> matches;

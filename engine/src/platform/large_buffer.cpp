@@ -18,8 +18,13 @@ std::size_t mapped_size(std::size_t bytes) {
 
 void* allocate_large(std::size_t bytes) {
   const std::size_t size = mapped_size(bytes);
-  // Map one huge page more than needed and unmap the unaligned head and tail, so that the
-  // region starts on a 2 MiB boundary (where the kernel can back it with huge pages).
+  // Map 2 MiB more than needed and unmap the unaligned head and tail, so that the region starts
+  // on a 2 MiB boundary: where the system backs anonymous memory with transparent huge pages
+  // (THP "always"), the whole array can take them. No MADV_HUGEPAGE of its own: on the 2-core
+  // VMs this runs on, a fresh huge page cost about five times the first touch of its 512 small
+  // pages (the host backs the free huge blocks the guest hands back only when touched again),
+  // and a whole alignment from any pose ran slower with the advice than without; the projection
+  // itself showed no difference (bench/README.md, "Twenty-sixth pass").
   const std::size_t span = size + kHugePage;
   void* raw = mmap(nullptr, span, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
   if (raw == MAP_FAILED) throw std::bad_alloc();
@@ -29,7 +34,6 @@ void* allocate_large(std::size_t bytes) {
   const std::uintptr_t end = base + span;
   if (end > aligned + size) munmap(reinterpret_cast<void*>(aligned + size), end - aligned - size);
   void* p = reinterpret_cast<void*>(aligned);
-  madvise(p, size, MADV_HUGEPAGE);  // advice only: without THP the mapping works as usual
   // Fault the pages in now, on every thread, rather than page by page in whatever serial loop
   // first writes the array (std::vector's value-initialisation): a first touch costs the kernel
   // a zeroed page and, on a VM whose host backs guest memory lazily, a host fault too. Measured

@@ -1,13 +1,12 @@
 #pragma once
 // An allocator for per-point arrays of whole frames (millions of points): allocations of 4 MiB
-// and more get their own anonymous mapping, aligned to 2 MiB and advised for transparent huge
-// pages (madvise(MADV_HUGEPAGE); Linux with THP "madvise" or "always"). The first touch of such
-// an array then costs one page fault per 2 MiB instead of per 4 KiB: on a 2-core VM the faults
-// of a 1,000,000-point alignment's fresh arrays (~300 MB) took about a quarter of its time
-// (bench/README.md "Warm certificates"). The pages are faulted in at allocation, on all TBB
-// threads (a first touch is a zeroed page and, on a VM, possibly a host fault: half the wall
-// time on 2 threads). Smaller allocations, and systems without THP, use plain operator new / the
-// mapping as is. Stateless: every instance compares equal.
+// and more get their own anonymous mapping, aligned to 2 MiB, whose pages are faulted in at
+// allocation on all TBB threads. A first touch is a zeroed page and, on a VM whose host backs
+// guest memory lazily, a host fault too: faulted in by whatever serial loop first wrote the array
+// (std::vector's value-initialisation), the fresh arrays of a 1,000,000-point alignment (~300 MB)
+// took about a quarter of its time on a 2-core VM (bench/README.md "Warm certificates"), and on
+// two threads it takes half the wall time. No huge-page advice (large_buffer.cpp says why).
+// Smaller allocations use plain operator new. Stateless: every instance compares equal.
 
 #include <cstddef>
 #include <new>

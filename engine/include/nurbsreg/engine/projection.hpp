@@ -104,8 +104,8 @@ struct ProjectionHint {
   WarmCertificate certificate;
 };
 
-// Structure of arrays, one entry per input point, written by index (FrameVector: huge pages for
-// large frames, large_buffer.hpp).
+// Structure of arrays, one entry per input point, written by index (FrameVector: large frames'
+// arrays faulted in on all threads, large_buffer.hpp).
 struct ProjectionResults {
   // Empty when ProjectionOptions::foot_sink took the feet and normals (as `normal`).
   FrameVector<Vec3> foot;
