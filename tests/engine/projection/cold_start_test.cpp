@@ -8,10 +8,12 @@
 
 #include <random>
 
+#include "model/bvh.hpp"
 #include "model/prepared_model_internals.hpp"
 #include "nurbsreg/engine/projection.hpp"
 #include "nurbsreg/engine/sampling.hpp"
 #include "nurbsreg/engine/shapes.hpp"
+#include "support/polygon_loop.hpp"
 #include "support/random_entities.hpp"
 #include "support/surface_reference.hpp"
 
@@ -159,6 +161,50 @@ TEST(ColdStart, ColdProjectionNoWorseThanBruteForceAtCornersEdgesAndSeeds) {
       EXPECT_NEAR((points[i] - results.foot[i]).norm(), results.distance[i], tolerance);
       EXPECT_NEAR(results.normal[i].norm(), 1.0, 1e-12);
     }
+  }
+}
+
+// PreparedModel::item_bound (the bound a near list orders its items by) repeats the rule the
+// hierarchy walk orders its leaves by: the larger of the item's box distance and
+// item_lower_bound. The walk, told each leaf's bound, must agree with it to the bit for every
+// item it reaches (all of them: alpha stays infinite), on patches and on trim-edge pieces.
+TEST(ColdStart, ItemBoundIsTheHierarchyWalksLeafBound) {
+  std::mt19937_64 rng(11);
+  for (bool rational : {false, true}) {
+    Model m = single_surface_model(panel(rational));
+    // A trimmed copy beside it: edge pieces join the items.
+    NurbsSurface trimmed = panel(rational);
+    const auto& ku = trimmed.knots_u;
+    const auto& kv = trimmed.knots_v;
+    const double u0 = ku.front(), u1 = ku.back(), v0 = kv.front(), v1 = kv.back();
+    trimmed.trim_loops.push_back(
+        test::polygon_loop({{u0 + 0.1 * (u1 - u0), v0 + 0.2 * (v1 - v0)},
+                            {u0 + 0.9 * (u1 - u0), v0 + 0.1 * (v1 - v0)},
+                            {u0 + 0.6 * (u1 - u0), v0 + 0.9 * (v1 - v0)}}));
+    for (Vec3& c : trimmed.control_points)
+      c.z() += 0.5;
+    m.surfaces.push_back(trimmed);
+    const PreparedModel model(m);
+    ASSERT_GT(model.patch_hierarchy().order().size(), model.hierarchy_patch_items());
+    const Aabb box = model.bounds();
+    const Vec3 lo = box.lo - 0.5 * (box.hi - box.lo), hi = box.hi + 0.5 * (box.hi - box.lo);
+    Bvh::Scratch scratch;
+    std::size_t checked = 0;
+    for (int n = 0; n < 200; ++n) {
+      const Vec3 p = test::uniform_point(rng, lo, hi);
+      double alpha = std::numeric_limits<double>::infinity();
+      std::size_t reached = 0;
+      model.patch_hierarchy().nearest(
+          p, alpha, scratch,
+          [&](std::uint32_t k, const Vec3& x) { return model.item_lower_bound(k, x); },
+          [&](std::uint32_t k, double&, double bound) {
+            ++reached;
+            EXPECT_EQ(bound, model.item_bound(k, p)) << "item " << k << " point " << p.transpose();
+          });
+      EXPECT_EQ(reached, model.patch_hierarchy().order().size());
+      checked += reached;
+    }
+    EXPECT_GT(checked, 0u);
   }
 }
 
