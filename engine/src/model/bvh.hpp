@@ -14,6 +14,7 @@
 
 #include <algorithm>
 #include <cstdint>
+#include <limits>
 #include <span>
 #include <type_traits>
 #include <vector>
@@ -49,7 +50,7 @@ class Bvh {
       double bound;
       std::int32_t ref;  // as WideNode::child
     };
-    // The search frontier, sorted by decreasing bound (the nearest entry is at the back).
+    // The search frontier (Bvh::nearest): its sorted near part, then its unsorted far part.
     std::vector<Entry> heap;
   };
 
@@ -139,26 +140,60 @@ template <typename LowerBound, typename Visit>
 [[gnu::always_inline]] inline void Bvh::nearest(const Vec3& p, double& alpha_sq, Scratch& scratch,
                                                 LowerBound&& lower_bound, Visit&& visit) const {
   if (wide_.empty()) return;
-  // Every entry ever inserted is one slot of one wide node (plus the root): this bounds the
-  // frontier, so after the first query on a tree it never reallocates.
+  // Every entry ever inserted is one slot of one wide node (plus the root): this bounds each part
+  // of the frontier, so after the first query on a tree it never reallocates.
   const std::size_t capacity = Bvh::WideNode::kWidth * wide_.size() + 1;
-  if (scratch.heap.size() < capacity) scratch.heap.resize(capacity);
-  Scratch::Entry* frontier = scratch.heap.data();
-  std::size_t size = 0;
-  // Keeps the frontier sorted by decreasing bound: the nearest entry is popped from the back.
-  // The frontier stays short (a few entries per level), so insertion by shifting is cheapest.
-  auto insert = [&](double bound, std::int32_t ref) {
-    std::size_t k = size++;
-    while (k > 0 && frontier[k - 1].bound < bound) {
-      frontier[k] = frontier[k - 1];
+  if (scratch.heap.size() < 3 * capacity) scratch.heap.resize(3 * capacity);
+  // The frontier in two parts, popped in the order of one sorted frontier (increasing bound,
+  // the last inserted first among equal bounds):
+  // - the near part: entries below `split`, sorted by increasing bound in [head, tail) of the
+  //   buffer's first 2 capacity slots and popped at the head. Many entries of a point near the
+  //   model have bound 0 (their box holds the point): they go in at the head, the rest is placed
+  //   by a scan from the tail;
+  // - the far part: entries at or above `split`, as they came. Near the model most of them are
+  //   boxes the first threshold's ball only grazes, never needed once the first items visited
+  //   lower alpha; sorted in at once, each would shift past the whole near part. When the near
+  //   part runs dry, those still below alpha are sorted in, in the order they came.
+  Scratch::Entry* const buffer = scratch.heap.data();
+  Scratch::Entry* const far = buffer + 2 * capacity;
+  std::size_t head = capacity, tail = capacity, far_size = 0;
+  // A quarter of the first threshold: the walk's instruction count on the real parts varies
+  // little with it (bench/README.md).
+  constexpr double kSplitShare = 0.25;
+  double split = kSplitShare * alpha_sq;
+  auto insert_near = [&](double bound, std::int32_t ref) {
+    if (head == tail || !(buffer[head].bound < bound)) {
+      buffer[--head] = {bound, ref};
+      return;
+    }
+    std::size_t k = tail++;
+    while (buffer[k - 1].bound >= bound) {  // stops at head at the latest
+      buffer[k] = buffer[k - 1];
       --k;
     }
-    frontier[k] = {bound, ref};
+    buffer[k] = {bound, ref};
+  };
+  auto insert = [&](double bound, std::int32_t ref) {
+    if (bound < split) {
+      insert_near(bound, ref);
+    } else {
+      far[far_size++] = {bound, ref};
+    }
   };
   insert(nodes_[0].box.squared_distance(p), 0);
   double distance[Bvh::WideNode::kWidth];
-  while (size > 0) {
-    const Scratch::Entry entry = frontier[--size];
+  for (;;) {
+    if (head == tail) {
+      // Every far entry is at least `split`; those at or above alpha are never needed (alpha only
+      // falls), and every later entry is below alpha: all of it goes to the near part now.
+      for (std::size_t j = 0; j < far_size; ++j) {
+        if (far[j].bound < alpha_sq) insert_near(far[j].bound, far[j].ref);
+      }
+      far_size = 0;
+      split = std::numeric_limits<double>::infinity();
+      if (head == tail) break;
+    }
+    const Scratch::Entry entry = buffer[head++];
     if (entry.bound >= alpha_sq) break;  // everything left is at least as far
     if (entry.ref < 0) {
       // A visitor may also take the primitive's bound (a listing walk records the primitives

@@ -5,6 +5,8 @@
 
 #include <cmath>
 #include <functional>
+#include <limits>
+#include <vector>
 
 #include "model/bvh.hpp"
 #include "support/random_entities.hpp"
@@ -131,6 +133,89 @@ TEST(BvhWide, VisitsInBoundOrderAndNeverMissesACloserPrimitive) {
         }
       }
       EXPECT_EQ(alpha, expected);
+    }
+  }
+}
+
+// The reference walk: one frontier kept sorted by increasing bound, the last inserted first among
+// equal bounds (the order the split frontier of Bvh::nearest promises), over the same wide nodes.
+// Returns the primitives visited, in order.
+template <typename Bound, typename Refine>
+std::vector<std::uint32_t> reference_visits(const Bvh& bvh, const Vec3& p, double alpha,
+                                            Bound&& bound, Refine&& refine) {
+  struct Entry {
+    double bound;
+    std::int32_t ref;
+  };
+  std::vector<Entry> frontier;  // by decreasing bound: the nearest, last inserted, at the back
+  const auto insert = [&frontier](double b, std::int32_t ref) {
+    auto at = frontier.begin();
+    while (at != frontier.end() && at->bound >= b)
+      ++at;
+    frontier.insert(at, Entry{b, ref});
+  };
+  std::vector<std::uint32_t> visits;
+  insert(bvh.nodes()[0].box.squared_distance(p), 0);
+  while (!frontier.empty()) {
+    const Entry e = frontier.back();
+    frontier.pop_back();
+    if (e.bound >= alpha) break;
+    if (e.ref < 0) {
+      visits.push_back(static_cast<std::uint32_t>(~e.ref));
+      alpha = std::min(alpha, refine(static_cast<std::uint32_t>(~e.ref)));
+      continue;
+    }
+    const Bvh::WideNode& node = bvh.wide_nodes()[static_cast<std::size_t>(e.ref)];
+    for (int k = 0; k < Bvh::WideNode::kWidth; ++k) {
+      Aabb box;
+      box.lo = Vec3(node.lo_x[k], node.lo_y[k], node.lo_z[k]);
+      box.hi = Vec3(node.hi_x[k], node.hi_y[k], node.hi_z[k]);
+      double b = node.lo_x[k] <= node.hi_x[k] ? box.squared_distance(p)
+                                              : std::numeric_limits<double>::infinity();
+      if (!(b < alpha)) continue;
+      if (node.child[k] < 0) b = std::max(b, bound(static_cast<std::uint32_t>(~node.child[k])));
+      if (b < alpha) insert(b, node.child[k]);
+    }
+  }
+  return visits;
+}
+
+// Bvh::nearest keeps a part of its frontier unsorted until needed; its visits must still be
+// exactly those of one sorted frontier, ties included (bound 0 wherever boxes hold the query,
+// coincident balls), from a first threshold or from none.
+TEST(BvhWide, SplitFrontierVisitsAsOneSortedFrontier) {
+  for (int count : {5, 50, 400}) {
+    // Every ball three times over: equal bounds in every part of the frontier.
+    Balls b = random_balls(static_cast<std::uint64_t>(2000 + count), count);
+    for (int copy = 0; copy < 2; ++copy) {
+      for (int i = 0; i < count; ++i) {
+        b.centers.push_back(b.centers[i]);
+        b.radii.push_back(b.radii[i]);
+        b.boxes.push_back(b.boxes[i]);
+      }
+    }
+    const Bvh bvh(b.boxes, 2);
+    Bvh::Scratch scratch;
+    std::mt19937_64 rng(23);
+    for (int q = 0; q < 300; ++q) {
+      const Vec3 p(uniform(rng, -3, 3), uniform(rng, -1, 1), uniform(rng, -0.3, 0.3));
+      const auto bound = [&](std::uint32_t i) {
+        const double d = std::max(0.0, (p - b.centers[i]).norm() - 3.0 * b.radii[i]);
+        return d * d;
+      };
+      const auto refine = [&](std::uint32_t i) { return ball_distance_sq(b, i, p); };
+      const double start =
+          q % 2 == 0 ? uniform(rng, 0.01, 2.0) : std::numeric_limits<double>::infinity();
+      double alpha = start;
+      std::vector<std::uint32_t> visits;
+      bvh.nearest(
+          p, alpha, scratch, [&](std::uint32_t i, const Vec3&) { return bound(i); },
+          [&](std::uint32_t i, double& a) {
+            visits.push_back(i);
+            a = std::min(a, refine(i));
+          });
+      EXPECT_EQ(visits, reference_visits(bvh, p, start, bound, refine))
+          << count << " primitives, query " << q << ", first threshold " << start;
     }
   }
 }
