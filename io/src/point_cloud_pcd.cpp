@@ -24,6 +24,7 @@
 #include <cstring>
 #include <limits>
 
+#include "lzf.hpp"
 #include "nurbsreg/io/resource_limits.hpp"
 #include "point_cloud_detail.hpp"
 
@@ -289,45 +290,6 @@ void read_ascii_body(const std::string& path, const std::string& data, const Pre
     throw InputError(path, "PCD data is truncated: header says " + std::to_string(h.points) +
                                " points, file has " + std::to_string(point));
   }
-}
-
-// LZF decompression (Marc Lehmann's liblzf format, which PCL's lzf.cpp implements): a control
-// byte below 32 starts a literal run of ctrl + 1 bytes; otherwise its top three bits are a
-// length (7: add the next byte) and, with the next byte, a back reference of length + 2 bytes
-// at distance ((ctrl & 31) << 8) + byte + 1. Every read and write is bounds-checked: false on
-// any inconsistency, and true only when the output is filled exactly.
-bool lzf_decompress(const std::uint8_t* in, std::size_t in_size, std::uint8_t* out,
-                    std::size_t out_size) {
-  const std::uint8_t* ip = in;
-  const std::uint8_t* const in_end = in + in_size;
-  std::uint8_t* op = out;
-  std::uint8_t* const out_end = out + out_size;
-  while (ip < in_end) {
-    const unsigned ctrl = *ip++;
-    if (ctrl < 32) {
-      const std::size_t run = ctrl + 1;
-      if (static_cast<std::size_t>(in_end - ip) < run) return false;
-      if (static_cast<std::size_t>(out_end - op) < run) return false;
-      std::memcpy(op, ip, run);
-      ip += run;
-      op += run;
-      continue;
-    }
-    std::size_t length = ctrl >> 5;
-    if (length == 7) {
-      if (ip == in_end) return false;
-      length += *ip++;
-    }
-    if (ip == in_end) return false;
-    const std::size_t distance = ((ctrl & 31u) << 8) + *ip++ + 1;
-    length += 2;
-    if (distance > static_cast<std::size_t>(op - out)) return false;
-    if (static_cast<std::size_t>(out_end - op) < length) return false;
-    const std::uint8_t* ref = op - distance;
-    for (std::size_t k = 0; k < length; ++k)  // byte by byte: the ranges may overlap
-      *op++ = *ref++;
-  }
-  return op == out_end;
 }
 
 void read_binary_body(const std::string& path, const std::string& data, const Prescan& h,

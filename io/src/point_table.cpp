@@ -5,8 +5,6 @@
 // about a second (see bench/README.md, "Point I/O").
 #include "nurbsreg/io/point_table.hpp"
 
-#include <pcl/io/lzf.h>
-
 #include <algorithm>
 #include <cctype>
 #include <cstring>
@@ -17,6 +15,7 @@
 #include <type_traits>
 #include <unordered_set>
 
+#include "lzf.hpp"
 #include "nurbsreg/io/atomic_file.hpp"
 #include "point_cloud_detail.hpp"
 
@@ -226,14 +225,16 @@ void write_pcd(const std::string& path, const PointTable& table, PcdEncoding enc
       }
       // LZF output exceeds its input by at most one control byte per 32 literals.
       std::vector<char> compressed(bytes + bytes / 16 + 64);
-      const unsigned int compressed_size =
+      const std::size_t compressed_size =
           bytes == 0 ? 0
-                     : pcl::lzfCompress(soa.data(), static_cast<unsigned>(bytes), compressed.data(),
-                                        static_cast<unsigned>(compressed.size()));
+                     : detail::lzf_compress(
+                           reinterpret_cast<const std::uint8_t*>(soa.data()), bytes,
+                           reinterpret_cast<std::uint8_t*>(compressed.data()), compressed.size());
       if (bytes != 0 && compressed_size == 0) throw OutputError(path, "LZF compression failed");
-      const std::uint32_t sizes[2] = {compressed_size, static_cast<std::uint32_t>(bytes)};
+      const std::uint32_t sizes[2] = {static_cast<std::uint32_t>(compressed_size),
+                                      static_cast<std::uint32_t>(bytes)};
       out.write(reinterpret_cast<const char*>(sizes), sizeof sizes);
-      out.write(compressed.data(), compressed_size);
+      out.write(compressed.data(), static_cast<std::streamsize>(compressed_size));
     }
   });
 }

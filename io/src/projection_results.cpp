@@ -1,8 +1,6 @@
 #include "nurbsreg/io/projection_results.hpp"
 #include "nurbsreg/engine/cancellation.hpp"
 
-#include <pcl/PCLPointCloud2.h>
-#include <pcl/io/pcd_io.h>
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
@@ -16,6 +14,7 @@
 
 #include "nurbsreg/io/atomic_file.hpp"
 #include "nurbsreg/io/errors.hpp"
+#include "point_cloud_detail.hpp"
 #include "text_io.hpp"
 
 namespace nurbsreg::io {
@@ -148,39 +147,6 @@ void append_row(const std::string& path, const ColumnMap& map, Value&& value,
   t.v.push_back(at(10));
   for (std::size_t e = 0; e < map.extra.size(); ++e)
     t.extra_values[e].push_back(value(map.extra[e]));
-}
-
-// A PCL field value converted to double (pcl::PCLPointField datatypes).
-double field_value(const std::uint8_t* p, std::uint8_t datatype) {
-  const auto load = [p]<typename T>(T) {
-    T x;
-    std::memcpy(&x, p, sizeof(T));
-    return static_cast<double>(x);
-  };
-  switch (datatype) {
-    case pcl::PCLPointField::INT8:
-      return load(std::int8_t{});
-    case pcl::PCLPointField::UINT8:
-      return load(std::uint8_t{});
-    case pcl::PCLPointField::INT16:
-      return load(std::int16_t{});
-    case pcl::PCLPointField::UINT16:
-      return load(std::uint16_t{});
-    case pcl::PCLPointField::INT32:
-      return load(std::int32_t{});
-    case pcl::PCLPointField::UINT32:
-      return load(std::uint32_t{});
-    case pcl::PCLPointField::INT64:
-      return load(std::int64_t{});
-    case pcl::PCLPointField::UINT64:
-      return load(std::uint64_t{});
-    case pcl::PCLPointField::FLOAT32:
-      return load(float{});
-    case pcl::PCLPointField::FLOAT64:
-      return load(double{});
-    default:
-      return std::numeric_limits<double>::quiet_NaN();
-  }
 }
 
 }  // namespace
@@ -377,35 +343,19 @@ ProjectionTable read_projection_csv(const std::string& path) {
 }
 
 ProjectionTable read_projection_pcd(const std::string& path) {
-  // PCL reports a missing file only through its console log; say it ourselves.
-  text_detail::require_readable(path);
-  pcl::PCLPointCloud2 cloud;
-  pcl::PCDReader reader;
-  // PCL 1.13's PCDReader::read dereferences the field list even when the header has none and
-  // crashes on non-PCD or empty files (PCL issue #5854). Its readHeader is safe: check first.
-  if (reader.readHeader(path, cloud) < 0 || cloud.fields.empty()) {
-    throw InputError(path, "not a PCD file (no valid header with FIELDS)");
-  }
-  if (static_cast<std::size_t>(cloud.width) * cloud.height == 0) {
-    cloud.data.clear();  // a table with no rows: nothing after the header to read
-  } else if (reader.read(path, cloud) < 0) {
-    throw InputError(path, "not a readable PCD file (PCL could not read its data)");
-  }
+  // The project's own PCD reader (io/src/point_cloud_pcd.cpp): every header count checked
+  // against the file's bytes before anything is allocated.
+  const detail::PcdData pcd = detail::read_pcd_data(path);
   ProjectionTable table;
   std::vector<std::string> names;
-  for (const pcl::PCLPointField& f : cloud.fields) {
+  for (const detail::PcdField& f : pcd.fields) {
     if (f.count != 1) throw InputError(path, "field \"" + f.name + "\": COUNT must be 1");
     names.push_back(f.name);
   }
   const ColumnMap map = map_columns(path, "FIELDS", names, table);
-  const std::size_t n = static_cast<std::size_t>(cloud.width) * cloud.height;
-  for (std::size_t r = 0; r < n; ++r) {
-    const std::uint8_t* row = cloud.data.data() + r * cloud.point_step;
+  for (std::size_t r = 0; r < pcd.points; ++r) {
     append_row(
-        path, map,
-        [&](std::size_t k) {
-          return field_value(row + cloud.fields[k].offset, cloud.fields[k].datatype);
-        },
+        path, map, [&](std::size_t k) { return pcd.value(r, pcd.fields[k]); },
         [r] { return "point " + std::to_string(r); }, table);
   }
   return table;

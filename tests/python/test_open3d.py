@@ -34,3 +34,17 @@ def test_open3d_float32_and_files(panel, tmp_path):
     np.testing.assert_array_equal(mine.points, np.asarray(read.points))
     r = nurbsreg.project(panel, np.asarray(read.points).astype(np.float32))
     assert (r.status == nurbsreg.STATUS_OK).all() and r.distance.max() < 1e-4
+
+
+def test_open3d_reads_binary_compressed(tmp_path):
+    # nurbsreg's own LZF encoder (io/src/lzf.cpp) against Open3D's decoder: long runs of equal
+    # values (back references of the longest length), repeats farther back than LZF reaches,
+    # and noise that does not compress.
+    rng = np.random.default_rng(3)
+    walk = np.cumsum(rng.normal(size=(30000, 3)), axis=0)
+    points = np.concatenate([np.zeros((5000, 3)), walk, walk[:3000], rng.normal(size=(3000, 3))])
+    path = tmp_path / "c.pcd"
+    nurbsreg.write_point_cloud(path, points, encoding="binary_compressed")
+    assert b"DATA binary_compressed" in path.read_bytes()[:400]
+    read = np.asarray(o3d.io.read_point_cloud(str(path)).points)
+    np.testing.assert_array_equal(read, points.astype(np.float32).astype(np.float64))
