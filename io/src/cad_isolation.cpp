@@ -1,5 +1,6 @@
 // The STEP/IGES import in a child process: why and how in cad_isolation.hpp.
 #include "cad_isolation.hpp"
+#include "occt_module.hpp"
 
 #include <spdlog/spdlog.h>
 
@@ -146,6 +147,9 @@ engine::Model import_isolated(const std::string& path, CadImportReport* report) 
     throw std::runtime_error(path + ": cannot create a pipe for the " + format +
                              " import: " + std::strerror(errno));
   }
+  // Loaded here, before the fork: the child then finds it mapped (and a missing module is said
+  // once, by the parent).
+  (void)occt_import_function();
   pid_t child = -1;
   {
     // No other thread of this process is inside OCCT while we fork (see the header).

@@ -4,6 +4,8 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cstdio>
+#include <cstdlib>
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <sstream>
@@ -104,6 +106,39 @@ TEST(CliCad, MalformedCadFilesExitThreeWithOneLine) {
     EXPECT_NE(r.err.find(model), std::string::npos) << r.err;
     EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
   }
+}
+
+// OpenCASCADE is loaded by an import only (io/src/occt_module.hpp), and io has no PCL: the
+// binary links neither, so that a run that reads no CAD file does not pay for loading them.
+TEST(CliCad, TheBinaryLinksNeitherOpenCascadeNorPcl) {
+  const std::string command = "ldd " + nurbsreg_binary() + " 2>&1";
+  FILE* pipe = ::popen(command.c_str(), "r");
+  ASSERT_NE(pipe, nullptr);
+  std::string libraries;
+  char buffer[4096];
+  while (std::fgets(buffer, sizeof buffer, pipe) != nullptr)
+    libraries += buffer;
+  ASSERT_EQ(::pclose(pipe), 0) << libraries;
+  ASSERT_NE(libraries.find("libtbb"), std::string::npos) << libraries;  // ldd listed them
+  for (const char* absent : {"libTK", "libpcl", "libvtk"})
+    EXPECT_EQ(libraries.find(absent), std::string::npos) << absent << " in\n" << libraries;
+}
+
+// Without its OpenCASCADE module a STEP import is one clear error naming the module and where
+// it was looked for (exit 1: the installation, not the file, is wrong); JSON models need none.
+TEST(CliCad, AMissingOpenCascadeModuleIsOneClearError) {
+  ScratchDir dir("cad_module");
+  const std::string missing = dir / "libnurbsreg_occt.so";
+  ::setenv("NURBSREG_OCCT_MODULE", missing.c_str(), 1);
+  const CommandResult step =
+      run_nurbsreg("--no-cache info --model " + kReal + "occt/screw.step", dir.path());
+  const CommandResult json = run_nurbsreg(
+      "--no-cache info --model " + nurbsreg::test::examples_dir() + "/panel.json", dir.path());
+  ::unsetenv("NURBSREG_OCCT_MODULE");
+  EXPECT_EQ(step.status, 1) << step.err;
+  EXPECT_NE(step.err.find("OpenCASCADE module libnurbsreg_occt.so"), std::string::npos) << step.err;
+  EXPECT_NE(step.err.find(missing + ": no such file"), std::string::npos) << step.err;
+  EXPECT_EQ(json.status, 0) << json.err;
 }
 
 }  // namespace

@@ -1,4 +1,4 @@
-#include "cad_face_conversion.hpp"
+#include "face_conversion.hpp"
 
 #include <Adaptor3d_CurveOnSurface.hxx>
 #include <BRepAdaptor_Surface.hxx>

@@ -1,5 +1,5 @@
 #pragma once
-// One OCCT face to an engine NurbsSurface with trim loops (private to io: OCCT types).
+// One OCCT face to an engine NurbsSurface with trim loops (the OpenCASCADE module: OCCT types).
 
 #include <TopoDS_Face.hxx>
 #include <optional>
