@@ -99,28 +99,43 @@ void CertificateAtlas::insert(const engine::ProjectionHint& hint) {
   ++count_;
 }
 
-void CertificateAtlas::lookup_order(std::span<const engine::Vec3> points, bool parallel,
-                                    std::vector<std::uint32_t>& order,
-                                    std::vector<std::uint32_t>& bucket) const {
+void CertificateAtlas::lookup_order(std::span<const engine::Vec3> points,
+                                    std::span<const std::uint8_t> wanted, bool parallel,
+                                    LookupOrder& out) const {
   const std::size_t n = points.size();
+  const bool all = wanted.empty();
+  std::size_t count = n;
+  if (!all)
+    count = static_cast<std::size_t>(
+        std::count_if(wanted.begin(), wanted.end(), [](std::uint8_t w) { return w != 0; }));
   // About eight points a bucket: a bucket holds one cell's points, or a few cells'.
   std::size_t buckets = 1;
-  while (buckets < n / 8)
+  while (buckets < count / 8)
     buckets *= 2;
   const std::uint64_t mask = buckets - 1;
-  bucket.resize(n);
+  constexpr std::uint32_t kUnwanted = 0xffffffffu;
+  out.bucket.resize(n);
   detail::for_each_block(n, parallel, [&](std::size_t begin, std::size_t end, std::size_t) {
-    for (std::size_t k = begin; k < end; ++k)
-      bucket[k] = static_cast<std::uint32_t>(mix(key(cell_of(points[k]))) & mask);
+    for (std::size_t k = begin; k < end; ++k) {
+      out.bucket[k] = all || wanted[k] != 0
+                          ? static_cast<std::uint32_t>(mix(key(cell_of(points[k]))) & mask)
+                          : kUnwanted;
+    }
   });
-  std::vector<std::uint32_t> start(buckets + 1, 0);
-  for (std::size_t k = 0; k < n; ++k)
-    ++start[bucket[k] + 1];
+  out.start.assign(buckets + 1, 0);
+  for (std::size_t k = 0; k < n; ++k) {
+    if (out.bucket[k] != kUnwanted) ++out.start[out.bucket[k] + 1];
+  }
   for (std::size_t b = 0; b < buckets; ++b)
-    start[b + 1] += start[b];
-  order.resize(n);
-  for (std::size_t k = 0; k < n; ++k)
-    order[start[bucket[k]]++] = static_cast<std::uint32_t>(k);
+    out.start[b + 1] += out.start[b];
+  out.index.resize(count);
+  out.points.resize(count);
+  for (std::size_t k = 0; k < n; ++k) {
+    if (out.bucket[k] == kUnwanted) continue;
+    const std::uint32_t at = out.start[out.bucket[k]]++;
+    out.index[at] = static_cast<std::uint32_t>(k);
+    out.points[at] = points[k];
+  }
 }
 
 void CertificateAtlas::gather(const Cell& cell, Neighbourhood& near, int& end) const {

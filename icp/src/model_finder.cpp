@@ -135,9 +135,6 @@ ModelCorrespondenceFinder::HintSource ModelCorrespondenceFinder::prepare_hints(
     const std::size_t n = points.size();
     borrowed_.resize(n);
     const std::span<const std::size_t> ids = query.scan_indices;
-    // In an order that keeps each atlas cell's points together (the lookups' probes then hit
-    // the cache); each point's lookup is its own, so the order changes no result.
-    atlas_.lookup_order(points, query.parallel, lookup_order_, lookup_bucket_);
     // Which points keep their own hint, in stored order (the previous answers and the points are
     // read in sequence: in the cell order each read was a cache miss).
     needs_lookup_.resize(n);
@@ -146,16 +143,22 @@ ModelCorrespondenceFinder::HintSource ModelCorrespondenceFinder::prepare_hints(
         const std::size_t q = query_index(k);
         needs_lookup_[k] = !stopped_borrowing(ids.empty() ? q : ids[q]) &&
                            !source.own(k).certificate.covers(points[k]);
+        borrowed_[k] = nullptr;
       }
     });
-    detail::for_each_block(n, query.parallel, [&](std::size_t begin, std::size_t end, std::size_t) {
-      // A cell's points come one after another in this order: they share its neighbourhood.
-      CertificateAtlas::Neighbourhood near;
-      for (std::size_t position = begin; position < end; ++position) {
-        const std::size_t k = lookup_order_[position];
-        borrowed_[k] = needs_lookup_[k] ? atlas_.find(points[k], near) : nullptr;
-      }
-    });
+    // The others in an order that keeps each atlas cell's points together (the lookups' probes
+    // then hit the cache); each point's lookup is its own, so the order changes no result.
+    atlas_.lookup_order(points, needs_lookup_, query.parallel, lookup_order_);
+    const std::size_t lookups = lookup_order_.index.size();
+    detail::for_each_block(
+        lookups, query.parallel, [&](std::size_t begin, std::size_t end, std::size_t) {
+          // A cell's points come one after another: they share its
+          // neighbourhood.
+          CertificateAtlas::Neighbourhood near;
+          for (std::size_t i = begin; i < end; ++i) {
+            borrowed_[lookup_order_.index[i]] = atlas_.find(lookup_order_.points[i], near);
+          }
+        });
     source.borrowed = borrowed_.data();
     source.count = n;
   }

@@ -158,8 +158,9 @@ const engine::PreparedModel& panel() {
   return model;
 }
 
-// The order the finder looks points up in: every point once, and the points of one cell close
-// together (so that the first of them brings the cell's neighbourhood into the cache).
+// The order the finder looks points up in: every wanted point once, with its coordinates, and
+// the points of one cell close together (so that the first of them brings the cell's
+// neighbourhood into the cache).
 TEST(CertificateAtlas, TheLookupOrderIsAPermutationThatKeepsEachCellClose) {
   CertificateAtlas atlas;
   atlas.reset(0.5);
@@ -168,36 +169,53 @@ TEST(CertificateAtlas, TheLookupOrderIsAPermutationThatKeepsEachCellClose) {
   std::vector<Vec3> points(20000);
   for (Vec3& p : points)
     p = Vec3(u(rng), u(rng), u(rng));
-  for (const bool parallel : {false, true}) {
-    std::vector<std::uint32_t> order, bucket;
-    atlas.lookup_order(points, parallel, order, bucket);
-    ASSERT_EQ(order.size(), points.size());
-    std::vector<int> seen(points.size(), 0);
-    for (const std::uint32_t k : order)
-      ++seen[k];
-    EXPECT_EQ(std::count(seen.begin(), seen.end(), 1), static_cast<long>(points.size()));
-    // A cell's points lie within one run of its hash bucket (about eight points a bucket): the
-    // first and the last of them are a few positions apart, where the scan's own order spreads
-    // them over the whole frame.
-    const auto cell = [](const Vec3& p) {
-      return std::array<long, 3>{static_cast<long>(std::floor(p.x() / 0.5)),
-                                 static_cast<long>(std::floor(p.y() / 0.5)),
-                                 static_cast<long>(std::floor(p.z() / 0.5))};
-    };
-    std::map<std::array<long, 3>, std::pair<std::size_t, std::size_t>> span;
-    for (std::size_t i = 0; i < order.size(); ++i) {
-      auto [it, added] = span.try_emplace(cell(points[order[i]]), i, i);
-      if (!added) it->second.second = i;
+  // All points, or every third one.
+  std::vector<std::uint8_t> thirds(points.size());
+  for (std::size_t k = 0; k < points.size(); ++k)
+    thirds[k] = k % 3 == 0;
+  for (const bool filtered : {false, true}) {
+    for (const bool parallel : {false, true}) {
+      CertificateAtlas::LookupOrder order;
+      atlas.lookup_order(
+          points,
+          filtered ? std::span<const std::uint8_t>(thirds) : std::span<const std::uint8_t>(),
+          parallel, order);
+      const std::size_t expected = filtered ? (points.size() + 2) / 3 : points.size();
+      ASSERT_EQ(order.index.size(), expected);
+      ASSERT_EQ(order.points.size(), expected);
+      std::vector<int> seen(points.size(), 0);
+      for (std::size_t i = 0; i < order.index.size(); ++i) {
+        const std::uint32_t k = order.index[i];
+        ++seen[k];
+        EXPECT_TRUE(!filtered || thirds[k]) << k;
+        EXPECT_EQ(order.points[i], points[k]);
+      }
+      EXPECT_EQ(std::count(seen.begin(), seen.end(), 1), static_cast<long>(expected));
+      // A cell's points lie within one run of its hash bucket (about eight points a bucket): the
+      // first and the last of them are a few positions apart, where the scan's own order
+      // spreads them over the whole frame.
+      const auto cell = [](const Vec3& p) {
+        return std::array<long, 3>{static_cast<long>(std::floor(p.x() / 0.5)),
+                                   static_cast<long>(std::floor(p.y() / 0.5)),
+                                   static_cast<long>(std::floor(p.z() / 0.5))};
+      };
+      std::map<std::array<long, 3>, std::pair<std::size_t, std::size_t>> span;
+      for (std::size_t i = 0; i < order.index.size(); ++i) {
+        auto [it, added] = span.try_emplace(cell(order.points[i]), i, i);
+        if (!added) it->second.second = i;
+      }
+      std::size_t widest = 0;
+      for (const auto& [c, s] : span)
+        widest = std::max(widest, s.second - s.first);
+      EXPECT_LT(widest, 64u);
     }
-    std::size_t widest = 0;
-    for (const auto& [c, s] : span)
-      widest = std::max(widest, s.second - s.first);
-    EXPECT_LT(widest, 64u);
   }
   // The empty frame.
-  std::vector<std::uint32_t> order{7}, bucket;
-  atlas.lookup_order({}, true, order, bucket);
-  EXPECT_TRUE(order.empty());
+  CertificateAtlas::LookupOrder order;
+  order.index = {7};
+  atlas.lookup_order({}, {}, true, order);
+  EXPECT_TRUE(order.index.empty());
+  EXPECT_TRUE(order.points.empty());
 }
 
 TEST(ModelFinderCertificates, BorrowedAndCarriedCertificatesGiveTheExactFeet) {

@@ -42,13 +42,20 @@ class CertificateAtlas {
   struct Neighbourhood;
   const engine::ProjectionHint* find(const engine::Vec3& p, Neighbourhood& near) const;
   std::size_t size() const { return count_; }  // hints kept
-  // An order of `points` (indices into it) in which the points of one cell lie close together,
-  // within the run of one hash bucket of about eight points: a counting sort by a hash of the
-  // cell. A lookup probes up to 27 cells; in a random scan order each probe misses the cache, in
-  // this one the points after the first of a cell find its cells there. `bucket` is scratch (no
-  // allocation once grown).
-  void lookup_order(std::span<const engine::Vec3> points, bool parallel,
-                    std::vector<std::uint32_t>& order, std::vector<std::uint32_t>& bucket) const;
+  // An order of the points p with wanted[p] != 0 (all of them when `wanted` is empty) in which
+  // the points of one cell lie close together, within the run of one hash bucket of about eight
+  // points: a counting sort by a hash of the cell. A lookup probes up to 27 cells; in a random
+  // scan order each probe misses the cache, in this one the points after the first of a cell
+  // find its cells there. Their coordinates are copied in that order too: read through the
+  // indices, each was a cache miss of its own.
+  struct LookupOrder {
+    std::vector<std::uint32_t> index;   // into `points`
+    std::vector<engine::Vec3> points;   // points[index[i]]
+    std::vector<std::uint32_t> bucket;  // scratch (no allocation once grown)
+    std::vector<std::uint32_t> start;   // scratch
+  };
+  void lookup_order(std::span<const engine::Vec3> points, std::span<const std::uint8_t> wanted,
+                    bool parallel, LookupOrder& out) const;
 
   struct Cell {
     std::int64_t x, y, z;

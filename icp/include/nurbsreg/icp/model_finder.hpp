@@ -186,8 +186,8 @@ class ModelCorrespondenceFinder final : public CorrespondenceFinder {
   engine::FrameVector<std::uint32_t> previous_position_;
   // Per query point: the atlas certificate it borrows, or null (HintSource::borrowed).
   engine::FrameVector<const engine::ProjectionHint*> borrowed_;
-  // The atlas lookups' order and its scratch (CertificateAtlas::lookup_order).
-  std::vector<std::uint32_t> lookup_order_, lookup_bucket_;
+  // The atlas lookups' order, their points in it, and its scratch (CertificateAtlas::lookup_order).
+  CertificateAtlas::LookupOrder lookup_order_;
   // Per query point: 1 when it has no certificate of its own that covers it (and may borrow).
   std::vector<std::uint8_t> needs_lookup_;
   // Per scan point: 1 once a certificate it borrowed did not prove its answer (it borrows no
