@@ -28,6 +28,7 @@ void CertificateAtlas::reset(double cell, int per_cell) {
   per_cell_ = static_cast<std::uint32_t>(std::clamp(per_cell, 1, kMaxPerCell));
   slots_.assign(1024, Slot{});
   hints_.clear();
+  covers_.clear();
   count_ = 0;
 }
 
@@ -70,6 +71,7 @@ void CertificateAtlas::insert(const engine::ProjectionHint& hint) {
   if (slots_[i].key == k) {
     Slot& slot = slots_[i];
     if (slot.count < per_cell_) {
+      covers_[slot.first + slot.count] = Cover::of(hint);
       hints_[slot.first + slot.count++] = hint;
       ++count_;
       return;
@@ -82,7 +84,10 @@ void CertificateAtlas::insert(const engine::ProjectionHint& hint) {
       engine::ProjectionHint& h = hints_[slot.first + j];
       if (h.certificate.clearance <= shortest->certificate.clearance) shortest = &h;
     }
-    if (hint.certificate.clearance >= shortest->certificate.clearance) *shortest = hint;
+    if (hint.certificate.clearance >= shortest->certificate.clearance) {
+      *shortest = hint;
+      covers_[static_cast<std::size_t>(shortest - hints_.data())] = Cover::of(hint);
+    }
     return;
   }
   if (2 * (cells() + 1) > slots_.size()) {
@@ -95,7 +100,9 @@ void CertificateAtlas::insert(const engine::ProjectionHint& hint) {
   // A new cell reserves room for per_cell_ hints, side by side (a lookup reads them together).
   slots_[i] = Slot{k, static_cast<std::uint32_t>(hints_.size()), 1};
   hints_.resize(hints_.size() + per_cell_);
+  covers_.resize(hints_.size());
   hints_[slots_[i].first] = hint;
+  covers_[slots_[i].first] = Cover::of(hint);
   ++count_;
 }
 
@@ -144,9 +151,9 @@ void CertificateAtlas::gather(const Cell& cell, Neighbourhood& near, int& end) c
   for (std::size_t i = mix(k) & mask; slots_[i].key != 0; i = (i + 1) & mask) {
     if (slots_[i].key != k) continue;
     for (std::uint32_t j = 0; j < slots_[i].count; ++j) {
-      const engine::ProjectionHint& h = hints_[slots_[i].first + j];
-      near.entries[end++] = {h.certificate.anchor, h.certificate.radius, h.certificate.clearance,
-                             &h};
+      const std::size_t at = slots_[i].first + j;
+      const Cover& c = covers_[at];
+      near.entries[end++] = {c.anchor, c.radius, c.clearance, &hints_[at]};
     }
     return;
   }

@@ -34,13 +34,9 @@
 #include <chrono>
 #include <cmath>
 #include <csignal>
-#include <cstdlib>
 #include <filesystem>
-#include <fstream>
-#include <mutex>
 #include <optional>
 #include <span>
-#include <string_view>
 
 #include <spdlog/spdlog.h>
 

@@ -32,9 +32,10 @@
 
 namespace nurbsreg::io::cad_detail {
 
-// The import itself, in this process (OCCT's exceptions and ordinary crash signals become
-// InputError; a stack overflow still kills the process). Serialised by occt_mutex() unless
-// take_lock is false (the child process, whose parent holds it).
+// The import itself, in this process, by the OpenCASCADE module (occt_module.hpp; OCCT's
+// exceptions and ordinary crash signals become InputError; a stack overflow still kills the
+// process). Serialised by occt_mutex() unless take_lock is false (the child process, whose
+// parent holds it).
 engine::Model import_in_process(const std::string& path, CadImportReport* report,
                                 bool take_lock = true);
 
