@@ -152,8 +152,7 @@ ModelCorrespondenceFinder::HintSource ModelCorrespondenceFinder::prepare_hints(
     const std::size_t lookups = lookup_order_.index.size();
     detail::for_each_block(
         lookups, query.parallel, [&](std::size_t begin, std::size_t end, std::size_t) {
-          // A cell's points come one after another: they share its
-          // neighbourhood.
+          // A cell's points come one after another: they share its neighbourhood.
           CertificateAtlas::Neighbourhood near;
           for (std::size_t i = begin; i < end; ++i) {
             borrowed_[lookup_order_.index[i]] = atlas_.find(lookup_order_.points[i], near);

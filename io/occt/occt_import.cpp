@@ -30,11 +30,9 @@
 #include <TopoDS_Compound.hxx>
 #include <TopoDS_Shape.hxx>
 #include <algorithm>
-#include <cctype>
 #include <chrono>
 #include <cmath>
 #include <csignal>
-#include <filesystem>
 #include <optional>
 #include <span>
 
@@ -230,12 +228,9 @@ engine::Model guarded(const std::string& path, CadImportReport& r, Import&& impo
 
 }  // namespace
 
-// The file's extension says which reader (io has checked it is one of these).
-engine::Model occt_import(const std::string& path, CadImportReport& report) {
-  std::string ext = std::filesystem::path(path).extension().string();
-  std::transform(ext.begin(), ext.end(), ext.begin(),
-                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
-  if (ext == ".step" || ext == ".stp") {
+// The reader io chose by the file's extension (io/src/cad_import.cpp).
+engine::Model occt_import(const std::string& path, bool step, CadImportReport& report) {
+  if (step) {
     return guarded(path, report, [&](CadImportReport& r) {
       r.format = "STEP";
       STEPControl_Reader reader;
@@ -246,20 +241,17 @@ engine::Model occt_import(const std::string& path, CadImportReport& report) {
       return convert_shape(path, shape, r);
     });
   }
-  if (ext == ".iges" || ext == ".igs") {
-    return guarded(path, report, [&](CadImportReport& r) {
-      r.format = "IGES";
-      IGESControl_Reader reader;
-      const TopoDS_Shape shape = transfer(path, reader);
-      const Handle(IGESData_IGESModel) model = reader.IGESModel();
-      if (!model.IsNull()) {
-        const Handle(TCollection_HAsciiString) unit = model->GlobalSection().UnitName();
-        if (!unit.IsNull()) r.file_units = unit->ToCString();
-      }
-      return convert_shape(path, shape, r);
-    });
-  }
-  throw InputError(path, "not a CAD file: expected a .step, .stp, .iges or .igs file");
+  return guarded(path, report, [&](CadImportReport& r) {
+    r.format = "IGES";
+    IGESControl_Reader reader;
+    const TopoDS_Shape shape = transfer(path, reader);
+    const Handle(IGESData_IGESModel) model = reader.IGESModel();
+    if (!model.IsNull()) {
+      const Handle(TCollection_HAsciiString) unit = model->GlobalSection().UnitName();
+      if (!unit.IsNull()) r.file_units = unit->ToCString();
+    }
+    return convert_shape(path, shape, r);
+  });
 }
 
 }  // namespace nurbsreg::io
@@ -280,7 +272,7 @@ __attribute__((visibility("default"))) void nurbsreg_occt_import(
   using nurbsreg::io::cad_detail::OcctImportCall;
   const std::string& path = *call->path;
   try {
-    *call->model = nurbsreg::io::occt_import(path, *call->report);
+    *call->model = nurbsreg::io::occt_import(path, call->step, *call->report);
     call->status = OcctImportCall::kOk;
   } catch (const nurbsreg::io::InputError& e) {
     std::string what = e.what();

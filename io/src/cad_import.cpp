@@ -76,6 +76,7 @@ engine::Model import_in_process(const std::string& path, CadImportReport* report
   std::string error;
   OcctImportCall call;
   call.path = &path;
+  call.step = step;
   call.report = report != nullptr ? report : &local;
   call.model = &model;
   call.error = &error;

@@ -22,12 +22,13 @@
 
 namespace nurbsreg::io::cad_detail {
 
-inline constexpr int kOcctModuleAbi = 1;
+inline constexpr int kOcctModuleAbi = 2;
 inline constexpr const char* kOcctModuleFile = "libnurbsreg_occt.so";
 
 struct OcctImportCall {
   enum Status { kOk = 0, kInputError = 1, kOutOfMemory = 2, kFailure = 3 };
   const std::string* path = nullptr;
+  bool step = true;                   // STEP, else IGES (io decides by the extension)
   CadImportReport* report = nullptr;  // filled (never null)
   engine::Model* model = nullptr;     // the converted model, with kOk
   Status status = kFailure;
